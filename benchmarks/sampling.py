@@ -1,0 +1,416 @@
+"""Sampling MPC on MuJoCo Warp: throughput, efficiency, CPU comparison and GPU closed loops.
+
+Run on the GPU machine (see ../shared/device/README.md)::
+
+    PYTHONUNBUFFERED=1 python benchmarks/sampling.py            # everything, JSON to $OUT
+    python benchmarks/sampling.py --quick                       # small sweep (CPU smoke test)
+
+Prints one JSON document and writes it to ``$OUT/sampling_gpu.json`` (or ``--out``). Each
+section is written as soon as it finishes, and a failing section records its error instead of
+stopping the run. Measured:
+
+* ``first_tick``: cold (empty kernel cache) and warm (fresh process, cached kernels) time from
+  building a warp-backend controller to its first tick;
+* ``sweep``: for the humanoid and the cart-pole, ticks/s and world-steps/s of the full tick
+  (noise sampling, upload, graph replay, read-back, update) and of the backend alone, against
+  ``N``, with ``T = 32`` planning steps;
+* ``raw``: MJWarp step throughput for the same ``N`` (a CUDA graph of ``T`` steps from a
+  reset state), and ``efficiency = in-loop world-steps/s / raw world-steps/s``;
+* ``cpu_rollout``: :func:`mujoco.rollout` on all host cores (the CPU backend) for the same
+  candidates and horizon, and the speed-up of the warp tick;
+* ``closed_loop``: humanoid standing (MPPI and CEM) and one-leg balance under the published
+  actuator-noise recipe, 10 s each.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+import traceback
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+_T0 = time.perf_counter()
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+HORIZON_STEPS = 32
+
+
+def _problem(task: str):
+    if task == "humanoid":
+        from mpcbox.tasks.humanoid_stand import HumanoidStand
+
+        return HumanoidStand()
+    from mpcbox.tasks.swingup import CartpoleSwingup
+
+    return CartpoleSwingup()
+
+
+def _start_state(problem, task: str) -> np.ndarray:
+    x = problem.initial_state().copy()
+    if task == "cartpole":
+        x[1] = np.pi - 0.3
+    return x
+
+
+def _controller(problem, n: int, backend: str = "warp", **kw):
+    from mpcbox.sampling import PredictiveSampling
+
+    return PredictiveSampling(
+        problem,
+        num_samples=n,
+        horizon=HORIZON_STEPS * problem.dt,
+        num_knots=4,
+        noise_scale=0.1,
+        backend=backend,
+        **kw,
+    )
+
+
+def first_tick(task: str) -> dict[str, float]:
+    """Seconds to build a warp controller and run its first tick (compiles if cold)."""
+    t0 = time.perf_counter()
+    problem = _problem(task)
+    t1 = time.perf_counter()
+    ctrl = _controller(problem, 256)
+    ctrl.plan(_start_state(problem, task), 0.0)
+    t2 = time.perf_counter()
+    return {"problem_s": t1 - t0, "controller_and_first_tick_s": t2 - t1, "total_s": t2 - t0}
+
+
+def time_ticks(ctrl, state: np.ndarray, seconds: float = 1.5, max_ticks: int = 200):
+    """Mean seconds per full tick and per backend evaluation."""
+    ctrl.plan(state, 0.0)
+    ctrl.plan(state, 0.0)
+    ticks, t0 = 0, time.perf_counter()
+    while ticks < max_ticks and (ticks < 5 or time.perf_counter() - t0 < seconds):
+        ctrl.plan(state, 0.0)
+        ticks += 1
+    tick = (time.perf_counter() - t0) / ticks
+    cand = ctrl.problem.clip_ctrl(ctrl.sample())
+    evals, t0 = 0, time.perf_counter()
+    while evals < max_ticks and (evals < 5 or time.perf_counter() - t0 < seconds):
+        ev = ctrl.backend.evaluate(state, cand)
+        evals += 1
+    backend = (time.perf_counter() - t0) / evals
+    return tick, backend, ev
+
+
+def raw_throughput(problem, n: int, nconmax: int, njmax: int, reps: int = 20) -> float:
+    """World-steps/s of ``mjw.step`` alone: a graph of T steps from a reset state."""
+    import mujoco
+    import mujoco_warp as mjw
+    import warp as wp
+
+    model = problem.planning_model
+    data = mujoco.MjData(model)
+    problem.set_state(data, problem.initial_state())
+    data.ctrl[:] = problem.clip_ctrl(problem.ctrl_ref)
+    mujoco.mj_forward(model, data)
+    m = mjw.put_model(model)
+    m.opt.warn_overflow = 0
+    d = mjw.put_data(model, data, nworld=n, nconmax=nconmax, njmax=njmax)
+    qpos0, qvel0 = wp.clone(d.qpos), wp.clone(d.qvel)
+
+    def run():
+        wp.copy(d.qpos, qpos0)
+        wp.copy(d.qvel, qvel0)
+        for _ in range(HORIZON_STEPS):
+            mjw.step(m, d)
+
+    run()
+    wp.synchronize()
+    graph = None
+    if wp.get_device().is_cuda:
+        with wp.ScopedCapture() as cap:
+            run()
+        graph = cap.graph
+    wp.synchronize()
+    t0 = time.perf_counter()
+    for _ in range(reps):
+        if graph is not None:
+            wp.capture_launch(graph)
+        else:
+            run()
+    wp.synchronize()
+    return n * HORIZON_STEPS * reps / (time.perf_counter() - t0)
+
+
+def sweep(task: str, sizes: list[int], out: dict) -> None:
+    problem = _problem(task)
+    state = _start_state(problem, task)
+    rows = []
+    out.setdefault("sweep", {})[task] = rows
+    for n in sizes:
+        ctrl = _controller(problem, n)
+        tick, backend, ev = time_ticks(ctrl, state)
+        be = ctrl.backend
+        raw = raw_throughput(problem, n, be.nconmax, be.njmax)
+        steps = n * HORIZON_STEPS
+        row = {
+            "N": n,
+            "T": HORIZON_STEPS,
+            "tick_ms": tick * 1e3,
+            "ticks_per_s": 1.0 / tick,
+            "backend_ms": backend * 1e3,
+            "world_steps_per_s": steps / tick,
+            "backend_world_steps_per_s": steps / backend,
+            "raw_world_steps_per_s": raw,
+            "efficiency": (steps / tick) / raw,
+            "backend_efficiency": (steps / backend) / raw,
+            "nconmax": be.nconmax,
+            "njmax": be.njmax,
+            "excluded": int((ev.overflow | ev.nonfinite).sum()),
+            "stats": ctrl.stats,
+        }
+        rows.append(row)
+        print(json.dumps({task: {k: v for k, v in row.items() if k != "stats"}}), flush=True)
+        ctrl.close()
+
+
+def cpu_rollout(task: str, sizes: list[int], warp_rows: list[dict], out: dict) -> None:
+    """The CPU backend (mujoco.rollout on all cores) for the same candidates and horizon."""
+    problem = _problem(task)
+    state = _start_state(problem, task)
+    rows = []
+    out.setdefault("cpu_rollout", {})[task] = rows
+    for n in sizes:
+        ctrl = _controller(problem, n, backend="cpu")
+        cand = problem.clip_ctrl(_cands(ctrl))
+        ctrl.backend.evaluate(state, cand)
+        reps, t0 = 0, time.perf_counter()
+        while reps < 3 or time.perf_counter() - t0 < 2.0:
+            ctrl.backend.evaluate(state, cand)
+            reps += 1
+        sec = (time.perf_counter() - t0) / reps
+        ctrls = ctrl.backend.controls(cand)
+        t0 = time.perf_counter()
+        problem.rollout(state, ctrls)
+        roll = time.perf_counter() - t0
+        warp = next((r for r in warp_rows if r["N"] == n), None)
+        row = {
+            "N": n,
+            "threads": problem.threads,
+            "tick_ms": sec * 1e3,
+            "rollout_only_ms": roll * 1e3,
+            "world_steps_per_s": n * HORIZON_STEPS / sec,
+            "warp_speedup": None if warp is None else sec / (warp["tick_ms"] / 1e3),
+        }
+        rows.append(row)
+        print(json.dumps({f"cpu_{task}": row}), flush=True)
+
+
+def _cands(ctrl) -> np.ndarray:
+    ctrl.knots = ctrl.nominal_knots()
+    return ctrl.sample()
+
+
+def agreement(out: dict) -> None:
+    """Warp (CUDA) vs CPU rollout costs for the same candidates and start state."""
+    res = {}
+    for task in ("humanoid", "cartpole"):
+        problem = _problem(task)
+        state = _start_state(problem, task)
+        rng = np.random.default_rng(0)
+        state[problem.nq :] += rng.normal(0, 0.1, problem.nv + problem.na)
+        warp = _controller(problem, 64)
+        cpu = _controller(problem, 64, backend="cpu")
+        cand = problem.clip_ctrl(
+            problem.ctrl_ref + rng.normal(0, 0.2, (64, warp.spline.num_knots, problem.nu))
+        )
+        a = cpu.backend.evaluate(state, cand).costs[:, 0]
+        b = warp.backend.evaluate(state, cand).costs[:, 0]
+        res[task] = {
+            "max_rel_diff": float(np.max(np.abs(a - b) / np.maximum(np.abs(a), 1e-9))),
+            "median_rel_diff": float(np.median(np.abs(a - b) / np.maximum(np.abs(a), 1e-9))),
+        }
+    out["agreement"] = res
+
+
+def closed_loop(out: dict, duration: float) -> None:
+    import mpcbox
+    from mpcbox.sampling import CEM, MPPI
+    from mpcbox.tasks.humanoid_balance import HumanoidBalance
+    from mpcbox.tasks.humanoid_stand import HumanoidStand
+
+    runs = out.setdefault("closed_loop", [])
+    stand = HumanoidStand()
+    balance = HumanoidBalance()
+    longer = dict(num_samples=2048, horizon=0.5, num_knots=5)
+    cases = [
+        ("humanoid_stand", stand, "mppi", MPPI, {}),
+        ("humanoid_stand", stand, "cem", CEM, {}),
+        ("humanoid_stand", stand, "mppi", MPPI, longer),
+        ("humanoid_balance", balance, "mppi", MPPI, {}),
+        ("humanoid_balance", balance, "cem", CEM, {}),
+    ]
+    for task, problem, name, cls, extra in cases:
+        opts = dict(getattr(problem, "controller_options", {}).get(name, {}))
+        opts.update(backend="warp", **extra)
+        opts.setdefault("num_samples", 1024)
+        try:
+            ctrl = cls(problem, **opts)
+            t0 = time.perf_counter()
+            res = mpcbox.simulate(problem, ctrl, duration, noise=problem.noise(), seed=0)
+            row = {
+                "task": task,
+                "controller": name,
+                "options": {k: v for k, v in opts.items() if k != "randomization"},
+                "noise": "ActuatorNoise.balance_recipe (published recipe)",
+                "duration_s": duration,
+                "survived": bool(res.metrics.survived),
+                "time_to_fall_s": float(res.metrics.time_to_fall),
+                "failure": res.failure,
+                "tilt_rms_deg": float(res.metrics.tilt_rms_deg),
+                "com_deviation_rms_m": float(res.metrics.com_deviation_rms),
+                "compute_mean_ms": float(res.metrics.compute_mean_ms),
+                "compute_p99_ms": float(res.metrics.compute_p99_ms),
+                "wall_s": time.perf_counter() - t0,
+                "stats": ctrl.stats,
+            }
+            ctrl.close()
+        except Exception as exc:
+            row = {"task": task, "controller": name, "error": repr(exc)}
+        runs.append(row)
+        print(json.dumps({k: v for k, v in row.items() if k != "stats"}), flush=True)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--quick", action="store_true", help="small sizes (smoke test)")
+    parser.add_argument("--first-tick", choices=["humanoid", "cartpole"], help=argparse.SUPPRESS)
+    parser.add_argument("--out", default=None, help="JSON path (default $OUT/sampling_gpu.json)")
+    parser.add_argument("--skip", nargs="*", default=[], help="sections to skip")
+    parser.add_argument("--duration", type=float, default=10.0, help="closed-loop seconds")
+    args = parser.parse_args()
+    if args.first_tick:
+        t0 = time.perf_counter()
+        r = first_tick(args.first_tick)
+        r["since_script_start_s"] = time.perf_counter() - _T0
+        del t0
+        print("FIRST_TICK " + json.dumps(r), flush=True)
+        return
+
+    import warp as wp
+
+    wp.config.quiet = True
+    wp.init()
+    out_dir = Path(os.environ.get("OUT", ROOT / "benchmarks" / "results"))
+    out_path = Path(args.out) if args.out else out_dir / "sampling_gpu.json"
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    dev = wp.get_device()
+    out: dict[str, Any] = {
+        "device": dev.name if dev.is_cuda else "cpu",
+        "warp_device": str(dev),
+        "host": {"cpus": os.cpu_count(), "python": platform.python_version()},
+        "horizon_steps": HORIZON_STEPS,
+        "errors": {},
+    }
+    try:
+        import mujoco
+        import mujoco_warp
+
+        out["versions"] = {
+            "mujoco": mujoco.__version__,
+            "mujoco_warp": mujoco_warp.__version__,
+            "warp": wp.config.version,
+        }
+    except Exception:
+        pass
+    sizes = [64, 128] if args.quick else [256, 512, 1024, 2048, 4096, 8192]
+    cpu_sizes = [128] if args.quick else [1024, 4096]
+
+    def save() -> None:
+        out_path.write_text(json.dumps(out, indent=1, default=float))
+
+    def section(name: str, fn, *a) -> None:
+        if name in args.skip:
+            return
+        t0 = time.perf_counter()
+        try:
+            fn(*a)
+        except Exception:
+            out["errors"][name] = traceback.format_exc()[-3000:]
+            print(f"SECTION {name} FAILED\n{out['errors'][name]}", flush=True)
+        out.setdefault("section_seconds", {})[name] = time.perf_counter() - t0
+        save()
+
+    def cold() -> None:
+        res = {}
+        for task in ("humanoid", "cartpole"):
+            res[task] = first_tick(task)
+        out["first_tick_cold"] = res
+
+    def warm() -> None:
+        res = {}
+        for task in ("humanoid", "cartpole"):
+            proc = subprocess.run(
+                [sys.executable, __file__, "--first-tick", task],
+                capture_output=True,
+                text=True,
+                timeout=300,
+            )
+            line = [x for x in proc.stdout.splitlines() if x.startswith("FIRST_TICK ")]
+            res[task] = json.loads(line[-1][11:]) if line else {"error": proc.stderr[-2000:]}
+        out["first_tick_warm"] = res
+
+    section("first_tick_cold", cold)
+    section("first_tick_warm", warm)
+    section("agreement", agreement, out)
+    for task in ("humanoid", "cartpole"):
+        section(f"sweep_{task}", sweep, task, sizes, out)
+    section(
+        "cpu_rollout_humanoid",
+        cpu_rollout,
+        "humanoid",
+        cpu_sizes,
+        out.get("sweep", {}).get("humanoid", []),
+        out,
+    )
+    section("closed_loop", closed_loop, out, args.duration)
+    out["summary"] = summarize(out)
+    save()
+    print(json.dumps(out["summary"], indent=1, default=float), flush=True)
+
+
+def summarize(out: dict) -> dict[str, Any]:
+    """The targets of issue #5 against the measurements."""
+    s: dict[str, Any] = {}
+    hum = {r["N"]: r for r in out.get("sweep", {}).get("humanoid", [])}
+    cart = {r["N"]: r for r in out.get("sweep", {}).get("cartpole", [])}
+    if 2048 in hum:
+        s["humanoid_N2048_T32_ticks_per_s"] = hum[2048]["ticks_per_s"]
+        s["target_50_ticks_per_s_met"] = hum[2048]["ticks_per_s"] >= 50
+        s["humanoid_N2048_efficiency"] = hum[2048]["efficiency"]
+        s["target_efficiency_70pct_met"] = hum[2048]["efficiency"] >= 0.7
+    cpu = {r["N"]: r for r in out.get("cpu_rollout", {}).get("humanoid", [])}
+    if 4096 in cpu and cpu[4096]["warp_speedup"] is not None:
+        s["humanoid_N4096_speedup_vs_mujoco_rollout"] = cpu[4096]["warp_speedup"]
+        s["target_6x_met"] = cpu[4096]["warp_speedup"] >= 6
+    if 1024 in cart:
+        s["cartpole_N1024_tick_ms"] = cart[1024]["tick_ms"]
+        s["target_5ms_met"] = cart[1024]["tick_ms"] <= 5
+    warm = out.get("first_tick_warm", {})
+    if "humanoid" in warm and "total_s" in warm["humanoid"]:
+        s["warm_first_tick_s"] = warm["humanoid"]["total_s"]
+        s["target_5s_met"] = warm["humanoid"]["total_s"] <= 5
+    cold = out.get("first_tick_cold", {})
+    if "humanoid" in cold:
+        s["cold_first_tick_s"] = {k: v["total_s"] for k, v in cold.items()}
+    s["closed_loop"] = [
+        {k: r.get(k) for k in ("task", "controller", "survived", "time_to_fall_s", "error")}
+        for r in out.get("closed_loop", [])
+    ]
+    return s
+
+
+if __name__ == "__main__":
+    main()

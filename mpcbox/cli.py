@@ -1,0 +1,400 @@
+"""The ``mpcbox`` command line, and the shared entry point of the ``problems/*.py`` scripts.
+
+Commands::
+
+    mpcbox list
+    mpcbox compare TASK [--controllers lqr,ilqr,...] [--seeds N] [--duration S]
+                        [--noise SCALE[,SCALE...]] [--push N] [--largest-push] [--out DIR]
+
+``mpcbox compare TASK --help`` also lists the task's own options (for example ``--leg`` of
+``humanoid_balance``), read from the task class's keyword arguments.
+
+A problem script is one call, e.g. ``problems/pendulum_swingup.py``::
+
+    import sys
+    from mpcbox.cli import run_task_script
+
+    if __name__ == "__main__":
+        sys.exit(run_task_script("pendulum_swingup", duration=5.0))
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from mpcbox.errors import MpcboxError, UnknownNameError
+
+#: Defaults of ``mpcbox compare``; :func:`run_task_script` takes overrides by these names.
+DEFAULTS: dict[str, Any] = {
+    "controllers": "",
+    "seeds": 5,
+    "seed": 0,
+    "duration": 10.0,
+    "noise": "1",
+    "push": 0.0,
+    "push_time": 2.0,
+    "push_duration": 0.1,
+    "push_body": "torso",
+    "mass_scale": 1.0,
+    "friction_scale": 1.0,
+    "largest_push": False,
+    "push_tolerance": 2.0,
+    "set": (),
+    "workers": 0,
+    "out": "results",
+    "plots": True,
+    "progress": True,
+}
+
+_SIMPLE = (bool, int, float, str)
+
+
+def _task_parameters(task: str) -> dict[str, inspect.Parameter]:
+    """Keyword arguments of a task class that have a plain (bool/int/float/str) default."""
+    from mpcbox.registry import task_class
+
+    params = {}
+    for name, param in inspect.signature(task_class(task).__init__).parameters.items():
+        if name == "self" or param.kind in (param.VAR_KEYWORD, param.VAR_POSITIONAL):
+            continue
+        if isinstance(param.default, _SIMPLE):
+            params[name] = param
+    return params
+
+
+def _flag(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+def build_parser(task: str | None = None, *, prog: str | None = None, **defaults: Any):
+    """The argument parser of a comparison, with the task's options when ``task`` is given.
+
+    Args:
+        task: Task name; ``None`` adds a positional ``task`` argument instead.
+        prog: Program name shown in the usage.
+        **defaults: Overrides of :data:`DEFAULTS`.
+    """
+    unknown = set(defaults) - set(DEFAULTS)
+    if unknown:
+        raise UnknownNameError("option", sorted(unknown)[0], DEFAULTS)
+    d = {**DEFAULTS, **defaults}
+    parser = argparse.ArgumentParser(
+        prog=prog,
+        description=(
+            f"Compare controllers on {task!r}: " if task else "Compare controllers on a task: "
+        )
+        + "every controller runs the same seeded scenarios; prints a markdown table and "
+        "writes results.md, results.csv and PNG plots to --out.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    if task is None:
+        parser.add_argument("task", help="task name (see `mpcbox list`)")
+    add = parser.add_argument
+    add(
+        "--controllers",
+        default=d["controllers"],
+        help="comma-separated controller names (default: every controller tuned for the task)",
+    )
+    add("--seeds", type=int, default=d["seeds"], help="number of seeds per scenario")
+    add("--seed", type=int, default=d["seed"], help="first seed")
+    add("--duration", type=float, default=d["duration"], help="simulated seconds per run")
+    add(
+        "--noise",
+        default=d["noise"],
+        help="noise scale(s) on the task's noise recipe, comma-separated for a sweep",
+    )
+    add("--push", type=float, default=d["push"], help="forward push force (N), 0 for none")
+    add("--push-time", type=float, default=d["push_time"], help="push start (s)")
+    add("--push-duration", type=float, default=d["push_duration"], help="push duration (s)")
+    add("--push-body", default=d["push_body"], help="pushed body")
+    add("--mass-scale", type=float, default=d["mass_scale"], help="model mismatch: body masses")
+    add(
+        "--friction-scale",
+        type=float,
+        default=d["friction_scale"],
+        help="model mismatch: friction",
+    )
+    add(
+        "--largest-push",
+        action=argparse.BooleanOptionalAction,
+        default=d["largest_push"],
+        help="bisect the largest forward and backward push over --push-duration per controller",
+    )
+    add(
+        "--push-tolerance",
+        type=float,
+        default=d["push_tolerance"],
+        help="bisection tolerance of --largest-push (N)",
+    )
+    add(
+        "--set",
+        action="append",
+        default=list(d["set"]),
+        metavar="NAME.OPTION=VALUE",
+        help="controller option override, e.g. mppi.num_samples=256 (repeatable)",
+    )
+    add("--workers", type=int, default=d["workers"], help="worker processes (0: one per core)")
+    add("--out", default=d["out"], help="output folder")
+    add("--plots", action=argparse.BooleanOptionalAction, default=d["plots"], help="write PNGs")
+    add(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=d["progress"],
+        help="show a progress bar",
+    )
+    if task is not None:
+        group = parser.add_argument_group(f"options of the task {task!r}")
+        taken = {a.dest for a in parser._actions}
+        for name, param in _task_parameters(task).items():
+            if name in taken:
+                continue
+            default = param.default
+            if isinstance(default, bool):
+                group.add_argument(
+                    _flag(name), action=argparse.BooleanOptionalAction, default=default
+                )
+            else:
+                group.add_argument(_flag(name), type=type(default), default=default)
+    return parser
+
+
+def _scenarios(args: argparse.Namespace):
+    from mpcbox.compare import Scenario
+    from mpcbox.disturbances import ModelMismatch, Push
+
+    try:
+        scales = [float(s) for s in str(args.noise).split(",") if s.strip()]
+    except ValueError:
+        raise MpcboxError(
+            f"--noise must be numbers separated by commas, got {args.noise!r}"
+        ) from None
+    pushes = ()
+    if args.push:
+        pushes = (
+            Push(
+                force=(args.push, 0.0, 0.0),
+                start=args.push_time,
+                duration=args.push_duration,
+                body=args.push_body,
+            ),
+        )
+    mismatch = None
+    if args.mass_scale != 1.0 or args.friction_scale != 1.0:
+        mismatch = ModelMismatch(mass_scale=args.mass_scale, friction_scale=args.friction_scale)
+    return Scenario.noise_sweep(
+        scales or [0.0], duration=args.duration, pushes=pushes, mismatch=mismatch
+    )
+
+
+def _parse_sets(items: Sequence[str]) -> dict[str, dict[str, Any]]:
+    """``["mppi.num_samples=64"]`` -> ``{"mppi": {"num_samples": 64}}`` (Python literals)."""
+    import ast
+
+    out: dict[str, dict[str, Any]] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        name, dot, option = key.partition(".")
+        if not (sep and dot and name and option):
+            raise MpcboxError(f"--set takes NAME.OPTION=VALUE, got {item!r}")
+        try:
+            value = ast.literal_eval(text)
+        except (ValueError, SyntaxError):
+            value = text
+        out.setdefault(name.strip(), {})[option.strip()] = value
+    return out
+
+
+def run_comparison(
+    task: str,
+    args: argparse.Namespace,
+    *,
+    controller_defaults: dict[str, dict[str, Any]] | None = None,
+    stream=None,
+) -> int:
+    """Run :func:`mpcbox.compare` from parsed arguments, print the table and write files.
+
+    Args:
+        task: Task name.
+        args: Arguments from :func:`build_parser`.
+        controller_defaults: Controller option overrides applied to the chosen controllers
+            that have an entry (before ``--set``, which must name chosen controllers).
+        stream: Where the table is printed (default: stdout).
+
+    Returns:
+        The exit status (0).
+    """
+    from mpcbox.compare import PushTest, compare, resolve_controllers
+    from mpcbox.registry import task_class
+
+    stream = stream or sys.stdout
+    chosen = list(resolve_controllers(task_class(task), args.controllers or None))
+    overrides = {k: dict(v) for k, v in (controller_defaults or {}).items() if k in chosen}
+    for name, options in _parse_sets(args.set).items():
+        overrides.setdefault(name, {}).update(options)
+    task_options = {name: getattr(args, name) for name in _task_parameters(task)}
+    push_tests = ()
+    if args.largest_push:
+        common = dict(
+            duration=args.push_duration,
+            body=args.push_body,
+            tolerance=args.push_tolerance,
+            start=1.0,
+            settle=3.0,
+        )
+        push_tests = (
+            PushTest(direction=(1.0, 0.0, 0.0), name="forward", **common),
+            PushTest(direction=(-1.0, 0.0, 0.0), name="backward", **common),
+        )
+    if args.seeds < 1:
+        raise MpcboxError(f"--seeds must be >= 1, got {args.seeds}")
+    seeds = range(args.seed, args.seed + args.seeds)
+    t0 = time.perf_counter()
+    result = compare(
+        task,
+        chosen,
+        _scenarios(args),
+        seeds,
+        push_tests=push_tests,
+        problem_options=task_options,
+        controller_options=overrides,
+        workers=args.workers or None,
+        progress=args.progress,
+    )
+    elapsed = time.perf_counter() - t0
+    params = _task_parameters(task)
+    changed = {k: v for k, v in task_options.items() if v != params[k].default}
+    options = "".join(f", {k}={v}" for k, v in changed.items())
+    print(
+        f"\n{result.problem}{options}: {len(result.seeds)} seed(s) from {args.seed}, "
+        f"{args.duration:g} s per run, {elapsed:.1f} s wall\n",
+        file=stream,
+    )
+    table = result.to_markdown()
+    print(table, file=stream)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "results.md").write_text(table + "\n")
+    result.to_csv(out / "results.csv")
+    written = [out / "results.md", out / "results.csv"]
+    if args.plots:
+        written += result.plot(out)
+    print("\nwrote " + ", ".join(str(p) for p in written), file=stream)
+    failed = {r.controller: r.failure for r in result.runs if r.failure}
+    for name, reason in failed.items():
+        print(f"{name}: first failure: {reason}", file=stream)
+    return 0
+
+
+def quick_sampling_options() -> dict[str, dict]:
+    """Sampling-controller options for a quick run: the GPU backend when there is an NVIDIA
+    device, otherwise a handful of samples so that the CPU finishes in about a minute.
+
+    ``--set NAME.OPTION=VALUE`` overrides them, e.g. ``--set mppi.num_samples=256``.
+    """
+    if Path("/dev/nvidia0").exists():  # cheap check; importing warp takes seconds
+        return {name: {"backend": "warp"} for name in ("ps", "mppi", "cem")}
+    small = {"num_samples": 16, "horizon": 0.15}
+    return {"ps": small, "mppi": small, "cem": {**small, "num_elites": 4}}
+
+
+def run_task_script(
+    task: str,
+    argv: Sequence[str] | None = None,
+    *,
+    controller_options: dict[str, dict[str, Any]] | None = None,
+    **defaults: Any,
+) -> int:
+    """Entry point of a ``problems/<task>.py`` script: ``mpcbox compare <task>`` with defaults.
+
+    Args:
+        task: Task name (a key of :data:`mpcbox.registry.TASKS`).
+        argv: Arguments (default: ``sys.argv[1:]``).
+        controller_options: Option overrides for controllers, used when they are chosen
+            (e.g. smaller sample counts for a quick CPU run); ``--set`` overrides them.
+        **defaults: Overrides of :data:`DEFAULTS` (e.g. ``duration=5.0, seeds=1``); ``out``
+            defaults to ``results/<task>``.
+
+    Returns:
+        The exit status.
+    """
+    from mpcbox.registry import TASKS
+
+    if task not in TASKS:
+        raise UnknownNameError("task", task, TASKS)
+    defaults.setdefault("out", f"results/{task}")
+    parser = build_parser(task, prog=f"{task}.py", **defaults)
+    args = parser.parse_args(None if argv is None else list(argv))
+    try:
+        return run_comparison(task, args, controller_defaults=controller_options)
+    except (MpcboxError, ImportError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _list(stream) -> int:
+    from mpcbox.registry import CONTROLLERS, TASKS, available_controllers, task_class
+
+    print("tasks (controllers tuned for each; others can be named explicitly):", file=stream)
+    for name in TASKS:
+        try:
+            tuned = ", ".join(available_controllers(task_class(name))) or "-"
+        except ImportError as exc:
+            tuned = f"unavailable ({exc})"
+        print(f"  {name}: {tuned}", file=stream)
+    print("controllers: " + ", ".join(CONTROLLERS), file=stream)
+    return 0
+
+
+USAGE = """usage: mpcbox {list,compare} ...
+
+  mpcbox list                      tasks and controllers
+  mpcbox compare TASK [options]    compare controllers on a task (--help for the options)
+"""
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """The ``mpcbox`` console command.
+
+    Args:
+        argv: Arguments without the program name (default: ``sys.argv[1:]``).
+
+    Returns:
+        The exit status: 0 on success, 2 for bad arguments or names.
+    """
+    from mpcbox.registry import TASKS
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help"):
+        print(USAGE)
+        return 0 if argv else 2
+    command, rest = argv[0], argv[1:]
+    if command == "list":
+        return _list(sys.stdout)
+    if command != "compare":
+        print(
+            f"error: {UnknownNameError('command', command, ['list', 'compare'])}", file=sys.stderr
+        )
+        return 2
+    if not rest or rest[0].startswith("-"):
+        build_parser(None, prog="mpcbox compare").parse_args(rest)  # prints help or the error
+        return 2
+    task = rest[0]
+    if task not in TASKS:
+        print(f"error: {UnknownNameError('task', task, TASKS)}", file=sys.stderr)
+        return 2
+    try:
+        args = build_parser(task, prog=f"mpcbox compare {task}").parse_args(rest[1:])
+        return run_comparison(task, args)
+    except (MpcboxError, ImportError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,114 @@
+"""Keyword-only configuration of the sampling controllers and of domain randomization."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+from mpcbox.sampling.splines import Interpolation
+
+Backend = Literal["cpu", "warp"]
+Risk = Literal["mean", "worst", "cvar"]
+BACKENDS: tuple[str, ...] = ("cpu", "warp")
+RISKS: tuple[str, ...] = ("mean", "worst", "cvar")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Randomization:
+    """Per-world model perturbations for robust planning.
+
+    Every candidate is rolled out on ``num_models`` planning models whose body masses (and
+    inertias, scaled alike) and geom friction coefficients are scaled by factors drawn
+    uniformly from the given ranges; the first model is always the nominal one. The costs
+    of one candidate across the models are aggregated with the controller's ``risk``.
+
+    Attributes:
+        num_models: Number of models ``M`` (>= 1), including the nominal one.
+        mass_scale: Range ``(low, high)`` of the per-body mass factors.
+        friction_scale: Range ``(low, high)`` of the per-geom friction factors.
+        seed: Seed of the draw.
+    """
+
+    num_models: int = 4
+    mass_scale: tuple[float, float] = (0.9, 1.1)
+    friction_scale: tuple[float, float] = (0.7, 1.3)
+    seed: int = 0
+
+
+@dataclass(frozen=True, kw_only=True)
+class SamplingConfig:
+    """Options shared by all sampling controllers.
+
+    Attributes:
+        num_samples: Candidates ``N`` per iteration (>= 1).
+        horizon: Planning horizon ``H`` in seconds (at least one planning timestep).
+        num_knots: Spline knots ``K`` over the horizon.
+        interpolation: ``"zero"``, ``"linear"`` or ``"cubic"`` (see :mod:`.splines`).
+        noise_scale: Standard deviation of the knot noise, in control units; a scalar or one
+            value per actuator ``(nu,)``.
+        iterations: Sample/update rounds per control tick.
+        period: Seconds between replans (``None``: every simulation step).
+        backend: ``"cpu"`` (:func:`mujoco.rollout`) or ``"warp"`` (MuJoCo Warp).
+        device: Warp device (``"cuda"``, ``"cuda:0"``, ``"cpu"``); default: CUDA if present.
+        seed: Seed of the numpy Generator that draws the noise.
+        randomization: Optional domain randomization of the planning model.
+        risk: How costs over randomized models are combined: ``"mean"``, ``"worst"``
+            (maximum) or ``"cvar"`` (mean of the worst ``cvar_alpha`` fraction).
+        cvar_alpha: Tail fraction for ``risk="cvar"``, in ``(0, 1]``.
+        headroom: Warp backend: contact and constraint capacity as a multiple of the largest
+            counts seen in the calibration rollouts.
+        use_graph: Warp backend: capture each tick as one CUDA graph (CUDA only).
+    """
+
+    num_samples: int = 128
+    horizon: float = 1.0
+    num_knots: int = 4
+    interpolation: Interpolation = "cubic"
+    noise_scale: float | Sequence[float] = 0.3
+    iterations: int = 1
+    period: float | None = None
+    backend: Backend = "cpu"
+    device: str | None = None
+    seed: int = 0
+    randomization: Randomization | None = None
+    risk: Risk = "mean"
+    cvar_alpha: float = 0.25
+    headroom: float = 2.0
+    use_graph: bool = True
+
+
+@dataclass(frozen=True, kw_only=True)
+class PredictiveSamplingConfig(SamplingConfig):
+    """Predictive sampling: keep the best of the nominal and ``N - 1`` perturbations."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class MPPIConfig(SamplingConfig):
+    """MPPI options.
+
+    Attributes:
+        temperature: Softmax temperature in units of the standard deviation of the valid
+            costs of one iteration (scale-free, so one value suits many tasks).
+    """
+
+    temperature: float = 0.1
+
+
+@dataclass(frozen=True, kw_only=True)
+class CEMConfig(SamplingConfig):
+    """Cross-entropy method options.
+
+    The sampling distribution is a diagonal Gaussian over knots whose mean and standard
+    deviation are refitted to the elites; ``noise_scale`` is the initial (and largest)
+    standard deviation.
+
+    Attributes:
+        num_elites: Number of lowest-cost candidates the distribution is refitted to.
+        std_min: Floor of the standard deviation (keeps exploring).
+        smoothing: Weight of the old distribution in the refit, in ``[0, 1)``.
+    """
+
+    num_elites: int = 16
+    std_min: float = 0.05
+    smoothing: float = 0.0

@@ -1,0 +1,120 @@
+r"""Control splines: a few knots over the horizon, interpolated to every planning step.
+
+A sampling controller searches over ``K`` knots :math:`u_0, \dots, u_{K-1}` (each of size
+``nu``) placed uniformly over the horizon, :math:`t_k = k h` with :math:`h = H / (K - 1)`.
+The control at time :math:`t \in [0, H]` is a fixed linear combination of the knots, so for
+a set of query times the whole map is one weight matrix :math:`W` of shape ``(T, K)``:
+
+.. math:: u(t_j) = \sum_k W_{jk} u_k .
+
+Three schemes (with :math:`s = (t - t_i) / h \in [0, 1)` inside interval ``i``):
+
+* ``"zero"`` (zero-order hold): :math:`u(t) = u_i`.
+* ``"linear"``: :math:`u(t) = (1 - s) u_i + s u_{i+1}`.
+* ``"cubic"`` (cubic Hermite with finite-difference slopes):
+  :math:`u(t) = h_{00}(s) u_i + h_{10}(s) h m_i + h_{01}(s) u_{i+1} + h_{11}(s) h m_{i+1}`,
+  with :math:`h_{00} = 2s^3 - 3s^2 + 1`, :math:`h_{10} = s^3 - 2s^2 + s`,
+  :math:`h_{01} = -2s^3 + 3s^2`, :math:`h_{11} = s^3 - s^2`, and slopes
+  :math:`m_i = (u_{i+1} - u_{i-1}) / 2h` inside, :math:`m_0 = (-3u_0 + 4u_1 - u_2) / 2h` and
+  :math:`m_{K-1} = (3u_{K-1} - 4u_{K-2} + u_{K-3}) / 2h` at the ends. The slopes are exact for
+  quadratics, so the spline reproduces any quadratic exactly; with two knots it is linear.
+
+Times outside ``[0, H]`` are clamped (the first/last knot is held).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+
+from mpcbox.validation import one_of, positive, positive_int
+
+Interpolation = Literal["zero", "linear", "cubic"]
+INTERPOLATIONS: tuple[str, ...] = ("zero", "linear", "cubic")
+
+
+class Spline:
+    """Uniform knots over ``[0, duration]`` with one interpolation scheme.
+
+    Args:
+        num_knots: Number of knots ``K`` (>= 1; one knot is a constant control).
+        duration: Horizon ``H`` in seconds.
+        kind: ``"zero"``, ``"linear"`` or ``"cubic"``.
+    """
+
+    def __init__(self, num_knots: int, duration: float, kind: Interpolation = "cubic") -> None:
+        self.num_knots = positive_int("num_knots", num_knots)
+        self.duration = positive("horizon", duration)
+        self.kind = one_of("interpolation", kind, INTERPOLATIONS)
+        k = self.num_knots
+        self.spacing = self.duration / (k - 1) if k > 1 else self.duration
+        #: Knot times ``(K,)``.
+        self.knot_times = np.linspace(0.0, self.duration, k) if k > 1 else np.zeros(1)
+
+    def weights(self, times: np.ndarray) -> np.ndarray:
+        """Interpolation matrix ``W`` of shape ``(len(times), K)``: ``u(times) = W @ knots``."""
+        times = np.clip(np.asarray(times, dtype=np.float64).reshape(-1), 0.0, self.duration)
+        k = self.num_knots
+        out = np.zeros((times.size, k))
+        if k == 1:
+            out[:, 0] = 1.0
+            return out
+        h = self.spacing
+        x = times / h
+        i = np.minimum(np.floor(x).astype(int), k - 2)
+        s = x - i
+        rows = np.arange(times.size)
+        if self.kind == "zero":
+            # Hold knot i on [t_i, t_{i+1}); the end time itself takes the last knot.
+            idx = np.where(s >= 1.0 - 1e-12, i + 1, i)
+            out[rows, idx] = 1.0
+            return out
+        if self.kind == "linear" or k == 2:
+            out[rows, i] += 1.0 - s
+            out[rows, i + 1] += s
+            return out
+        h00 = 2 * s**3 - 3 * s**2 + 1
+        h10 = s**3 - 2 * s**2 + s
+        h01 = -2 * s**3 + 3 * s**2
+        h11 = s**3 - s**2
+        slope = self._slope_matrix()  # (K, K): h * m = slope @ u
+        out[rows, i] += h00
+        out[rows, i + 1] += h01
+        out += h10[:, None] * slope[i] + h11[:, None] * slope[i + 1]
+        return out
+
+    def _slope_matrix(self) -> np.ndarray:
+        """``S`` with ``h m_i = sum_j S_ij u_j`` (finite-difference slopes times spacing)."""
+        k = self.num_knots
+        slope = np.zeros((k, k))
+        slope[0, :3] = [-1.5, 2.0, -0.5]
+        slope[-1, -3:] = [0.5, -2.0, 1.5]
+        for j in range(1, k - 1):
+            slope[j, j - 1] = -0.5
+            slope[j, j + 1] = 0.5
+        return slope
+
+    def evaluate(self, knots: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """Controls at ``times``.
+
+        Args:
+            knots: Knot values ``(..., K, nu)``.
+            times: Query times ``(T,)`` in seconds from the start of the horizon.
+
+        Returns:
+            Controls ``(..., T, nu)``.
+        """
+        return np.einsum("tk,...kj->...tj", self.weights(times), knots)
+
+    def shift(self, knots: np.ndarray, elapsed: float) -> np.ndarray:
+        """Warm start: the knots of this spline re-evaluated ``elapsed`` seconds later.
+
+        Args:
+            knots: Knot values ``(..., K, nu)``.
+            elapsed: Seconds since ``knots`` were planned.
+
+        Returns:
+            Knots ``(..., K, nu)`` at times ``t_k + elapsed`` (the last knot is held beyond ``H``).
+        """
+        return self.evaluate(knots, self.knot_times + float(elapsed))

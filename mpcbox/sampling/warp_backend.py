@@ -1,0 +1,333 @@
+r"""MuJoCo Warp backend: all candidates (times randomized models) as worlds of one batched Data.
+
+One tick, for ``W = N M`` worlds (world ``w`` rolls out candidate ``w // M`` on model
+``w % M``):
+
+1. the host uploads the start state ``(nstate,)`` and the knots ``(N, K, nu)``;
+2. on the device: broadcast the state to every world and clear costs and overflow flags;
+   then for ``t = 0 .. T-1``: interpolate and clamp :math:`u_t` and add the state/control
+   rows at :math:`x_t`, ``mjw.step``, add the sensor rows (MJWarp computes sensors at
+   :math:`x_t` inside the step); then the terminal rows at :math:`x_T` (after
+   ``mjw.forward`` if they read sensors) and per-world flags for capacity overflow and
+   non-finite numbers;
+3. the host reads back only the costs ``(W,)`` and flags ``(W,)``.
+
+On CUDA, step 2 is captured once as a CUDA graph and replayed each tick, so nothing
+synchronizes with the host inside the horizon. Contact (``nconmax``) and constraint
+(``njmax``) capacities come from calibration rollouts on the CPU with ``headroom``; a tick
+that overflows marks the affected worlds (their samples are excluded by the controller) and
+doubles the capacities for the next tick.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+import warnings
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+from mpcbox.errors import BackendUnavailableError, InvalidArgumentError
+from mpcbox.problem import Problem
+from mpcbox.sampling.base import Evaluation
+
+#: Randomized model fields copied per model into the batched MJWarp Model.
+RANDOMIZED_FIELDS: tuple[str, ...] = (
+    "body_mass",
+    "body_subtreemass",
+    "body_inertia",
+    "body_invweight0",
+    "dof_invweight0",
+    "geom_friction",
+)
+
+_MAX_RESIZES = 4
+
+
+def _import_warp():
+    try:
+        import mujoco_warp as mjw
+        import warp as wp
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise BackendUnavailableError(
+            "backend='warp' needs the warp-lang and mujoco-warp packages "
+            "(pip install warp-lang mujoco-warp)"
+        ) from exc
+    return wp, mjw
+
+
+def resolve_device(device: str | None) -> str:
+    """The Warp device to use: CUDA when present; warp's CPU device with a warning otherwise.
+
+    Raises:
+        BackendUnavailableError: If a CUDA device is asked for and none is available.
+        InvalidArgumentError: For an unknown device name.
+    """
+    wp, _ = _import_warp()
+    if not isinstance(device, (str, type(None))):
+        raise InvalidArgumentError(f"device must be a string or None, got {device!r}")
+    cuda = wp.is_cuda_available()
+    if device is None:
+        if cuda:
+            return "cuda:0"
+        from mpcbox.sampling.base import warn_cpu_fallback
+
+        warn_cpu_fallback("cpu")
+        return "cpu"
+    if device.startswith("cuda"):
+        if not cuda:
+            raise BackendUnavailableError(
+                f"device={device!r}: no CUDA device is available to Warp; use device='cpu' "
+                "(slow) or backend='cpu'"
+            )
+        try:
+            return str(wp.get_device(device))
+        except Exception as exc:
+            raise InvalidArgumentError(f"device={device!r} is not a Warp device: {exc}") from exc
+    if device == "cpu":
+        return "cpu"
+    raise InvalidArgumentError(f"device must be 'cpu', 'cuda' or 'cuda:<index>', got {device!r}")
+
+
+class WarpBackend:
+    """Evaluate candidate knots on MuJoCo Warp with the costs computed on the device.
+
+    Args:
+        problem: The Problem (planning model and cost).
+        weights: Interpolation matrix ``(T, K)``.
+        models: ``M`` planning models (nominal or randomized copies of the planning model).
+        device: Warp device name.
+        headroom: Capacity as a multiple of the calibration maxima.
+        use_graph: Capture each tick as a CUDA graph (ignored on the CPU device).
+    """
+
+    def __init__(
+        self,
+        problem: Problem,
+        weights: np.ndarray,
+        models: Sequence[mujoco.MjModel],
+        *,
+        device: str,
+        headroom: float = 2.0,
+        use_graph: bool = True,
+    ) -> None:
+        wp, mjw = _import_warp()
+        from mpcbox.sampling import warp_costs as wc
+
+        self._wp, self._mjw, self._wc = wp, mjw, wc
+        self.problem = problem
+        self.device = device
+        self.headroom = float(headroom)
+        self.weights_host = np.asarray(weights, dtype=np.float32)
+        self.horizon_steps, self.num_knots = self.weights_host.shape
+        self.models = list(models)
+        self.use_graph = bool(use_graph) and device.startswith("cuda")
+        model = problem.planning_model
+        # Raises BackendUnavailableError for custom terms, before anything is compiled.
+        self.running_rows = wc.build_rows(problem.cost.running, model)
+        self.terminal_rows = wc.build_rows(problem.cost.terminal, model)
+        self.nconmax: int | None = None
+        self.njmax: int | None = None
+        self.nworld = 0
+        self._graph = None
+        self._num_candidates = 0
+        self._stats = {
+            "resizes": 0,
+            "graph_captures": 0,
+            "solver_limit_samples": 0,
+            "setup_seconds": 0.0,
+            "nconmax": 0,
+            "njmax": 0,
+        }
+        with wp.ScopedDevice(device):
+            m = self._put_model()
+            self.m = m
+            self.running = wc.DeviceRows(self.running_rows, device)
+            self.terminal = wc.DeviceRows(self.terminal_rows, device)
+            self.weights = wp.array(self.weights_host, dtype=wp.float32)
+            self.ctrl_low = wp.array(problem.ctrl_low.astype(np.float32), dtype=wp.float32)
+            self.ctrl_high = wp.array(problem.ctrl_high.astype(np.float32), dtype=wp.float32)
+            self.state = wp.zeros(problem.nstate, dtype=wp.float32)
+        from mujoco_warp._src.types import OverflowType
+
+        capacity = OverflowType.ALL & ~(OverflowType.ITERATIONS | OverflowType.LS_ITERATIONS)
+        self.capacity_mask = int(capacity)
+        self.solver_mask = int(OverflowType.ITERATIONS | OverflowType.LS_ITERATIONS)
+
+    # ------------------------------------------------------------------ setup
+    def _put_model(self):
+        wp, mjw = self._wp, self._mjw
+        base = self.models[0]
+        nmod = len(self.models)
+        if nmod == 1:
+            m = mjw.put_model(base)
+        else:
+            m = mjw.put_model(base, batch_sizes={f: nmod for f in RANDOMIZED_FIELDS})
+            for field in RANDOMIZED_FIELDS:
+                arr = getattr(m, field)
+                stacked = np.stack([getattr(mi, field) for mi in self.models])
+                setattr(m, field, wp.array(stacked.astype(np.float32), dtype=arr.dtype))
+        # Overflows are read back per world as flags; printing from kernels is disabled.
+        m.opt.warn_overflow = 0
+        return m
+
+    def calibrate(self, state: np.ndarray, candidates: np.ndarray) -> tuple[int, int]:
+        """Largest contact and constraint counts over CPU rollouts of a few candidates.
+
+        Args:
+            state: Start state ``(nstate,)``.
+            candidates: Knots ``(n, K, nu)`` (a handful is enough).
+
+        Returns:
+            ``(max ncon, max nefc)`` over all steps and models.
+        """
+        p = self.problem
+        ctrls = np.einsum("tk,nkj->ntj", self.weights_host.astype(np.float64), candidates)
+        ncon = nefc = 0
+        for model in self.models[: min(len(self.models), 4)]:
+            data = mujoco.MjData(model)
+            for seq in ctrls:
+                mujoco.mj_resetData(model, data)
+                p.set_state(data, state)
+                for u in seq:
+                    data.ctrl[:] = u
+                    mujoco.mj_step(model, data)
+                    ncon, nefc = max(ncon, data.ncon), max(nefc, data.nefc)
+        return ncon, nefc
+
+    def _allocate(self, num_candidates: int) -> None:
+        wp, mjw = self._wp, self._mjw
+        start = _time.perf_counter()
+        self._num_candidates = num_candidates
+        self.nworld = num_candidates * len(self.models)
+        with wp.ScopedDevice(self.device):
+            self.d = mjw.make_data(
+                self.models[0], nworld=self.nworld, nconmax=self.nconmax, njmax=self.njmax
+            )
+            self.knots = wp.zeros(
+                (num_candidates, self.num_knots, self.problem.nu), dtype=wp.float32
+            )
+            self.cost = wp.zeros(self.nworld, dtype=wp.float32)
+            self.flags = wp.zeros(self.nworld, dtype=wp.int32)
+            self._graph = None
+            if self.use_graph:
+                self._run()  # load every module before capturing
+                with wp.ScopedCapture() as capture:
+                    self._run()
+                self._graph = capture.graph
+                self._stats["graph_captures"] += 1
+        self._stats["nconmax"], self._stats["njmax"] = self.nconmax, self.njmax
+        self._stats["setup_seconds"] += _time.perf_counter() - start
+
+    # ------------------------------------------------------------------ the tick
+    def _run(self) -> None:
+        """Every device operation of one tick (captured as a graph on CUDA)."""
+        wp, mjw, wc = self._wp, self._mjw, self._wc
+        m, d, nw = self.m, self.d, self.nworld
+        p = self.problem
+        per = len(self.models)
+        wp.launch(
+            wc.broadcast_kernel,
+            dim=nw,
+            inputs=[self.state, p.nq, p.nv],
+            outputs=[d.qpos, d.qvel, d.act, d.time, d.qacc_warmstart, d.overflow, self.cost],
+        )
+        run, term = self.running, self.terminal
+        for t in range(self.horizon_steps):
+            wp.launch(
+                wc.stage_kernel,
+                dim=nw,
+                inputs=[
+                    t, per, self.weights, self.knots, self.ctrl_low, self.ctrl_high,
+                    d.qpos, d.qvel, *run.state_inputs(),
+                ],
+                outputs=[d.ctrl, self.cost],
+            )  # fmt: skip
+            mjw.step(m, d)
+            if run.has_sensors:
+                wp.launch(
+                    wc.sensor_kernel,
+                    dim=nw,
+                    inputs=[d.sensordata, *run.sensor_inputs()],
+                    outputs=[self.cost],
+                )
+        if term.has_sensors:
+            mjw.forward(m, d)
+            wp.launch(
+                wc.sensor_kernel,
+                dim=nw,
+                inputs=[d.sensordata, *term.sensor_inputs()],
+                outputs=[self.cost],
+            )
+        if term.has_state:
+            wp.launch(
+                wc.terminal_state_kernel,
+                dim=nw,
+                inputs=[d.qpos, d.qvel, d.ctrl, *term.state_inputs()],
+                outputs=[self.cost],
+            )
+        wp.launch(
+            wc.finalize_kernel,
+            dim=nw,
+            inputs=[self.cost, d.overflow, self.capacity_mask, self.solver_mask, d.qpos, d.qvel],
+            outputs=[self.flags],
+        )
+
+    def evaluate(self, state: np.ndarray, candidates: np.ndarray) -> Evaluation:
+        """Costs ``(N, M)`` of candidate knots ``(N, K, nu)`` from ``state``."""
+        wp = self._wp
+        candidates = np.asarray(candidates, dtype=np.float64)
+        n, m = candidates.shape[0], len(self.models)
+        if candidates.shape[1:] != (self.num_knots, self.problem.nu):
+            raise InvalidArgumentError(
+                f"candidates must have shape (N, {self.num_knots}, {self.problem.nu}), "
+                f"got {candidates.shape}"
+            )
+        if self.nconmax is None:
+            ncon, nefc = self.calibrate(state, candidates[: min(n, 8)])
+            self.nconmax = max(math.ceil(self.headroom * ncon), 4)
+            self.njmax = max(math.ceil(self.headroom * nefc), 8)
+        if n != self._num_candidates:
+            self._allocate(n)
+        with wp.ScopedDevice(self.device):
+            self.state.assign(np.asarray(state, dtype=np.float32))
+            self.knots.assign(candidates.astype(np.float32))
+            if self._graph is not None:
+                wp.capture_launch(self._graph)
+            else:
+                self._run()
+            costs = self.cost.numpy().astype(np.float64).reshape(n, m)
+            flags = self.flags.numpy().reshape(n, m)
+        overflow = (flags & 1) != 0
+        nonfinite = (flags & 2) != 0
+        self._stats["solver_limit_samples"] += int(((flags & 4) != 0).any(axis=1).sum())
+        if overflow.any():
+            self._grow()
+        return Evaluation(costs, overflow, nonfinite)
+
+    def _grow(self) -> None:
+        if self._stats["resizes"] >= _MAX_RESIZES:
+            return
+        warnings.warn(
+            f"MuJoCo Warp capacity overflow (nconmax={self.nconmax}, njmax={self.njmax}): "
+            "affected samples were excluded; doubling the capacity",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+        assert self.nconmax is not None and self.njmax is not None
+        self.nconmax *= 2
+        self.njmax *= 2
+        self._stats["resizes"] += 1
+        self._num_candidates = 0  # reallocate (and recapture) on the next tick
+
+    @property
+    def stats(self) -> dict[str, float]:
+        return dict(self._stats)
+
+    def close(self) -> None:
+        """Drop device buffers and the graph."""
+        self._graph = None
+        self.d = None
+        self._num_candidates = 0

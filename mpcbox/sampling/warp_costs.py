@@ -1,0 +1,438 @@
+r"""The Problem's cost terms as Warp kernels, one thread per world.
+
+Every supported term is a weighted least-squares residual (:mod:`mpcbox.cost`), so a cost
+is flattened into *row tables*; each row contributes :math:`\tfrac12 w r^2` with
+
+* position rows ``(i, ref, w)``: :math:`r = q_i - \mathrm{ref}` (hinge, slide, free-joint
+  translation);
+* quaternion rows ``(a, q_{ref}, w_{1:3})``: :math:`r = \log(q_{ref}^{-1} q_{a:a+4})`, the
+  rotation vector of :func:`mpcbox.tangent.quat_difference` (angle wrapped to
+  :math:`(-\pi, \pi]`);
+* velocity rows ``(i, ref, w)``: :math:`r = v_i - \mathrm{ref}`;
+* control rows ``(i, ref, w)``: :math:`r = u_i - \mathrm{ref}`;
+* wrapped-angle rows ``(i, ref, w)``: :math:`r = 2 \sin((q_i - \mathrm{ref}) / 2)` (the
+  swing-up tasks' :class:`~mpcbox.tasks.swingup.WrappedAngle`);
+* sensor rows ``(a, b, c, w)``: :math:`r = s_a - s_b - c` (:math:`s_b = 0` when ``b < 0``),
+  which covers :class:`~mpcbox.cost.ComOverSupport`, :class:`~mpcbox.cost.FramePosition`,
+  :class:`~mpcbox.cost.FrameHeight` and :class:`~mpcbox.cost.Upright` (their sensors are in
+  MJWarp's ``Data.sensordata`` at the same addresses as on the CPU).
+
+:class:`~mpcbox.cost.StateCost` and :class:`~mpcbox.cost.ControlCost` become position,
+quaternion, velocity and control rows. Any other term raises
+:class:`~mpcbox.errors.BackendUnavailableError`. Rows with zero weight are dropped.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import mujoco
+import numpy as np
+import warp as wp
+
+from mpcbox.cost import (
+    ComOverSupport,
+    ControlCost,
+    CostTerm,
+    FrameHeight,
+    FramePosition,
+    StateCost,
+    Upright,
+)
+from mpcbox.errors import BackendUnavailableError
+from mpcbox.tangent import TangentSpace
+
+SUPPORTED_TERMS: tuple[type, ...] = (
+    StateCost,
+    ControlCost,
+    ComOverSupport,
+    FramePosition,
+    FrameHeight,
+    Upright,
+)
+
+
+class RowTables(NamedTuple):
+    """Host-side row tables of one set of cost terms (see the module docstring).
+
+    Attributes:
+        q_idx, q_ref, q_w: Position rows ``(nq_rows,)``.
+        quat_adr, quat_ref, quat_w: Quaternion rows ``(n,)``, ``(n, 4)``, ``(n, 3)``.
+        v_idx, v_ref, v_w: Velocity rows.
+        u_idx, u_ref, u_w: Control rows.
+        a_idx, a_ref, a_w: Wrapped-angle rows.
+        s_a, s_b, s_c, s_w: Sensor rows.
+    """
+
+    q_idx: np.ndarray
+    q_ref: np.ndarray
+    q_w: np.ndarray
+    quat_adr: np.ndarray
+    quat_ref: np.ndarray
+    quat_w: np.ndarray
+    v_idx: np.ndarray
+    v_ref: np.ndarray
+    v_w: np.ndarray
+    u_idx: np.ndarray
+    u_ref: np.ndarray
+    u_w: np.ndarray
+    a_idx: np.ndarray
+    a_ref: np.ndarray
+    a_w: np.ndarray
+    s_a: np.ndarray
+    s_b: np.ndarray
+    s_c: np.ndarray
+    s_w: np.ndarray
+
+    @property
+    def has_sensors(self) -> bool:
+        """Whether any row reads ``sensordata``."""
+        return self.s_a.size > 0
+
+
+def _wrapped_angle_type() -> type | None:
+    try:
+        from mpcbox.tasks.swingup import WrappedAngle
+    except ImportError:  # pragma: no cover - tasks need a source checkout
+        return None
+    return WrappedAngle
+
+
+def _check_supported(term: CostTerm) -> None:
+    if type(term) not in (*SUPPORTED_TERMS, _wrapped_angle_type()):
+        names = ", ".join(t.__name__ for t in SUPPORTED_TERMS)
+        raise BackendUnavailableError(
+            f"cost term {term.name!r} of type {type(term).__name__} has no Warp kernel; the "
+            f"warp backend supports {names}. Use backend='cpu' for custom terms."
+        )
+
+
+def build_rows(terms: Sequence[CostTerm], model: mujoco.MjModel) -> RowTables:
+    """Flatten bound cost terms into row tables.
+
+    Args:
+        terms: Bound terms (running or terminal) of a Problem's cost.
+        model: The planning model they are bound to.
+
+    Raises:
+        BackendUnavailableError: For a term type without a Warp kernel.
+    """
+    q, quat, v, u, a, s = [], [], [], [], [], []
+    wrapped = _wrapped_angle_type()
+    tangent = TangentSpace(model)
+    nv = model.nv
+    for term in terms:
+        _check_supported(term)
+        w = term.weight
+        if isinstance(term, StateCost):
+            wq, wv = w[:nv], w[nv:]
+            for qa, va in zip(tangent._scal_q, tangent._scal_v, strict=True):
+                q.append((int(qa), term.qpos_ref[qa], wq[va]))
+            for qa, va in zip(tangent._quat_q, tangent._quat_v, strict=True):
+                quat.append((int(qa), term.qpos_ref[qa : qa + 4], wq[va : va + 3]))
+            for j in range(nv):
+                v.append((j, term.qvel_ref[j], wv[j]))
+        elif isinstance(term, ControlCost):
+            for j in range(model.nu):
+                u.append((j, term.ctrl_ref[j], w[j]))
+        elif wrapped is not None and isinstance(term, wrapped):
+            a.append((term._qadr, term.target, w[0]))
+        elif isinstance(term, ComOverSupport):
+            com = term.sensor_address(f"mpcbox_{term.name}_com").start
+            foot = term.sensor_address(f"mpcbox_{term.name}_support").start
+            for i in range(2):
+                s.append((com + i, foot + i, 0.0, w[i]))
+        elif isinstance(term, FramePosition):
+            adr = term.sensor_address(f"mpcbox_{term.name}").start
+            for i in range(3):
+                s.append((adr + i, -1, term.target[i], w[i]))
+        elif isinstance(term, FrameHeight):
+            adr = term.sensor_address(f"mpcbox_{term.name}").start
+            s.append((adr + 2, -1, term.target, w[0]))
+        elif isinstance(term, Upright):
+            adr = term.sensor_address(f"mpcbox_{term.name}").start
+            for i in range(2):
+                s.append((adr + i, -1, 0.0, w[i]))
+
+    q, quat, v, u, a, s = (_nonzero(rows) for rows in (q, quat, v, u, a, s))
+    i32 = lambda rows, i: np.array([r[i] for r in rows], dtype=np.int32)  # noqa: E731
+    f32 = lambda rows, i, *shape: np.array(  # noqa: E731
+        [r[i] for r in rows], dtype=np.float32
+    ).reshape(-1, *shape)
+    return RowTables(
+        i32(q, 0), f32(q, 1), f32(q, 2),
+        i32(quat, 0), f32(quat, 1, 4), f32(quat, 2, 3),
+        i32(v, 0), f32(v, 1), f32(v, 2),
+        i32(u, 0), f32(u, 1), f32(u, 2),
+        i32(a, 0), f32(a, 1), f32(a, 2),
+        i32(s, 0), i32(s, 1), f32(s, 2), f32(s, 3),
+    )  # fmt: skip
+
+
+def _nonzero(rows: list[tuple]) -> list[tuple]:
+    return [r for r in rows if np.any(np.asarray(r[-1]) != 0.0)]
+
+
+class DeviceRows:
+    """Row tables on a Warp device (same fields as :class:`RowTables`)."""
+
+    def __init__(self, rows: RowTables, device: str) -> None:
+        self.has_sensors = rows.has_sensors
+        self.has_state = any(
+            getattr(rows, f).size for f in ("q_idx", "quat_adr", "v_idx", "u_idx", "a_idx")
+        )
+        for field in RowTables._fields:
+            arr = getattr(rows, field)
+            if field == "quat_ref":
+                dev = wp.array(arr.reshape(-1, 4), dtype=wp.vec4, device=device)
+            elif field == "quat_w":
+                dev = wp.array(arr.reshape(-1, 3), dtype=wp.vec3, device=device)
+            elif arr.dtype == np.int32:
+                dev = wp.array(arr, dtype=wp.int32, device=device)
+            else:
+                dev = wp.array(arr, dtype=wp.float32, device=device)
+            setattr(self, field, dev)
+
+    def state_inputs(self) -> list:
+        """Kernel inputs for :func:`state_cost`-style rows, in kernel order."""
+        return [
+            self.q_idx, self.q_ref, self.q_w, self.quat_adr, self.quat_ref, self.quat_w,
+            self.v_idx, self.v_ref, self.v_w, self.u_idx, self.u_ref, self.u_w,
+            self.a_idx, self.a_ref, self.a_w,
+        ]  # fmt: skip
+
+    def sensor_inputs(self) -> list:
+        """Kernel inputs for sensor rows, in kernel order."""
+        return [self.s_a, self.s_b, self.s_c, self.s_w]
+
+
+@wp.func
+def quat_log_difference(q: wp.vec4, ref: wp.vec4) -> wp.vec3:
+    """Rotation vector of ``ref^-1 q`` with the angle wrapped to (-pi, pi] (wxyz order)."""
+    aw, ax, ay, az = ref[0], -ref[1], -ref[2], -ref[3]
+    bw, bx, by, bz = q[0], q[1], q[2], q[3]
+    w = aw * bw - ax * bx - ay * by - az * bz
+    x = aw * bx + ax * bw + ay * bz - az * by
+    y = aw * by - ax * bz + ay * bw + az * bx
+    z = aw * bz + ax * by - ay * bx + az * bw
+    norm = wp.sqrt(w * w + x * x + y * y + z * z)
+    w = w / norm
+    x = x / norm
+    y = y / norm
+    z = z / norm
+    s = wp.sqrt(x * x + y * y + z * z)
+    angle = 2.0 * wp.atan2(s, w)
+    if angle > wp.pi:
+        angle = angle - 2.0 * wp.pi
+    scale = float(2.0)  # noqa: UP018 - dynamic variable in Warp
+    if s > 1.0e-15:
+        scale = angle / s
+    return wp.vec3(x * scale, y * scale, z * scale)
+
+
+@wp.func
+def state_rows_cost(
+    world: int,
+    qpos: wp.array2d[float],
+    qvel: wp.array2d[float],
+    ctrl: wp.array2d[float],
+    q_idx: wp.array[wp.int32],
+    q_ref: wp.array[float],
+    q_w: wp.array[float],
+    quat_adr: wp.array[wp.int32],
+    quat_ref: wp.array[wp.vec4],
+    quat_w: wp.array[wp.vec3],
+    v_idx: wp.array[wp.int32],
+    v_ref: wp.array[float],
+    v_w: wp.array[float],
+    u_idx: wp.array[wp.int32],
+    u_ref: wp.array[float],
+    u_w: wp.array[float],
+    a_idx: wp.array[wp.int32],
+    a_ref: wp.array[float],
+    a_w: wp.array[float],
+) -> float:
+    """Sum of ``0.5 w r^2`` over position, quaternion, velocity and control rows."""
+    acc = float(0.0)  # noqa: UP018 - dynamic variable in Warp
+    for i in range(q_idx.shape[0]):
+        r = qpos[world, q_idx[i]] - q_ref[i]
+        acc += q_w[i] * r * r
+    for i in range(quat_adr.shape[0]):
+        a = quat_adr[i]
+        q = wp.vec4(qpos[world, a], qpos[world, a + 1], qpos[world, a + 2], qpos[world, a + 3])
+        d = quat_log_difference(q, quat_ref[i])
+        ww = quat_w[i]
+        acc += ww[0] * d[0] * d[0] + ww[1] * d[1] * d[1] + ww[2] * d[2] * d[2]
+    for i in range(v_idx.shape[0]):
+        r = qvel[world, v_idx[i]] - v_ref[i]
+        acc += v_w[i] * r * r
+    for i in range(u_idx.shape[0]):
+        r = ctrl[world, u_idx[i]] - u_ref[i]
+        acc += u_w[i] * r * r
+    for i in range(a_idx.shape[0]):
+        r = 2.0 * wp.sin(0.5 * (qpos[world, a_idx[i]] - a_ref[i]))
+        acc += a_w[i] * r * r
+    return 0.5 * acc
+
+
+@wp.func
+def sensor_rows_cost(
+    world: int,
+    sensordata: wp.array2d[float],
+    s_a: wp.array[wp.int32],
+    s_b: wp.array[wp.int32],
+    s_c: wp.array[float],
+    s_w: wp.array[float],
+) -> float:
+    """Sum of ``0.5 w r^2`` over sensor rows ``r = s_a - s_b - c``."""
+    acc = float(0.0)  # noqa: UP018 - dynamic variable in Warp
+    for i in range(s_a.shape[0]):
+        r = sensordata[world, s_a[i]] - s_c[i]
+        b = s_b[i]
+        if b >= 0:
+            r = r - sensordata[world, b]
+        acc += s_w[i] * r * r
+    return 0.5 * acc
+
+
+@wp.kernel
+def stage_kernel(
+    step: int,
+    per_candidate: int,
+    weights: wp.array2d[float],
+    knots: wp.array3d[float],
+    ctrl_low: wp.array[float],
+    ctrl_high: wp.array[float],
+    qpos: wp.array2d[float],
+    qvel: wp.array2d[float],
+    q_idx: wp.array[wp.int32],
+    q_ref: wp.array[float],
+    q_w: wp.array[float],
+    quat_adr: wp.array[wp.int32],
+    quat_ref: wp.array[wp.vec4],
+    quat_w: wp.array[wp.vec3],
+    v_idx: wp.array[wp.int32],
+    v_ref: wp.array[float],
+    v_w: wp.array[float],
+    u_idx: wp.array[wp.int32],
+    u_ref: wp.array[float],
+    u_w: wp.array[float],
+    a_idx: wp.array[wp.int32],
+    a_ref: wp.array[float],
+    a_w: wp.array[float],
+    ctrl: wp.array2d[float],
+    cost: wp.array[float],
+):
+    """Before step ``t``: interpolate ``u_t`` and add the state/control rows at ``x_t``."""
+    world = wp.tid()
+    cand = world // per_candidate
+    for j in range(ctrl.shape[1]):
+        u = float(0.0)  # noqa: UP018 - dynamic variable in Warp
+        for k in range(weights.shape[1]):
+            u += weights[step, k] * knots[cand, k, j]
+        ctrl[world, j] = wp.clamp(u, ctrl_low[j], ctrl_high[j])
+    cost[world] += state_rows_cost(
+        world, qpos, qvel, ctrl, q_idx, q_ref, q_w, quat_adr, quat_ref, quat_w,
+        v_idx, v_ref, v_w, u_idx, u_ref, u_w, a_idx, a_ref, a_w,
+    )  # fmt: skip
+
+
+@wp.kernel
+def sensor_kernel(
+    sensordata: wp.array2d[float],
+    s_a: wp.array[wp.int32],
+    s_b: wp.array[wp.int32],
+    s_c: wp.array[float],
+    s_w: wp.array[float],
+    cost: wp.array[float],
+):
+    """After step ``t`` (sensors computed at ``x_t``): add the sensor rows."""
+    world = wp.tid()
+    cost[world] += sensor_rows_cost(world, sensordata, s_a, s_b, s_c, s_w)
+
+
+@wp.kernel
+def terminal_state_kernel(
+    qpos: wp.array2d[float],
+    qvel: wp.array2d[float],
+    ctrl: wp.array2d[float],
+    q_idx: wp.array[wp.int32],
+    q_ref: wp.array[float],
+    q_w: wp.array[float],
+    quat_adr: wp.array[wp.int32],
+    quat_ref: wp.array[wp.vec4],
+    quat_w: wp.array[wp.vec3],
+    v_idx: wp.array[wp.int32],
+    v_ref: wp.array[float],
+    v_w: wp.array[float],
+    u_idx: wp.array[wp.int32],
+    u_ref: wp.array[float],
+    u_w: wp.array[float],
+    a_idx: wp.array[wp.int32],
+    a_ref: wp.array[float],
+    a_w: wp.array[float],
+    cost: wp.array[float],
+):
+    """Terminal state/control rows at ``x_T`` (with the last control)."""
+    world = wp.tid()
+    cost[world] += state_rows_cost(
+        world, qpos, qvel, ctrl, q_idx, q_ref, q_w, quat_adr, quat_ref, quat_w,
+        v_idx, v_ref, v_w, u_idx, u_ref, u_w, a_idx, a_ref, a_w,
+    )  # fmt: skip
+
+
+@wp.kernel
+def broadcast_kernel(
+    state: wp.array[float],
+    nq: int,
+    nv: int,
+    qpos: wp.array2d[float],
+    qvel: wp.array2d[float],
+    act: wp.array2d[float],
+    time: wp.array[float],
+    qacc_warmstart: wp.array2d[float],
+    overflow: wp.array[int],
+    cost: wp.array[float],
+):
+    """Start of a tick: every world gets the measured state; clear costs and flags."""
+    world = wp.tid()
+    for i in range(nq):
+        qpos[world, i] = state[i]
+    for i in range(nv):
+        qvel[world, i] = state[nq + i]
+        qacc_warmstart[world, i] = 0.0
+    for i in range(act.shape[1]):
+        act[world, i] = state[nq + nv + i]
+    time[world] = 0.0
+    overflow[world] = 0
+    cost[world] = 0.0
+
+
+@wp.kernel
+def finalize_kernel(
+    cost: wp.array[float],
+    overflow: wp.array[int],
+    capacity_mask: int,
+    solver_mask: int,
+    qpos: wp.array2d[float],
+    qvel: wp.array2d[float],
+    flags: wp.array[wp.int32],
+):
+    """Per-world flags: bit 0 capacity overflow, bit 1 non-finite, bit 2 solver limit hit."""
+    world = wp.tid()
+    f = int(0)  # noqa: UP018, RUF046 - dynamic variable in Warp
+    if (overflow[world] & capacity_mask) != 0:
+        f = f | 1
+    if (overflow[world] & solver_mask) != 0:
+        f = f | 4
+    bad = not wp.isfinite(cost[world])
+    for i in range(qpos.shape[1]):
+        if not wp.isfinite(qpos[world, i]):
+            bad = True
+    for i in range(qvel.shape[1]):
+        if not wp.isfinite(qvel[world, i]):
+            bad = True
+    if bad:
+        f = f | 2
+    flags[world] = wp.int32(f)

@@ -1,0 +1,110 @@
+"""Tangent-space arithmetic on joint positions, vectorized over a batch.
+
+Free and ball joints store orientations as unit quaternions (4 numbers) but move in a
+3-dimensional tangent space; :class:`TangentSpace` maps ``nq``-sized positions to
+``nv``-sized differences exactly like :func:`mujoco.mj_differentiatePos` (tested against it),
+but for a whole batch of positions at once.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+
+def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product of quaternions ``(..., 4)`` in (w, x, y, z) order."""
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        axis=-1,
+    )
+
+
+def quat_difference(q2: np.ndarray, q1: np.ndarray) -> np.ndarray:
+    r"""Rotation vector taking ``q1`` to ``q2`` in ``q1``'s local frame.
+
+    Computes :math:`\log(q_1^{-1} q_2)` as axis times angle with the angle wrapped to
+    :math:`(-\pi, \pi]`, the convention of ``mju_subQuat``.
+
+    Args:
+        q2: Quaternions, shape ``(..., 4)``.
+        q1: Quaternions, shape ``(..., 4)``.
+
+    Returns:
+        Rotation vectors, shape ``(..., 3)``.
+    """
+    q1c = q1 * np.array([1.0, -1.0, -1.0, -1.0])
+    q = quat_multiply(q1c, q2)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w = q[..., 0]
+    v = q[..., 1:]
+    s = np.linalg.norm(v, axis=-1)
+    angle = 2.0 * np.arctan2(s, w)
+    angle = np.where(angle > np.pi, angle - 2.0 * np.pi, angle)
+    scale = np.where(s > 1e-15, angle / np.maximum(s, 1e-300), 2.0)
+    return v * scale[..., None]
+
+
+class TangentSpace:
+    """Differences of joint positions in the ``nv``-dimensional tangent space of a model.
+
+    Args:
+        model: The model whose joint layout is used.
+    """
+
+    def __init__(self, model: mujoco.MjModel) -> None:
+        self.nq = model.nq
+        self.nv = model.nv
+        scal_q, scal_v, quat_q, quat_v = [], [], [], []
+        for j in range(model.njnt):
+            qa, va = int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
+            jtype = model.jnt_type[j]
+            if jtype == mujoco.mjtJoint.mjJNT_FREE:
+                scal_q += [qa, qa + 1, qa + 2]
+                scal_v += [va, va + 1, va + 2]
+                quat_q.append(qa + 3)
+                quat_v.append(va + 3)
+            elif jtype == mujoco.mjtJoint.mjJNT_BALL:
+                quat_q.append(qa)
+                quat_v.append(va)
+            else:
+                scal_q.append(qa)
+                scal_v.append(va)
+        self._scal_q = np.array(scal_q, dtype=int)
+        self._scal_v = np.array(scal_v, dtype=int)
+        self._quat_q = np.array(quat_q, dtype=int)
+        self._quat_v = np.array(quat_v, dtype=int)
+        self.has_quaternions = len(quat_q) > 0
+
+    def difference(self, qpos: np.ndarray, qpos_ref: np.ndarray) -> np.ndarray:
+        """Tangent vector ``dq`` such that integrating ``qpos_ref`` by ``dq`` gives ``qpos``.
+
+        Args:
+            qpos: Positions, shape ``(..., nq)``.
+            qpos_ref: Reference positions, shape ``(nq,)`` or ``(..., nq)``.
+
+        Returns:
+            Differences, shape ``(..., nv)``.
+        """
+        qpos = np.asarray(qpos, dtype=np.float64)
+        qpos_ref = np.broadcast_to(np.asarray(qpos_ref, dtype=np.float64), qpos.shape)
+        out = np.empty((*qpos.shape[:-1], self.nv))
+        out[..., self._scal_v] = qpos[..., self._scal_q] - qpos_ref[..., self._scal_q]
+        for qa, va in zip(self._quat_q, self._quat_v):
+            out[..., va : va + 3] = quat_difference(
+                qpos[..., qa : qa + 4], qpos_ref[..., qa : qa + 4]
+            )
+        return out
+
+    def integrate(self, model: mujoco.MjModel, qpos: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """``qpos`` moved by the tangent vector ``dq`` (one position, ``mj_integratePos``)."""
+        out = np.array(qpos, dtype=np.float64)
+        mujoco.mj_integratePos(model, out, np.asarray(dq, dtype=np.float64), 1.0)
+        return out

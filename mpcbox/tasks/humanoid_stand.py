@@ -1,0 +1,144 @@
+"""Standing humanoid on two feet: a task where sampling-based MPC is the natural tool."""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import mujoco
+import numpy as np
+
+from mpcbox.cost import ControlCost, Cost, FrameHeight, StateCost, Upright
+from mpcbox.equilibrium import Equilibrium, find_equilibrium
+from mpcbox.model import ModelSource, object_id
+from mpcbox.problem import Problem
+from mpcbox.tasks import scene_path
+
+
+class HumanoidStand(Problem):
+    r"""Keep a humanoid standing on both feet (keyframe ``stand`` of ``scenes/humanoid.xml``).
+
+    The reference posture is the keyframe with the root height adjusted until the contacts
+    carry the weight, and the reference control holds it (:func:`~mpcbox.find_equilibrium`).
+    The running cost (and, ``terminal_scale`` times heavier, the terminal cost) is
+
+    .. math::
+        \tfrac12 w_h (z_{torso} - z_{ref})^2 + \tfrac12 w_u \|e_{z,xy}\|^2
+        + \tfrac12 \|q \ominus q_{ref}\|^2_{W_q} + \tfrac12 w_v \|v\|^2
+        + \tfrac12 w_c \|u - u_{ref}\|^2 ,
+
+    where :math:`e_{z,xy}` is the horizontal part of the torso's z axis and :math:`W_q` is
+    ``posture_cost`` on the joints and ``root_cost`` on the root's horizontal position (its
+    height and orientation are covered by the first two terms).
+
+    Args:
+        model: MJCF of the humanoid (default ``scenes/humanoid.xml``).
+        height_cost: Weight :math:`w_h` of the torso height.
+        upright_cost: Weight :math:`w_u` of the torso tilt.
+        posture_cost: Weight of the joint deviations.
+        root_cost: Weight of the root's horizontal drift.
+        velocity_cost: Weight :math:`w_v` of all velocities.
+        ctrl_cost: Weight :math:`w_c` of the control deviations.
+        terminal_scale: Multiplier of the terminal cost.
+        fall_height: The run fails when the torso is lower than this (m).
+        **kwargs: Passed to :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
+    """
+
+    name = "humanoid_stand"
+    #: Keyword arguments for controllers built by :func:`mpcbox.make_controller`.
+    controller_options: ClassVar[dict[str, dict[str, Any]]] = {
+        "ps": dict(num_samples=1024, horizon=0.3, num_knots=4, noise_scale=0.1, period=0.02),
+        "mppi": dict(
+            num_samples=1024,
+            horizon=0.3,
+            num_knots=4,
+            noise_scale=0.1,
+            temperature=0.1,
+            period=0.02,
+        ),
+        "cem": dict(
+            num_samples=1024,
+            horizon=0.3,
+            num_knots=4,
+            noise_scale=0.15,
+            num_elites=32,
+            std_min=0.03,
+            period=0.02,
+        ),
+    }
+
+    def __init__(
+        self,
+        *,
+        model: ModelSource | None = None,
+        height_cost: float = 100.0,
+        upright_cost: float = 30.0,
+        posture_cost: float = 1.0,
+        root_cost: float = 10.0,
+        velocity_cost: float = 0.05,
+        ctrl_cost: float = 0.1,
+        terminal_scale: float = 5.0,
+        fall_height: float = 0.9,
+        **kwargs: Any,
+    ) -> None:
+        self.weights = dict(
+            height=height_cost,
+            upright=upright_cost,
+            posture=posture_cost,
+            root=root_cost,
+            velocity=velocity_cost,
+            ctrl=ctrl_cost,
+            terminal=terminal_scale,
+        )
+        self.fall_height = float(fall_height)
+        self.equilibrium: Equilibrium | None = None
+        kwargs.setdefault("keyframe", "stand")
+        super().__init__(scene_path("humanoid.xml") if model is None else model, **kwargs)
+
+    def prepare(self, model: mujoco.MjModel) -> None:
+        self.equilibrium = find_equilibrium(model, self.qpos_ref)
+        self.qpos_ref = self.equilibrium.qpos
+        self.ctrl_ref = self.equilibrium.ctrl
+        self._torso = object_id(model, "body", "torso")
+        data = mujoco.MjData(model)
+        data.qpos[:] = self.qpos_ref
+        mujoco.mj_kinematics(model, data)
+        self.torso_height = float(data.xpos[self._torso, 2])
+
+    def _terms(self, model: mujoco.MjModel, scale: float, suffix: str) -> list:
+        w = self.weights
+        wq = np.full(model.nv, w["posture"])
+        for j in range(model.njnt):
+            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+                adr = model.jnt_dofadr[j]
+                wq[adr : adr + 2] = w["root"]
+                wq[adr + 2 : adr + 6] = 0.0
+        return [
+            FrameHeight("torso", self.torso_height, scale * w["height"], name="height" + suffix),
+            Upright("torso", scale * w["upright"], name="upright" + suffix),
+            StateCost(self.qpos_ref, scale * wq, scale * w["velocity"], name="posture" + suffix),
+        ]
+
+    def build_cost(self, model: mujoco.MjModel) -> Cost:
+        running = [*self._terms(model, 1.0, ""), ControlCost(self.weights["ctrl"], self.ctrl_ref)]
+        return Cost(running, self._terms(model, self.weights["terminal"], "_terminal"))
+
+    def failure(self, model: mujoco.MjModel, data: mujoco.MjData) -> str | None:
+        reason = super().failure(model, data)
+        if reason is None and data.xpos[self._torso, 2] < self.fall_height:
+            reason = f"fell: torso below {self.fall_height} m"
+        return reason
+
+    def support_point(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+        """Midpoint of the two foot sites."""
+        return 0.5 * (
+            self.frame_xy(model, data, "foot_left") + self.frame_xy(model, data, "foot_right")
+        )
+
+    def tilt_body(self) -> int:
+        return self._torso
+
+    def noise(self, scale: float = 1.0):
+        """The published actuator-noise recipe (two-foot stance: the left-stance weights)."""
+        from mpcbox.disturbances import ActuatorNoise
+
+        return ActuatorNoise.balance_recipe(self.model, stance="left", scale=scale)

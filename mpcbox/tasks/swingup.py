@@ -1,0 +1,199 @@
+"""Swing-up tasks: a torque-limited pendulum and a force-limited cart-pole.
+
+In both scenes a hinge angle of 0 means hanging down and pi means upright. The pole angle is
+penalized through :class:`WrappedAngle`, which is zero at every upright angle (pi, 3 pi, -pi,
+...), so a controller that lets the pole go over the top is not asked to unwind it.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import mujoco
+import numpy as np
+
+from mpcbox.cost import ControlCost, Cost, CostTerm, Features, Jacobian, StateCost
+from mpcbox.model import object_id
+from mpcbox.problem import Problem
+from mpcbox.tasks import scene_path
+
+
+class WrappedAngle(CostTerm):
+    r"""Periodic distance of a hinge angle from a target: :math:`r = 2 \sin((\theta -
+    \theta_{ref}) / 2)`.
+
+    ``r**2 = 2 (1 - cos(theta - theta_ref))`` is :math:`2\pi`-periodic, zero at the target and
+    its turns, and ``|dr/dtheta| = 1`` there. The hanging start is a critical point of this
+    cost (as of every smooth periodic one), so optimizers need an initial guess that moves.
+
+    Args:
+        joint: Hinge joint name.
+        target: Target angle (rad).
+        weight: Scalar weight.
+    """
+
+    def __init__(self, joint: str, target: float, weight: float, name: str = "") -> None:
+        super().__init__(weight, name or f"angle_{joint}")
+        self.joint = joint
+        self.target = float(target)
+        self._qadr = self._vadr = 0
+
+    def size(self, model: mujoco.MjModel) -> int:
+        return 1
+
+    def bind(self, model: mujoco.MjModel) -> None:
+        jid = object_id(model, "joint", self.joint)
+        self._qadr = int(model.jnt_qposadr[jid])
+        self._vadr = int(model.jnt_dofadr[jid])
+        super().bind(model)
+
+    def residual(self, features: Features) -> np.ndarray:
+        return 2.0 * np.sin(0.5 * (features.qpos[:, self._qadr : self._qadr + 1] - self.target))
+
+    def jacobian(self, model: mujoco.MjModel, data: mujoco.MjData) -> Jacobian:
+        dq = np.zeros((1, model.nv))
+        dq[0, self._vadr] = np.cos(0.5 * (data.qpos[self._qadr] - self.target))
+        return Jacobian(dq, np.zeros((1, model.nv)), np.zeros((1, model.nu)))
+
+    def casadi_residual(self, qpos: Any, qvel: Any, ctrl: Any) -> Any:
+        """The residual as a CasADi expression (used by :mod:`mpcbox.ipopt_reference`)."""
+        import casadi
+
+        return 2.0 * casadi.sin(0.5 * (qpos[self._qadr] - self.target))
+
+
+class PendulumSwingup(Problem):
+    """Swing a torque-limited pendulum (|u| <= 2 N m < m g l) from hanging to upright.
+
+    Running cost: wrapped angle (weight 1), angular velocity (0.1) and torque (0.01); the
+    terminal cost is heavier (100 and 10). Starts at rest hanging down.
+
+    Args:
+        **kwargs: Passed to :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
+    """
+
+    name = "pendulum_swingup"
+    #: Keyword arguments for controllers built by :func:`mpcbox.make_controller`.
+    controller_options: ClassVar[dict[str, dict[str, Any]]] = {
+        "ilqr": {
+            "horizon": 100,
+            "planning_timestep": 0.02,
+            "first_iterations": 100,
+            "mpc_iterations": 2,
+            "replan_period": 0.02,
+            "ctrls_init": np.array([0.5]),
+            "threads": 1,
+        },
+        "ipopt": {
+            "horizon": 150,
+            "planning_timestep": 0.02,
+            "tolerance": 1e-6,
+            "ctrls_init": np.array([0.5]),
+        },
+    }
+
+    def __init__(self, **kwargs: Any) -> None:
+        path = scene_path("pendulum.xml")
+        kwargs.setdefault("qpos_ref", np.array([np.pi]))
+        super().__init__(path, **kwargs)
+
+    def build_cost(self, model: mujoco.MjModel) -> Cost:
+        return Cost(
+            [
+                WrappedAngle("hinge", np.pi, 1.0),
+                StateCost(self.qpos_ref, 0.0, 0.1, name="velocity"),
+                ControlCost(0.01),
+            ],
+            [
+                WrappedAngle("hinge", np.pi, 100.0, name="terminal_angle"),
+                StateCost(self.qpos_ref, 0.0, 10.0, name="terminal_velocity"),
+            ],
+        )
+
+    def initial_state(self) -> np.ndarray:
+        return np.zeros(self.nstate)
+
+    def upright_error(self, state: np.ndarray) -> float:
+        """Angle (rad) between the pole and upright, wrapped to [0, pi]."""
+        return float(abs(np.angle(np.exp(1j * (state[0] - np.pi)))))
+
+
+class CartpoleSwingup(Problem):
+    """Swing up the pole of a force-limited cart-pole (|F| <= 10 N) and balance it.
+
+    Running cost: cart position (weight 2), wrapped pole angle (10), both velocities (0.5) and
+    control (1); heavier terminal cost. Starts at rest hanging down.
+
+    Args:
+        **kwargs: Passed to :class:`~mpcbox.Problem`.
+    """
+
+    name = "cartpole_swingup"
+    #: Keyword arguments for controllers built by :func:`mpcbox.make_controller`.
+    controller_options: ClassVar[dict[str, dict[str, Any]]] = {
+        "ilqr": {
+            "horizon": 75,
+            "planning_timestep": 0.02,
+            "first_iterations": 50,
+            "mpc_iterations": 1,
+            "replan_period": 0.02,
+            "ctrls_init": np.array([0.1]),
+            "threads": 1,
+        },
+        "ipopt": {
+            "horizon": 150,
+            "planning_timestep": 0.02,
+            "tolerance": 1e-6,
+            "ctrls_init": np.array([0.1]),
+        },
+        # Sampling MPC (issue #5, mpcbox.sampling), tuned on the CPU backend.
+        "ps": {
+            "num_samples": 128,
+            "horizon": 1.0,
+            "num_knots": 5,
+            "noise_scale": 0.5,
+            "period": 0.01,
+        },
+        "mppi": {
+            "num_samples": 128,
+            "horizon": 1.0,
+            "num_knots": 5,
+            "noise_scale": 0.3,
+            "temperature": 0.1,
+            "period": 0.01,
+        },
+        "cem": {
+            "num_samples": 128,
+            "horizon": 1.0,
+            "num_knots": 5,
+            "noise_scale": 0.4,
+            "num_elites": 16,
+            "std_min": 0.05,
+            "period": 0.01,
+        },
+    }
+
+    def __init__(self, **kwargs: Any) -> None:
+        path = scene_path("cartpole.xml")
+        kwargs.setdefault("qpos_ref", np.array([0.0, np.pi]))
+        super().__init__(path, **kwargs)
+
+    def build_cost(self, model: mujoco.MjModel) -> Cost:
+        return Cost(
+            [
+                StateCost(self.qpos_ref, [2.0, 0.0], [0.5, 0.5]),
+                WrappedAngle("hinge_1", np.pi, 10.0),
+                ControlCost(1.0),
+            ],
+            [
+                StateCost(self.qpos_ref, [20.0, 0.0], [10.0, 10.0], name="terminal_state"),
+                WrappedAngle("hinge_1", np.pi, 100.0, name="terminal_angle"),
+            ],
+        )
+
+    def initial_state(self) -> np.ndarray:
+        return np.zeros(self.nstate)
+
+    def upright_error(self, state: np.ndarray) -> float:
+        """Angle (rad) between the pole and upright, wrapped to [0, pi]."""
+        return float(abs(np.angle(np.exp(1j * (state[1] - np.pi)))))

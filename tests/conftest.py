@@ -1,0 +1,30 @@
+"""Shared fixtures: the Warp device for the sampling tests, and skipping GPU tests."""
+
+from __future__ import annotations
+
+import pytest
+
+
+def _cuda_available() -> bool:
+    try:
+        import warp as wp
+
+        return bool(wp.is_cuda_available())
+    except Exception:
+        return False
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Skip tests marked ``gpu`` when Warp sees no CUDA device."""
+    gpu_items = [item for item in items if "gpu" in item.keywords]
+    if gpu_items and not _cuda_available():
+        skip = pytest.mark.skip(reason="needs a CUDA GPU visible to Warp")
+        for item in gpu_items:
+            item.add_marker(skip)
+
+
+@pytest.fixture(scope="session")
+def warp_device() -> str:
+    """``"cuda"`` when Warp sees a GPU, else ``"cpu"`` (warp's CPU device)."""
+    pytest.importorskip("mujoco_warp")
+    return "cuda" if _cuda_available() else "cpu"

@@ -1,0 +1,186 @@
+"""mpcbox.compare, its table/CSV/plot output, and the mpcbox command line."""
+
+from __future__ import annotations
+
+import csv
+import io
+
+import numpy as np
+import pytest
+
+from mpcbox.cli import main, run_task_script
+from mpcbox.compare import Comparison, PushTest, Scenario, compare
+from mpcbox.disturbances import ModelMismatch, Push
+from mpcbox.errors import InvalidArgumentError, UnknownNameError
+from mpcbox.lqr import LQR
+
+DETERMINISTIC = (
+    "survived",
+    "time_to_fall",
+    "com_deviation_rms",
+    "tilt_rms_deg",
+    "control_effort",
+    "fallbacks",
+)
+
+
+@pytest.fixture(scope="module")
+def balance():
+    from mpcbox.tasks.humanoid_balance import HumanoidBalance
+
+    return HumanoidBalance()
+
+
+def _lqr_factory(problem):
+    return LQR(problem)
+
+
+def test_serial_and_parallel_runs_are_identical():
+    scenarios = [
+        Scenario(duration=1.0, noise_scale=1.0),
+        Scenario(
+            duration=1.0,
+            noise_scale=4.0,
+            pushes=(Push(force=(60.0, 0.0, 0.0), start=0.3, duration=0.1),),
+            mismatch=ModelMismatch(mass_scale=1.05),
+        ),
+    ]
+    kwargs = dict(seeds=[3, 4, 5], progress=False)
+    serial = compare("humanoid_balance", ["lqr"], scenarios, workers=1, **kwargs)
+    parallel = compare("humanoid_balance", ["lqr"], scenarios, workers=2, **kwargs)
+    assert len(serial.runs) == len(parallel.runs) == 6
+    for a, b in zip(serial.runs, parallel.runs):
+        assert (a.controller, a.scenario, a.seed) == (b.controller, b.scenario, b.seed)
+        for name in DETERMINISTIC:
+            assert getattr(a.metrics, name) == getattr(b.metrics, name), name
+        assert a.failure == b.failure
+        assert (a.trace is None) == (b.trace is None)
+        if a.trace is not None:
+            np.testing.assert_array_equal(a.trace.ctrls, b.trace.ctrls)
+    # Different seeds see different noise.
+    assert len({r.metrics.tilt_rms_deg for r in serial.runs_of("lqr", 0)}) == 3
+    # The trace is kept for the first seed only.
+    assert [r.trace is not None for r in serial.runs_of("lqr", 1)] == [True, False, False]
+
+
+def test_table_csv_and_plots(balance, tmp_path):
+    result = compare(
+        balance,
+        ["lqr", _lqr_factory],
+        Scenario.noise_sweep([0.5, 2.0], duration=0.5),
+        seeds=2,
+        push_tests=PushTest(settle=0.5, max_force=400.0, tolerance=100.0, name="fwd"),
+        progress=False,
+    )
+    assert isinstance(result, Comparison)
+    assert result.controllers == ("lqr", "_lqr_factory")
+    markdown = result.to_markdown().splitlines()
+    header = [c.strip() for c in markdown[0].strip("|").split("|")]
+    assert header == [
+        "scenario",
+        "controller",
+        "seeds",
+        "success",
+        "mean time to fall (s)",
+        "COM dev RMS (cm)",
+        "tilt RMS (deg)",
+        "effort",
+        "largest push fwd (N)",
+        "compute mean (ms)",
+        "compute p99 (ms)",
+        "real-time factor",
+        "fallbacks",
+    ]
+    assert len(markdown) == 2 + 4  # header, rule, 2 scenarios x 2 controllers
+    assert "| noise x0.5 | lqr | 2 | 100% |" in markdown[2]
+
+    path = tmp_path / "out" / "results.csv"
+    text = result.to_csv(path)
+    assert path.read_text() == text
+    rows = list(csv.DictReader(io.StringIO(text)))
+    assert list(rows[0]) == [
+        "scenario",
+        "controller",
+        "runs",
+        "success_rate",
+        "mean_time_to_fall",
+        "com_deviation_rms_cm",
+        "tilt_rms_deg",
+        "control_effort",
+        "largest_push_fwd",
+        "compute_mean_ms",
+        "compute_p99_ms",
+        "realtime_factor",
+        "fallbacks",
+    ]
+    assert len(rows) == 4
+    # An instance and a factory of the same LQR measure the same thing.
+    assert rows[0]["tilt_rms_deg"] == rows[1]["tilt_rms_deg"]
+    assert float(rows[0]["largest_push_fwd"]) == result.push_limits["lqr"]["fwd"].force
+
+    files = result.plot(tmp_path / "plots")
+    names = sorted(p.name for p in files)
+    assert names == [
+        "compute_time.png",
+        "survival_vs_noise.png",
+        "timeseries_noise_x0.5.png",
+        "timeseries_noise_x2.png",
+    ]
+    assert all(p.stat().st_size > 10_000 for p in files)
+
+
+def test_unknown_names_list_the_valid_ones(balance):
+    with pytest.raises(UnknownNameError, match="'humanoid_balance'") as info:
+        compare("humanoid_balanse", ["lqr"])
+    assert "pendulum_swingup" in str(info.value)
+    with pytest.raises(UnknownNameError, match="'lqr'") as info:
+        compare(balance, ["lqr", "ilqrr"])
+    assert "ilqrr" in str(info.value) and "'mppi'" in str(info.value)
+    with pytest.raises(InvalidArgumentError, match="scenarios"):
+        compare(balance, ["lqr"], scenarios=[])
+    with pytest.raises(InvalidArgumentError, match="duration"):
+        Scenario(duration=0.0)
+    with pytest.raises(InvalidArgumentError, match="noise_scale"):
+        Scenario(noise_scale=-1.0)
+    with pytest.raises(InvalidArgumentError, match="direction"):
+        PushTest(direction=(0.0, 0.0, 0.0))
+
+
+def test_cli_unknown_names(capsys):
+    assert main(["compare", "humanoid_balanse"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown task 'humanoid_balanse'" in err and "'humanoid_balance'" in err
+    assert main(["compare", "humanoid_balance", "--controllers", "lqr,nope"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown controller 'nope'" in err and "'lqr'" in err
+    assert main(["frobnicate"]) == 2
+    assert "'compare'" in capsys.readouterr().err
+    assert main(["list"]) == 0
+    assert "humanoid_balance: lqr" in capsys.readouterr().out
+
+
+def test_cli_end_to_end(tmp_path, capsys):
+    out = tmp_path / "res"
+    argv = ["compare", "humanoid_balance", "--controllers", "lqr", "--seeds", "2"]
+    argv += ["--duration", "0.4", "--noise", "1,3", "--push", "20", "--push-time", "0.1"]
+    argv += ["--largest-push", "--push-tolerance", "200", "--leg", "left"]
+    argv += ["--workers", "1", "--no-progress", "--out", str(out)]
+    assert main(argv) == 0
+    stdout = capsys.readouterr().out
+    assert "largest push forward (N)" in stdout and "largest push backward (N)" in stdout
+    assert "| noise x3 push 20N@0.1s | lqr | 2 |" in stdout
+    assert (out / "results.md").read_text().strip() in stdout
+    assert (out / "results.csv").is_file()
+    assert (out / "survival_vs_noise.png").is_file()
+    assert (out / "compute_time.png").is_file()
+
+
+def test_task_script_entry_point(tmp_path, capsys):
+    argv = ["--duration", "0.3", "--workers", "1", "--no-progress", "--no-plots"]
+    argv += ["--out", str(tmp_path), "--balance-cost", "500"]
+    assert run_task_script("humanoid_balance", argv, seeds=1, push=10.0) == 0
+    stdout = capsys.readouterr().out
+    assert "balance_cost=500.0" in stdout
+    assert "| noise x1 push 10N@2s | lqr | 1 | 100% |" in stdout
+    with pytest.raises(UnknownNameError, match="seeds"):
+        run_task_script("humanoid_balance", [], seedz=1)

@@ -1,0 +1,219 @@
+"""iLQR: exactness on a linear-quadratic problem, control limits, swing-ups, and input checks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import mpcbox
+from mpcbox.cost import ControlCost, Cost, StateCost
+from mpcbox.errors import InvalidArgumentError, MpcboxError, ShapeError
+from mpcbox.ilqr import ILQR, interpolate_linearization
+from mpcbox.registry import make_controller
+from mpcbox.tasks.swingup import CartpoleSwingup, PendulumSwingup
+
+# A point mass on two sliders without gravity, damping or limits: MuJoCo's semi-implicit
+# Euler step is exactly linear, so with a quadratic cost iLQR must match the Riccati solution.
+POINT_MASS = """
+<mujoco>
+  <option timestep="0.05" gravity="0 0 0"/>
+  <worldbody>
+    <body name="mass">
+      <joint name="x" type="slide" axis="1 0 0"/>
+      <joint name="y" type="slide" axis="0 1 0"/>
+      <geom type="sphere" size="0.1" mass="2" contype="0" conaffinity="0"/>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor joint="x" gear="1" ctrllimited="false"/>
+    <motor joint="y" gear="2" ctrllimited="{limited}" ctrlrange="-{bound} {bound}"/>
+  </actuator>
+</mujoco>
+"""
+WQ, WV, WU = np.array([1.0, 2.0]), np.array([0.1, 0.3]), np.array([0.05, 0.02])
+WQ_T, WV_T = np.array([50.0, 40.0]), np.array([5.0, 8.0])
+X0 = np.array([1.0, -0.5, 0.3, 0.2])
+T = 40
+
+
+def point_mass(limited: bool = False, bound: float = 100.0) -> mpcbox.Problem:
+    cost = Cost(
+        [StateCost(np.zeros(2), WQ, WV), ControlCost(WU)],
+        [StateCost(np.zeros(2), WQ_T, WV_T, name="terminal")],
+    )
+    xml = POINT_MASS.format(limited=str(limited).lower(), bound=bound)
+    return mpcbox.Problem(xml, cost=cost, threads=1)
+
+
+def riccati(problem: mpcbox.Problem):
+    """Time-varying Riccati recursion written out independently of mpcbox.ilqr."""
+    A, B = problem.linearize(np.zeros(4), np.zeros(2))
+    Q, R = np.diag(np.r_[WQ, WV]), np.diag(WU)
+    P = np.diag(np.r_[WQ_T, WV_T])
+    gains = np.zeros((T, 2, 4))
+    for t in range(T - 1, -1, -1):
+        K = -np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
+        P = Q + A.T @ P @ (A + B @ K)
+        gains[t] = K
+    x, xs, us = X0.copy(), [X0.copy()], []
+    for t in range(T):
+        u = gains[t] @ x
+        x = A @ x + B @ u
+        us.append(u)
+        xs.append(x)
+    return gains, np.array(xs), np.array(us)
+
+
+@pytest.mark.parametrize("limited", [False, True])
+def test_linear_quadratic_one_iteration_is_riccati(limited):
+    problem = point_mass(limited=limited)  # limits far away exercise the box-QP path
+    gains, xs, us = riccati(problem)
+    ilqr = ILQR(problem, T, regularization=0.0)  # plain Newton step
+    one = ilqr.solve(X0, max_iterations=1)
+    assert one.iterations == 1
+    np.testing.assert_allclose(one.ctrls, us, atol=1e-6)
+    np.testing.assert_allclose(one.states, xs, atol=1e-6)
+    np.testing.assert_allclose(one.K, gains, rtol=1e-5, atol=1e-6)
+    full = ilqr.solve(X0)
+    assert full.converged and full.iterations <= 2
+    assert full.cost == pytest.approx(one.cost, rel=1e-9)
+    assert full.costs[0] > full.cost
+    assert set(full.timing._fields) == {"derivatives", "backward", "rollouts", "total"}
+
+
+def test_parallel_line_search_and_interpolated_linearization_agree():
+    problem = point_mass()
+    ref = ILQR(problem, T).solve(X0)
+    par = ILQR(problem, T, line_search="parallel", threads=2).solve(X0)
+    sparse = ILQR(problem, T, linearize_every=4).solve(X0)  # linear system: exact anyway
+    assert par.cost == pytest.approx(ref.cost, rel=1e-9)
+    assert sparse.cost == pytest.approx(ref.cost, rel=1e-9)
+
+
+def test_interpolate_linearization():
+    A = np.stack([np.eye(2), 3 * np.eye(2)])
+    B = np.stack([np.ones((2, 1)), 5 * np.ones((2, 1))])
+    lin = interpolate_linearization(A, B, np.array([0, 4]), 5)
+    np.testing.assert_allclose(lin.A[:, 0, 0], [1.0, 1.5, 2.0, 2.5, 3.0])
+    np.testing.assert_allclose(lin.B[:, 1, 0], [1.0, 2.0, 3.0, 4.0, 5.0])
+
+
+def test_tight_control_limits_hold_and_clamped_gains_vanish():
+    problem = point_mass(limited=True, bound=0.05)
+    res = ILQR(problem, T).solve(X0)
+    u = res.ctrls[:, 1]
+    assert np.all(np.abs(u) <= 0.05 + 1e-12)
+    clamped = np.abs(np.abs(u) - 0.05) < 1e-9
+    assert clamped.sum() > 5
+    # Saturated knots of the limited actuator get no feedback (control-limited DDP).
+    assert np.allclose(res.K[clamped, 1], 0.0)
+    assert res.converged
+
+
+def test_divergent_rollouts_raise_regularization_and_recover():
+    problem = point_mass()
+
+    class Flaky(ILQR):
+        fails = 0
+
+        def _forward(self, *args):
+            if Flaky.fails < 7:  # every step size of the first line search, then one more
+                Flaky.fails += 1
+                out = super()._forward(*args)
+                return out[0] * np.nan, out[1], np.inf
+            return super()._forward(*args)
+
+    res = Flaky(problem, T).solve(X0)
+    ref = ILQR(problem, T).solve(X0)
+    assert res.divergences == 7
+    assert res.cost == pytest.approx(ref.cost, rel=1e-6)
+
+
+def test_mpc_feedback_between_replans_and_no_crash_on_nan():
+    problem = point_mass()
+    ctrl = ILQR(problem, T, replan_period=0.2)
+    assert ctrl.period is None
+    u0 = ctrl(X0, 0.0)
+    plan = ctrl.plan
+    np.testing.assert_allclose(u0, plan.ctrls[0], atol=1e-12)
+    # One planning step later, off the nominal: u = u_1 + K_1 (x - x_1), no replan.
+    delta = np.array([0.01, -0.02, 0.03, 0.0])
+    u1 = ctrl(plan.states[1] + delta, problem.dt)
+    np.testing.assert_allclose(u1, plan.ctrls[1] + plan.K[1] @ delta, atol=1e-10)
+    assert ctrl.stats["replans"] == 1
+    ctrl(plan.states[4], 4 * problem.dt)
+    assert ctrl.stats["replans"] == 2
+    out = ctrl(np.full(4, np.nan), 5 * problem.dt)
+    assert np.all(np.isfinite(out)) and ctrl.stats["fallbacks"] == 1
+    held = ILQR(problem, T, replan_period=0.1, feedback=False)
+    assert held.period == pytest.approx(0.1)
+
+
+def test_pendulum_offline_swingup_matches_ipopt():
+    problem = PendulumSwingup(planning_timestep=0.025)
+    horizon, u0 = 120, np.array([0.5])  # 3 s; the hanging rest is a critical point
+    res = ILQR(problem, horizon, max_iterations=300, ctrls_init=u0, threads=1).solve(
+        problem.initial_state()
+    )
+    assert res.converged
+    assert problem.upright_error(res.states[-1]) < 0.1
+    assert np.all(res.ctrls >= problem.ctrl_low) and np.all(res.ctrls <= problem.ctrl_high)
+    assert np.abs(res.ctrls).max() == pytest.approx(2.0)  # the torque limit is active
+    assert np.all(np.diff(res.costs) < 0)
+    pytest.importorskip("casadi")
+    from mpcbox.ipopt_reference import solve_ipopt
+
+    ref = solve_ipopt(problem, problem.initial_state(), horizon, ctrls_init=u0, tolerance=1e-7)
+    assert ref.defect < 1e-6
+    gap = (res.cost - ref.cost) / ref.cost
+    assert gap < 0.01, f"iLQR {res.cost:.4f} vs IPOPT {ref.cost:.4f}"
+
+
+def test_cartpole_mpc_swings_up_within_3s_and_holds_5s():
+    problem = CartpoleSwingup()
+    controller = make_controller("ilqr", problem)
+    result = mpcbox.simulate(problem, controller, 8.0)
+    assert result.failure is None
+    err = np.array([problem.upright_error(s) for s in result.states])
+    down = np.flatnonzero(err > 0.3)
+    t_up = result.time[down[-1] + 1] if len(down) else 0.0
+    assert t_up <= 3.0, f"upright only from t = {t_up:.2f} s"
+    assert result.time[-1] - t_up >= 5.0 - 1e-9
+    assert np.all(np.abs(result.states[:, 0]) < 2.9)  # the cart stays off the rail ends
+    assert result.controller_stats["fallbacks"] == 0
+
+
+def test_bad_inputs_raise_named_errors():
+    problem = point_mass()
+    for horizon in (0, -3, 2.5, True):
+        with pytest.raises(InvalidArgumentError, match="horizon"):
+            ILQR(problem, horizon)
+    with pytest.raises(InvalidArgumentError, match="ctrl_low must be <= ctrl_high"):
+        ILQR(problem, 10, ctrl_low=np.array([1.0, 0.0]), ctrl_high=np.array([-1.0, 1.0]))
+    with pytest.raises(ShapeError, match="ctrl_low"):
+        ILQR(problem, 10, ctrl_low=np.zeros(3))
+    with pytest.raises(InvalidArgumentError, match="step_sizes"):
+        ILQR(problem, 10, step_sizes=(1.0, 0.0))
+    with pytest.raises(InvalidArgumentError, match="line_search"):
+        ILQR(problem, 10, line_search="golden")
+    with pytest.raises(InvalidArgumentError, match="regularization"):
+        ILQR(problem, 10, regularization=float("nan"))
+    with pytest.raises(InvalidArgumentError, match="problem"):
+        ILQR("scene.xml", 10)
+    ilqr = ILQR(problem, 10)
+    with pytest.raises(ShapeError, match="x0"):
+        ilqr.solve(np.zeros(3))
+    with pytest.raises(ShapeError, match="ctrls_init"):
+        ilqr.solve(X0, np.zeros((9, 2)))
+    with pytest.raises(InvalidArgumentError, match="ctrls_init"):
+        ilqr.solve(X0, np.full((10, 2), np.inf))
+    with pytest.raises(MpcboxError, match="x0"):
+        ilqr.solve(np.array([np.nan, 0, 0, 0]))
+    with pytest.raises(MpcboxError, match="weight"):
+        mpcbox.Problem(
+            POINT_MASS.format(limited="false", bound=1),
+            cost=Cost([StateCost(np.zeros(2), [1.0, np.inf])]),
+        )
+    # Every error is also the matching built-in exception.
+    with pytest.raises(ValueError):
+        ILQR(problem, 0)

@@ -1,0 +1,96 @@
+"""LQR: closed-form scalar case, python-control cross-check, checks, and humanoid balance."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import mpcbox
+from mpcbox.lqr import dlqr
+from mpcbox.tasks import scene_path
+from mpcbox.tasks.humanoid_balance import HumanoidBalance, classic_humanoid_path
+
+
+def test_scalar_closed_form():
+    a, b, q, r = 1.2, 0.5, 2.0, 0.3
+    K, P = dlqr(np.array([[a]]), np.array([[b]]), np.array([[q]]), np.array([[r]]))
+    # P solves b^2 P^2 + (r - a^2 r - q b^2) P - q r = 0 (the scalar DARE), positive root.
+    c2, c1, c0 = b * b, r - a * a * r - q * b * b, -q * r
+    p = (-c1 + np.sqrt(c1 * c1 - 4 * c2 * c0)) / (2 * c2)
+    assert P[0, 0] == pytest.approx(p, rel=1e-12)
+    assert K[0, 0] == pytest.approx(a * b * p / (r + b * b * p), rel=1e-12)
+    assert abs(a - b * K[0, 0]) < 1.0
+
+
+@pytest.fixture(scope="module")
+def balance() -> HumanoidBalance:
+    return HumanoidBalance()
+
+
+def test_humanoid_gain_matches_python_control(balance):
+    control = pytest.importorskip("control")
+    lqr = mpcbox.LQR(balance)
+    # Cart-pole upright: an unstable, fully controllable pair.
+    cart = mpcbox.Problem(scene_path("cartpole.xml"), qpos_ref=np.array([0.0, np.pi]))
+    ours = mpcbox.LQR(cart)
+    K_ctrl, S_ctrl, _ = control.dlqr(ours.A, ours.B, ours.Q, ours.R)
+    np.testing.assert_allclose(ours.K, K_ctrl, rtol=1e-8, atol=1e-10 * np.abs(K_ctrl).max())
+    np.testing.assert_allclose(ours.P, S_ctrl, rtol=1e-8, atol=1e-10 * np.abs(S_ctrl).max())
+    # The humanoid on one leg (54 states, with the floating base's marginal modes).
+    K_h, _, _ = control.dlqr(lqr.A, lqr.B, lqr.Q, lqr.R, method="scipy")
+    np.testing.assert_allclose(lqr.K, K_h, rtol=1e-8, atol=1e-8 * np.abs(K_h).max())
+    assert lqr.spectral_radius <= 1.0 + 1e-6
+
+
+def test_checks_name_the_failing_condition():
+    A = np.diag([1.5, 0.5])
+    B = np.array([[0.0], [1.0]])
+    with pytest.raises(mpcbox.NotStabilizableError, match=r"1\.5"):
+        dlqr(A, B, np.eye(2), np.eye(1))
+    A2 = np.diag([0.5, 0.9])
+    with pytest.raises(mpcbox.CostDefinitionError, match="Q must be symmetric"):
+        dlqr(A2, B, np.array([[1.0, 0.5], [0.0, 1.0]]), np.eye(1))
+    with pytest.raises(mpcbox.CostDefinitionError, match="R must be positive definite"):
+        dlqr(A2, B, np.eye(2), np.zeros((1, 1)))
+    with pytest.raises(mpcbox.CostDefinitionError, match="Q must be positive semidefinite"):
+        dlqr(A2, B, -np.eye(2), np.eye(1))
+    with pytest.raises(mpcbox.ShapeError, match="R must have shape"):
+        dlqr(A2, B, np.eye(2), np.eye(2))
+    # Symmetry tolerance scales with the matrix: tiny relative asymmetry is accepted.
+    Q = 1e6 * np.eye(2)
+    Q[0, 1] += 1e-6
+    dlqr(A2, B, Q, np.eye(1))
+
+
+def test_lqr_holds_one_leg_12s_under_recipe_noise(balance):
+    lqr = mpcbox.LQR(balance)
+    res = mpcbox.simulate(balance, lqr, 12.0, noise=balance.noise(), seed=1)
+    assert res.survived, res.failure
+    assert res.metrics.com_deviation_rms < 0.02
+
+    # Without a controller (holding the equilibrium control) the humanoid falls.
+    class Hold(mpcbox.Controller):
+        def __call__(self, state, time):
+            return balance.ctrl_ref
+
+    fall = mpcbox.simulate(balance, Hold(), 12.0, noise=balance.noise(), seed=1)
+    assert not fall.survived and fall.metrics.time_to_fall < 12.0
+
+
+def test_right_leg_posture_from_mink_is_balanced_by_lqr():
+    right = HumanoidBalance("right")
+    assert right.posture.com_error < 1e-3
+    assert right.posture.swing_height > 0.05
+    res = mpcbox.simulate(right, mpcbox.LQR(right), 6.0, noise=right.noise(), seed=1)
+    assert res.survived, res.failure
+
+
+def test_classic_humanoid_from_mujoco_warp_test_data():
+    path = classic_humanoid_path()
+    if path is None:
+        pytest.skip("mujoco-warp's classic humanoid test model is not installed")
+    classic = HumanoidBalance(model=path)
+    assert (classic.nq, classic.nv, classic.nu) == (28, 27, 21)
+    assert abs(classic.equilibrium.vertical_residual) <= 1e-3
+    res = mpcbox.simulate(classic, mpcbox.LQR(classic), 6.0, noise=classic.noise(), seed=1)
+    assert res.survived, res.failure

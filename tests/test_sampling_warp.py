@@ -1,0 +1,67 @@
+"""The warp backend against the CPU backend (on warp's CPU device without a GPU)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import mpcbox
+from mpcbox.sampling import MPPI, PredictiveSampling, Randomization
+
+pytest.importorskip("mujoco_warp")
+
+
+def _agreement(problem, device, num_knots=3, horizon_steps=10, randomization=None, seed=0):
+    opts = dict(
+        num_samples=8,
+        horizon=horizon_steps * problem.dt,
+        num_knots=num_knots,
+        randomization=randomization,
+    )
+    cpu = PredictiveSampling(problem, **opts)
+    warp = PredictiveSampling(problem, backend="warp", device=device, **opts)
+    rng = np.random.default_rng(seed)
+    cand = problem.clip_ctrl(problem.ctrl_ref + rng.normal(0, 0.3, (8, num_knots, problem.nu)))
+    state = problem.initial_state().copy()
+    state[problem.nq :] += rng.normal(0, 0.2, problem.nv + problem.na)
+    a = cpu.backend.evaluate(state, cand)
+    b = warp.backend.evaluate(state, cand)
+    assert not b.overflow.any() and not b.nonfinite.any()
+    return a.costs, b.costs, warp
+
+
+def test_cartpole_costs_agree_with_the_cpu_backend(warp_device):
+    from mpcbox.tasks.swingup import CartpoleSwingup
+
+    a, b, _ = _agreement(CartpoleSwingup(), warp_device, horizon_steps=30)
+    np.testing.assert_allclose(b, a, rtol=2e-5)
+
+
+def test_humanoid_costs_agree_with_the_cpu_backend(warp_device):
+    """Quaternion state cost, sensor terms (height, upright), contacts, terminal forward."""
+    from mpcbox.tasks.humanoid_stand import HumanoidStand
+
+    a, b, warp = _agreement(HumanoidStand(), warp_device, horizon_steps=20)
+    np.testing.assert_allclose(b, a, rtol=2e-4)
+    assert warp.backend.nconmax >= 4 and warp.stats["resizes"] == 0
+
+
+def test_randomized_models_agree_with_the_cpu_backend(warp_device):
+    from mpcbox.tasks.swingup import CartpoleSwingup
+
+    rand = Randomization(num_models=3, mass_scale=(0.5, 1.5))
+    a, b, _ = _agreement(CartpoleSwingup(), warp_device, horizon_steps=20, randomization=rand)
+    assert a.shape == (8, 3) and np.ptp(a[0]) > 1e-3
+    np.testing.assert_allclose(b, a, rtol=2e-5)
+
+
+@pytest.mark.gpu
+def test_gpu_closed_loop_cartpole_swingup():
+    from mpcbox.tasks.swingup import CartpoleSwingup
+
+    problem = CartpoleSwingup()
+    opts = dict(problem.controller_options["mppi"], num_samples=1024, backend="warp")
+    ctrl = MPPI(problem, **opts)
+    res = mpcbox.simulate(problem, ctrl, 8.0)
+    err = np.array([problem.upright_error(s) for s in res.states])
+    assert np.all(err[res.time >= 3.0] < 0.3)
