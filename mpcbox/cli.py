@@ -390,7 +390,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     try:
         args = build_parser(task, prog=f"mpcbox compare {task}").parse_args(rest[1:])
-        return run_comparison(task, args)
+        return run_comparison(task, args, controller_defaults=quick_sampling_options())
     except (MpcboxError, ImportError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -86,6 +86,9 @@ class CostTerm(abc.ABC):
         name: Short label used in sensor names and reports.
     """
 
+    #: Whether :meth:`jacobian` is the same at every state (computed once per batch).
+    constant_jacobian: bool = False
+
     def __init__(self, weight: float | Sequence[float] | np.ndarray, name: str) -> None:
         self._weight_arg = weight
         self.name = name
@@ -154,6 +157,8 @@ class StateCost(CostTerm):
         qvel_ref: Reference velocities ``(nv,)``; zeros by default.
     """
 
+    constant_jacobian = True
+
     def __init__(
         self,
         qpos_ref: np.ndarray,
@@ -204,6 +209,8 @@ class ControlCost(CostTerm):
         weight: Scalar or ``(nu,)`` weights.
         ctrl_ref: Reference control ``(nu,)``; zeros by default.
     """
+
+    constant_jacobian = True
 
     def __init__(
         self,

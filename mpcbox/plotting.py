@@ -118,21 +118,24 @@ def plot_time_series(
 def plot_survival(comparison: Comparison, path: str | Path) -> Path:
     """Success rate against the scenarios' noise scale, one line per controller.
 
-    Scenarios are grouped by noise scale (rates averaged when several scenarios share one).
+    Only scenarios without pushes and model mismatch are used when there are any (all
+    scenarios otherwise); rates are averaged when several of them share a noise scale.
 
     Returns:
         The written path.
     """
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    scales = sorted({s.noise_scale for s in comparison.scenarios})
+    plain = [s for s in comparison.scenarios if not s.pushes and s.mismatch is None]
+    used = plain or list(comparison.scenarios)
+    scales = sorted({s.noise_scale for s in used})
     for name in comparison.controllers:
         rates = []
         for scale in scales:
             runs = [
                 r
                 for i, s in enumerate(comparison.scenarios)
-                if s.noise_scale == scale
+                if s.noise_scale == scale and any(s is u for u in used)
                 for r in comparison.runs_of(name, i)
             ]
             rates.append(100.0 * np.mean([r.metrics.survived for r in runs]) if runs else np.nan)

@@ -322,13 +322,22 @@ class Problem:
         return self._pool
 
     def _map(self, fn: Callable[[int], object], count: int, threads: int | None) -> list:
+        """``[fn(i) for i in range(count)]`` on contiguous chunks, one chunk per thread."""
         threads = self.threads if threads is None else positive_int("threads", threads)
-        if threads == 1 or count < 2:
+        threads = min(threads, count)
+        if threads <= 1:
             return [fn(i) for i in range(count)]
-        if threads == self.threads:
-            return list(self.executor().map(fn, range(count)))
-        with ThreadPoolExecutor(max_workers=threads) as pool:
-            return list(pool.map(fn, range(count)))
+        bounds = np.linspace(0, count, threads + 1).astype(int)
+
+        def chunk(j: int) -> list:
+            return [fn(i) for i in range(bounds[j], bounds[j + 1])]
+
+        if threads <= self.threads:
+            parts = list(self.executor().map(chunk, range(threads)))
+        else:
+            with ThreadPoolExecutor(max_workers=threads) as pool:
+                parts = list(pool.map(chunk, range(threads)))
+        return [item for part in parts for item in part]
 
     # ------------------------------------------------------------------ dynamics
     def step(self, state: np.ndarray, ctrl: np.ndarray) -> np.ndarray:
@@ -542,41 +551,78 @@ class Problem:
         return self._quadratize_one(state, ctrl, terminal)
 
     def _quadratize_one(self, state, ctrl, terminal) -> Quadratization:
+        out = self._quadratize_batch(state[None], ctrl[None], terminal)
+        return Quadratization(*(getattr(out, f)[0] for f in Quadratization._fields))
+
+    def _quadratize_batch(self, states, ctrls, terminal) -> Quadratization:
+        """Gauss-Newton quadratization of ``B`` knots (one term type at a time, vectorized).
+
+        Terms whose Jacobian does not depend on the state (``constant_jacobian``) contribute
+        the same Hessian blocks at every knot, computed once; the others are evaluated per
+        knot (analytically, or by finite differences).
+        """
         terms = self.cost.terminal if terminal else self.cost.running
         nx, nu, nv = self.nx, self.nu, self.nv
-        value = 0.0
-        lx, lu = np.zeros(nx), np.zeros(nu)
-        lxx, luu, lux = np.zeros((nx, nx)), np.zeros((nu, nu)), np.zeros((nu, nx))
+        nb = len(states)
+        value = np.zeros(nb)
+        lx, lu = np.zeros((nb, nx)), np.zeros((nb, nu))
+        lxx, luu, lux = np.zeros((nb, nx, nx)), np.zeros((nb, nu, nu)), np.zeros((nb, nu, nx))
         if not terms:
-            return Quadratization(np.float64(0.0), lx, lu, lxx, luu, lux)
+            return Quadratization(value, lx, lu, lxx, luu, lux)
         m = self.planning_model
         data = self._data()
-        self.set_state(data, state)
-        data.ctrl[:] = ctrl
-        mujoco.mj_forward(m, data)
-        feats = self._features_of(data)
+        varying = [t for t in terms if not t.constant_jacobian]
+        sens = np.empty((nb, m.nsensordata))
+        jacs: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {id(t): [] for t in varying}
+        for b in range(nb):
+            self.set_state(data, states[b])
+            data.ctrl[:] = ctrls[b]
+            mujoco.mj_forward(m, data)
+            sens[b] = data.sensordata
+            for term in varying:
+                jacs[id(term)].append(self._term_jacobian(term, data, states[b], ctrls[b]))
+        feats = Features(states[:, : self.nq], states[:, self.nq : self.nq + nv], ctrls, sens)
         for term in terms:
-            r = term.residual(feats)[0]
-            jac = term.jacobian(m, data)
-            if jac is None:
-                jx, ju = self._residual_fd(term, state, ctrl, r)
-            else:
-                jx = np.zeros((len(r), nx))
-                jx[:, :nv] = jac.dq
-                jx[:, nv : 2 * nv] = jac.dv
-                ju = jac.du
+            r = term.residual(feats)
             w = term.weight
-            value += 0.5 * float(np.sum(w * r * r))
-            wjx = jx * w[:, None]
-            wju = ju * w[:, None]
-            lx += wjx.T @ r
-            lu += wju.T @ r
-            lxx += jx.T @ wjx
-            luu += ju.T @ wju
-            lux += ju.T @ wjx
-        lxx = 0.5 * (lxx + lxx.T)
-        luu = 0.5 * (luu + luu.T)
-        return Quadratization(np.float64(value), lx, lu, lxx, luu, lux)
+            wr = w * r
+            value += 0.5 * np.sum(wr * r, axis=1)
+            if term.constant_jacobian:
+                jx, ju = self._term_jacobian(term, data, states[-1], ctrls[-1])
+                lx += wr @ jx
+                lu += wr @ ju
+                wjx = jx * w[:, None]
+                lxx += jx.T @ wjx
+                luu += ju.T @ (ju * w[:, None])
+                lux += ju.T @ wjx
+            else:
+                jx = np.stack([j[0] for j in jacs[id(term)]])
+                ju = np.stack([j[1] for j in jacs[id(term)]])
+                lx += np.einsum("bk,bkn->bn", wr, jx)
+                lu += np.einsum("bk,bkn->bn", wr, ju)
+                wjx = jx * w[None, :, None]
+                lxx += np.einsum("bki,bkj->bij", jx, wjx)
+                luu += np.einsum("bki,bkj->bij", ju, ju * w[None, :, None])
+                lux += np.einsum("bki,bkj->bij", ju, wjx)
+        lxx = 0.5 * (lxx + lxx.transpose(0, 2, 1))
+        luu = 0.5 * (luu + luu.transpose(0, 2, 1))
+        return Quadratization(value, lx, lu, lxx, luu, lux)
+
+    def _term_jacobian(self, term, data, state, ctrl) -> tuple[np.ndarray, np.ndarray]:
+        """``(dr/dx (k, nx), dr/du (k, nu))`` of one term at the state held in ``data``."""
+        jac = term.jacobian(self.planning_model, data)
+        if jac is None:
+            feats = self._features_of(data)
+            r0 = term.residual(feats)[0]
+            jx, ju = self._residual_fd(term, state, ctrl, r0)
+            self.set_state(data, state)
+            data.ctrl[:] = ctrl
+            mujoco.mj_forward(self.planning_model, data)
+            return jx, ju
+        jx = np.zeros((jac.dq.shape[0], self.nx))
+        jx[:, : self.nv] = jac.dq
+        jx[:, self.nv : 2 * self.nv] = jac.dv
+        return jx, jac.du
 
     def _residual_fd(self, term, state, ctrl, r0) -> tuple[np.ndarray, np.ndarray]:
         eps = self.fd_eps
@@ -617,15 +663,22 @@ class Problem:
         states = as_array("states", states, (None, self.nstate))
         ctrls = as_array("ctrls", ctrls, (states.shape[0] - 1, self.nu))
         horizon = len(ctrls)
-
-        def one(i: int) -> Quadratization:
-            if i == horizon:
-                return self._quadratize_one(states[i], ctrls[-1], True)
-            return self._quadratize_one(states[i], ctrls[i], False)
-
-        out = self._map(one, horizon + 1, threads)
+        threads = self.threads if threads is None else positive_int("threads", threads)
+        # Chunks of knots: the C calls drop the GIL, the vectorized numpy work is per chunk.
+        bounds = np.linspace(0, horizon, min(threads, horizon) + 1).astype(int)
+        parts = self._map(
+            lambda j: self._quadratize_batch(
+                states[bounds[j] : bounds[j + 1]], ctrls[bounds[j] : bounds[j + 1]], False
+            ),
+            len(bounds) - 1,
+            threads,
+        )
+        last = self._quadratize_batch(states[-1:], ctrls[-1:], True)
         return Quadratization(
-            *(np.stack([getattr(q, f) for q in out]) for f in Quadratization._fields)
+            *(
+                np.concatenate([getattr(q, f) for q in [*parts, last]])
+                for f in Quadratization._fields
+            )
         )
 
     # ------------------------------------------------------------------ equilibrium

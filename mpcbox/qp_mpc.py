@@ -147,8 +147,8 @@ class QPMPC(Controller):
         dt: QP step (s).
         contacts: Geom, site or body names of the contact points (see
             :func:`~mpcbox.contact.contact_points`; prefix ``"geom:"``, ``"body:"`` or
-            ``"site:"`` to pick one kind). Default: the bodies touching the ground at the
-            Problem's reference state.
+            ``"site:"`` to pick one kind). Default: the Problem's ``contacts`` attribute if
+            it has one, else the bodies touching the ground at its reference state.
         mu: Friction coefficient of the pyramid.
         facets: Facets of the friction pyramid (4 or 8).
         f_max: Largest normal force per point (N); default twice the weight.
@@ -162,6 +162,8 @@ class QPMPC(Controller):
         drift_gain: Fraction :math:`\alpha` of the stance pose error removed in one step.
         contact_margin: A point higher than this above the lowest reference point is lifted (m).
         joint_limits: Add the joints' ranges as constraints.
+        cost_gradient: Keep the cost gradient at the reference (default: regulate to the
+            reference, dropping it, as LQR does).
         warm_start: Warm-start OSQP from the shifted previous solution (else cold start).
         period: Seconds between calls (default ``dt``).
         fd_centered: Centered finite differences for the linearization.
@@ -196,6 +198,7 @@ class QPMPC(Controller):
         stance_weight: float | None = 1e4,
         contact_margin: float = 0.01,
         joint_limits: bool = False,
+        cost_gradient: bool = False,
         warm_start: bool = True,
         period: float | None = None,
         fd_centered: bool = False,
@@ -243,7 +246,7 @@ class QPMPC(Controller):
         self.state_ref = problem.reference_state()
         self.ctrl_ref = problem.ctrl_ref.copy()
         if contacts is None:
-            contacts = self._default_contacts()
+            contacts = getattr(problem, "contacts", None) or self._default_contacts()
         self.points: ContactPoints = contact_points(
             self.model, _resolve_kinds(contacts), self.state_ref[: problem.nq]
         )
@@ -258,7 +261,11 @@ class QPMPC(Controller):
         # Cost about the reference.
         quad = problem.quadratize(self.state_ref, self.ctrl_ref)
         self.Q, self.R, self.N_ux = quad.lxx, quad.luu, quad.lux
-        self.lx, self.lu = quad.lx, quad.lu
+        # Regulate to the reference like LQR: the gradient of the cost there (non-zero when the
+        # reference is not the cost's minimizer) would make the plan drift along the modes the
+        # terminal cost does not see.
+        self.lx = quad.lx if cost_gradient else np.zeros_like(quad.lx)
+        self.lu = quad.lu if cost_gradient else np.zeros_like(quad.lu)
         self._groups = self._stance_rows()
         self.ns = sum(g[2] for g in self._groups)
         self._linearize(self.state_ref, self.ctrl_ref)

@@ -1,37 +1,33 @@
 """Pendulum swing-up: iLQR-MPC and the IPOPT plan (tracked with TV-LQR) on one scenario.
 
-Prints a markdown table and writes PNG plots into ``results/pendulum_swingup/``. LQR is left
-out: it only stabilizes about upright and cannot swing the pendulum up.
+A thin wrapper of ``mpcbox compare pendulum_swingup``: one noise-free 6 s run from rest.
+Prints a markdown table and writes ``results.md``, ``results.csv`` and PNG plots into
+``results/pendulum_swingup/``. LQR is left out: it only stabilizes about upright and cannot
+swing the pendulum up. The IPOPT reference needs CasADi (``pip install mpcbox[casadi]``).
 
     python problems/pendulum_swingup.py [--duration 6] [--out results/pendulum_swingup]
 """
 
 from __future__ import annotations
 
-import argparse
 import importlib.util
 import sys
 
-from mpcbox.compare import Scenario, compare
+from mpcbox.cli import run_task_script
 
 
-def main(argv: list[str] | None = None, task: str = "pendulum_swingup") -> int:
-    """Run the comparison for ``task`` (``argv`` defaults to the command line)."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--duration", type=float, default=6.0)
-    parser.add_argument("--out", default=f"results/{task}")
-    args = parser.parse_args(argv)
-    controllers = ["ilqr"]
+def default_controllers() -> str:
+    """``"ilqr,ipopt"``, or ``"ilqr"`` when CasADi is not installed."""
     if importlib.util.find_spec("casadi") is not None:
-        controllers.append("ipopt")
-    else:
-        print("casadi is not installed: skipping the IPOPT reference", file=sys.stderr)
-    scenario = Scenario(name="swing-up from rest", duration=args.duration, noise_scale=0.0)
-    result = compare(task, controllers, scenario, seeds=1, workers=1, progress=False)
-    print(result.to_markdown())
-    for path in result.plot(args.out):
-        print(f"wrote {path}")
-    return 0
+        return "ilqr,ipopt"
+    print("casadi is not installed: skipping the IPOPT reference", file=sys.stderr)
+    return "ilqr"
+
+
+def main(argv: list[str] | None = None, task: str = "pendulum_swingup", **defaults) -> int:
+    """Run the comparison for ``task`` (``argv`` defaults to the command line)."""
+    defaults = {"duration": 6.0, "seeds": 1, "noise": "0", **defaults}
+    return run_task_script(task, argv, controllers=default_controllers(), **defaults)
 
 
 if __name__ == "__main__":

@@ -181,6 +181,8 @@ class SamplingController(Controller):
             )
         self.noise_scale = scale
         self.period = None if config.period is None else positive("period", config.period)
+        replan = config.replan_period
+        self.replan_period = None if replan is None else positive("replan_period", replan)
         one_of("risk", config.risk, RISKS)
         if not 0.0 < config.cvar_alpha <= 1.0:
             raise InvalidArgumentError(f"cvar_alpha must be in (0, 1], got {config.cvar_alpha}")
@@ -230,8 +232,26 @@ class SamplingController(Controller):
     # ------------------------------------------------------------------ helpers
     def noise(self, count: int) -> np.ndarray:
         """Gaussian knot noise ``(count, K, nu)`` scaled by ``noise_scale``."""
+        return self.standard_normal(count) * self.noise_scale
+
+    def standard_normal(self, count: int) -> np.ndarray:
+        """Standard normal draws ``(count, K, nu)`` from :attr:`rng`.
+
+        While the backend computes asynchronously, :meth:`plan` draws the next iteration's
+        block ahead of time; the sequence of draws is the same as without the prefetch.
+        """
         shape = (count, self.spline.num_knots, self.problem.nu)
-        return self.rng.standard_normal(shape) * self.noise_scale
+        buf, self._prefetched = self._prefetched, None
+        if buf is not None and buf.shape == shape:
+            return buf
+        if buf is not None:  # pragma: no cover - a subclass drew another shape
+            raise RuntimeError("prefetched noise of another shape was not consumed")
+        return self.rng.standard_normal(shape)
+
+    def _prefetch(self) -> None:
+        if self._prefetched is None and self.num_samples > 1:
+            shape = (self.num_samples - 1, self.spline.num_knots, self.problem.nu)
+            self._prefetched = self.rng.standard_normal(shape)
 
     def _make_backend(self):
         cfg = self.config
@@ -259,6 +279,7 @@ class SamplingController(Controller):
     def reset(self) -> None:
         """Forget the nominal plan and statistics; re-seed the noise generator."""
         self.rng = np.random.default_rng(self.config.seed)
+        self._prefetched: np.ndarray | None = None
         self.knots: np.ndarray | None = None
         self._plan_time: float | None = None
         self.last: TickInfo | None = None
@@ -279,15 +300,25 @@ class SamplingController(Controller):
         ref = self.problem.clip_ctrl(self.problem.ctrl_ref)
         return np.tile(ref, (self.spline.num_knots, 1))
 
-    def evaluate(self, state: np.ndarray, candidates: np.ndarray) -> np.ndarray:
+    def evaluate(
+        self, state: np.ndarray, candidates: np.ndarray, *, prefetch: bool = False
+    ) -> np.ndarray:
         """Aggregated costs ``(N,)`` of candidate knots from ``state`` (+inf if excluded).
 
         Args:
             state: Start state ``(nstate,)``.
             candidates: Knots ``(N, K, nu)`` (clamped to the control range here).
+            prefetch: Draw the next iteration's noise while the backend computes.
         """
         cand = self.problem.clip_ctrl(np.asarray(candidates, dtype=np.float64))
-        ev = self.backend.evaluate(state, cand)
+        submit = getattr(self.backend, "submit", None)
+        if submit is not None:
+            submit(state, cand)
+            if prefetch:
+                self._prefetch()
+            ev = self.backend.collect()
+        else:
+            ev = self.backend.evaluate(state, cand)
         bad = ev.overflow | ev.nonfinite | ~np.isfinite(ev.costs)
         costs = np.where(bad, np.inf, ev.costs)
         agg = aggregate_risk(costs, self.config.risk, self.config.cvar_alpha)
@@ -314,7 +345,7 @@ class SamplingController(Controller):
         best, nominal, valid = np.nan, np.nan, 0
         for it in range(self.iterations):
             cand = self.problem.clip_ctrl(self.sample())
-            costs = self.evaluate(state, cand)
+            costs = self.evaluate(state, cand, prefetch=True)
             finite = np.isfinite(costs)
             valid = int(finite.sum())
             if it == 0 and self.evaluates_nominal:
@@ -340,8 +371,15 @@ class SamplingController(Controller):
         """Warm-start hook for algorithm state besides :attr:`knots` (e.g. CEM's std)."""
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
-        knots = self.plan(state, time)
-        return self.problem.clip_ctrl(self.weights[0] @ knots)
+        replan = self.replan_period
+        if replan is None or self.knots is None or self._plan_time is None:
+            knots = self.plan(state, time)
+            return self.problem.clip_ctrl(self.weights[0] @ knots)
+        elapsed = float(time) - self._plan_time
+        if elapsed < 0.0 or elapsed >= replan - 1e-9:
+            knots = self.plan(state, time)
+            return self.problem.clip_ctrl(self.weights[0] @ knots)
+        return self.action(elapsed)
 
     def action(self, time_offset: float) -> np.ndarray:
         """The nominal control ``time_offset`` seconds after the last tick."""

@@ -50,7 +50,7 @@ class CEM(SamplingController):
 
     def sample(self) -> np.ndarray:
         assert self.knots is not None
-        eps = self.rng.standard_normal((self.num_samples - 1, *self.knots.shape))
+        eps = self.standard_normal(self.num_samples - 1)
         cand = np.empty((self.num_samples, *self.knots.shape))
         cand[0] = self.knots
         cand[1:] = self.knots + self.std * eps

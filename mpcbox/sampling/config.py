@@ -48,7 +48,11 @@ class SamplingConfig:
         noise_scale: Standard deviation of the knot noise, in control units; a scalar or one
             value per actuator ``(nu,)``.
         iterations: Sample/update rounds per control tick.
-        period: Seconds between replans (``None``: every simulation step).
+        period: Seconds between controller calls (``None``: every simulation step); without
+            ``replan_period`` every call replans and the control is held in between.
+        replan_period: Seconds between replans when the controller is called more often
+            (typically with ``period=None``): calls in between return the nominal spline at
+            the time elapsed since the last replan instead of holding its first value.
         backend: ``"cpu"`` (:func:`mujoco.rollout`) or ``"warp"`` (MuJoCo Warp).
         device: Warp device (``"cuda"``, ``"cuda:0"``, ``"cpu"``); default: CUDA if present.
         seed: Seed of the numpy Generator that draws the noise.
@@ -68,6 +72,7 @@ class SamplingConfig:
     noise_scale: float | Sequence[float] = 0.3
     iterations: int = 1
     period: float | None = None
+    replan_period: float | None = None
     backend: Backend = "cpu"
     device: str | None = None
     seed: int = 0

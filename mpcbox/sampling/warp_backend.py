@@ -21,6 +21,7 @@ doubles the capacities for the next tick.
 
 from __future__ import annotations
 
+import copy
 import math
 import time as _time
 import warnings
@@ -56,6 +57,20 @@ def _import_warp():
             "(pip install warp-lang mujoco-warp)"
         ) from exc
     return wp, mjw
+
+
+def has_collidable_pairs(model: mujoco.MjModel) -> bool:
+    """Whether any two geoms (or an explicit ``<pair>``, or a flex) may collide.
+
+    Conservative: compares contype/conaffinity of every geom pair, ignoring the body filters.
+    """
+    if model.npair > 0 or model.nflex > 0:
+        return True
+    ct = model.geom_contype.astype(np.int64)
+    ca = model.geom_conaffinity.astype(np.int64)
+    hit = ((ct[:, None] & ca[None, :]) != 0) | ((ca[:, None] & ct[None, :]) != 0)
+    np.fill_diagonal(hit, False)
+    return bool(hit.any())
 
 
 def resolve_device(device: str | None) -> str:
@@ -133,6 +148,7 @@ class WarpBackend:
         self.nworld = 0
         self._graph = None
         self._num_candidates = 0
+        self._pending: int | None = None
         self._stats = {
             "resizes": 0,
             "graph_captures": 0,
@@ -140,12 +156,13 @@ class WarpBackend:
             "setup_seconds": 0.0,
             "nconmax": 0,
             "njmax": 0,
+            "contacts_disabled": 0,
         }
         with wp.ScopedDevice(device):
             m = self._put_model()
             self.m = m
-            self.running = wc.DeviceRows(self.running_rows, device)
-            self.terminal = wc.DeviceRows(self.terminal_rows, device)
+            self.running = wc.DeviceRows(self.running_rows, device, problem.nu)
+            self.terminal = wc.DeviceRows(self.terminal_rows, device, problem.nu)
             self.weights = wp.array(self.weights_host, dtype=wp.float32)
             self.ctrl_low = wp.array(problem.ctrl_low.astype(np.float32), dtype=wp.float32)
             self.ctrl_high = wp.array(problem.ctrl_high.astype(np.float32), dtype=wp.float32)
@@ -159,6 +176,15 @@ class WarpBackend:
     # ------------------------------------------------------------------ setup
     def _put_model(self):
         wp, mjw = self._wp, self._mjw
+        if not has_collidable_pairs(self.models[0]):
+            # Nothing can touch: skip MJWarp's collision pipeline (many launches per step).
+            models = []
+            for model in self.models:
+                model = copy.copy(model)
+                model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+                models.append(model)
+            self.models = models
+            self._stats["contacts_disabled"] = 1
         base = self.models[0]
         nmod = len(self.models)
         if nmod == 1:
@@ -235,24 +261,29 @@ class WarpBackend:
             outputs=[d.qpos, d.qvel, d.act, d.time, d.qacc_warmstart, d.overflow, self.cost],
         )
         run, term = self.running, self.terminal
+        ncols = p.nu + run.num_state_rows + run.num_sensor_rows
+        common = [
+            per, self.weights, self.knots, self.ctrl_low, self.ctrl_high,
+            run.u_ref_dense, run.u_w_dense, d.qpos, d.qvel, d.sensordata, *run.row_inputs(),
+        ]  # fmt: skip
+        sensors = int(run.has_sensors)
+        # One fused launch per step: controls, state/control rows at x_t, and the sensor rows
+        # of the previous step (MJWarp computed them at x_{t-1} inside step t - 1).
         for t in range(self.horizon_steps):
             wp.launch(
-                wc.stage_kernel,
-                dim=nw,
-                inputs=[
-                    t, per, self.weights, self.knots, self.ctrl_low, self.ctrl_high,
-                    d.qpos, d.qvel, *run.state_inputs(),
-                ],
+                wc.fused_stage_kernel,
+                dim=(nw, ncols),
+                inputs=[t, common[0], 1, sensors if t > 0 else 0, *common[1:]],
                 outputs=[d.ctrl, self.cost],
-            )  # fmt: skip
+            )
             mjw.step(m, d)
-            if run.has_sensors:
-                wp.launch(
-                    wc.sensor_kernel,
-                    dim=nw,
-                    inputs=[d.sensordata, *run.sensor_inputs()],
-                    outputs=[self.cost],
-                )
+        if run.has_sensors:
+            wp.launch(
+                wc.fused_stage_kernel,
+                dim=(nw, ncols),
+                inputs=[self.horizon_steps, common[0], 0, 1, *common[1:]],
+                outputs=[d.ctrl, self.cost],
+            )
         if term.has_sensors:
             mjw.forward(m, d)
             wp.launch(
@@ -277,27 +308,43 @@ class WarpBackend:
 
     def evaluate(self, state: np.ndarray, candidates: np.ndarray) -> Evaluation:
         """Costs ``(N, M)`` of candidate knots ``(N, K, nu)`` from ``state``."""
+        self.submit(state, candidates)
+        return self.collect()
+
+    def submit(self, state: np.ndarray, candidates: np.ndarray) -> None:
+        """Upload ``state`` and the knots and launch the tick without waiting for it."""
         wp = self._wp
-        candidates = np.asarray(candidates, dtype=np.float64)
-        n, m = candidates.shape[0], len(self.models)
-        if candidates.shape[1:] != (self.num_knots, self.problem.nu):
+        candidates = np.asarray(candidates)
+        n = candidates.shape[0]
+        if candidates.ndim != 3 or candidates.shape[1:] != (self.num_knots, self.problem.nu):
             raise InvalidArgumentError(
                 f"candidates must have shape (N, {self.num_knots}, {self.problem.nu}), "
                 f"got {candidates.shape}"
             )
         if self.nconmax is None:
-            ncon, nefc = self.calibrate(state, candidates[: min(n, 8)])
+            cal = np.asarray(candidates[: min(n, 8)], dtype=np.float64)
+            ncon, nefc = self.calibrate(state, cal)
             self.nconmax = max(math.ceil(self.headroom * ncon), 4)
             self.njmax = max(math.ceil(self.headroom * nefc), 8)
         if n != self._num_candidates:
             self._allocate(n)
         with wp.ScopedDevice(self.device):
             self.state.assign(np.asarray(state, dtype=np.float32))
-            self.knots.assign(candidates.astype(np.float32))
+            self.knots.assign(np.ascontiguousarray(candidates, dtype=np.float32))
             if self._graph is not None:
                 wp.capture_launch(self._graph)
             else:
                 self._run()
+        self._pending = n
+
+    def collect(self) -> Evaluation:
+        """Wait for the launched tick and read back costs and flags."""
+        wp = self._wp
+        n, self._pending = self._pending, None
+        if n is None:
+            raise InvalidArgumentError("collect() needs a submit() first")
+        m = len(self.models)
+        with wp.ScopedDevice(self.device):
             costs = self.cost.numpy().astype(np.float64).reshape(n, m)
             flags = self.flags.numpy().reshape(n, m)
         overflow = (flags & 1) != 0

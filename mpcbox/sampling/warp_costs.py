@@ -177,7 +177,7 @@ def _nonzero(rows: list[tuple]) -> list[tuple]:
 class DeviceRows:
     """Row tables on a Warp device (same fields as :class:`RowTables`)."""
 
-    def __init__(self, rows: RowTables, device: str) -> None:
+    def __init__(self, rows: RowTables, device: str, nu_hint: int = 0) -> None:
         self.has_sensors = rows.has_sensors
         self.has_state = any(
             getattr(rows, f).size for f in ("q_idx", "quat_adr", "v_idx", "u_idx", "a_idx")
@@ -193,6 +193,29 @@ class DeviceRows:
             else:
                 dev = wp.array(arr, dtype=wp.float32, device=device)
             setattr(self, field, dev)
+        # Dense control rows (one per actuator, zero weight where there is no row) for the
+        # fused per-step kernel, where thread ``j < nu`` owns actuator ``j``.
+        nu = int(rows.u_idx.max()) + 1 if rows.u_idx.size else 0
+        nu = max(nu, int(nu_hint))
+        u_ref = np.zeros(nu, dtype=np.float32)
+        u_w = np.zeros(nu, dtype=np.float32)
+        u_ref[rows.u_idx] = rows.u_ref
+        u_w[rows.u_idx] = rows.u_w
+        self.u_ref_dense = wp.array(u_ref, dtype=wp.float32, device=device)
+        self.u_w_dense = wp.array(u_w, dtype=wp.float32, device=device)
+        #: Rows handled by one thread each in the fused kernel (besides the controls).
+        self.num_state_rows = int(
+            rows.q_idx.size + rows.quat_adr.size + rows.v_idx.size + rows.a_idx.size
+        )
+        self.num_sensor_rows = int(rows.s_a.size)
+
+    def row_inputs(self) -> list:
+        """Kernel inputs of :func:`row_cost` (state rows without controls, sensor rows)."""
+        return [
+            self.q_idx, self.q_ref, self.q_w, self.quat_adr, self.quat_ref, self.quat_w,
+            self.v_idx, self.v_ref, self.v_w, self.a_idx, self.a_ref, self.a_w,
+            self.s_a, self.s_b, self.s_c, self.s_w,
+        ]  # fmt: skip
 
     def state_inputs(self) -> list:
         """Kernel inputs for :func:`state_cost`-style rows, in kernel order."""
@@ -436,3 +459,140 @@ def finalize_kernel(
     if bad:
         f = f | 2
     flags[world] = wp.int32(f)
+
+
+@wp.func
+def row_cost(
+    world: int,
+    row: int,
+    with_state: int,
+    with_sensors: int,
+    qpos: wp.array2d[float],
+    qvel: wp.array2d[float],
+    sensordata: wp.array2d[float],
+    q_idx: wp.array[wp.int32],
+    q_ref: wp.array[float],
+    q_w: wp.array[float],
+    quat_adr: wp.array[wp.int32],
+    quat_ref: wp.array[wp.vec4],
+    quat_w: wp.array[wp.vec3],
+    v_idx: wp.array[wp.int32],
+    v_ref: wp.array[float],
+    v_w: wp.array[float],
+    a_idx: wp.array[wp.int32],
+    a_ref: wp.array[float],
+    a_w: wp.array[float],
+    s_a: wp.array[wp.int32],
+    s_b: wp.array[wp.int32],
+    s_c: wp.array[float],
+    s_w: wp.array[float],
+) -> float:
+    """``0.5 w r^2`` of one row: position, quaternion, velocity, wrapped-angle or sensor rows
+    in this order (``row`` indexes their concatenation; rows of a disabled group give 0)."""
+    i = row
+    n = q_idx.shape[0]
+    if i < n:
+        if with_state == 0:
+            return 0.0
+        r = qpos[world, q_idx[i]] - q_ref[i]
+        return 0.5 * q_w[i] * r * r
+    i -= n
+    n = quat_adr.shape[0]
+    if i < n:
+        if with_state == 0:
+            return 0.0
+        a = quat_adr[i]
+        q = wp.vec4(qpos[world, a], qpos[world, a + 1], qpos[world, a + 2], qpos[world, a + 3])
+        d = quat_log_difference(q, quat_ref[i])
+        ww = quat_w[i]
+        return 0.5 * (ww[0] * d[0] * d[0] + ww[1] * d[1] * d[1] + ww[2] * d[2] * d[2])
+    i -= n
+    n = v_idx.shape[0]
+    if i < n:
+        if with_state == 0:
+            return 0.0
+        r = qvel[world, v_idx[i]] - v_ref[i]
+        return 0.5 * v_w[i] * r * r
+    i -= n
+    n = a_idx.shape[0]
+    if i < n:
+        if with_state == 0:
+            return 0.0
+        r = 2.0 * wp.sin(0.5 * (qpos[world, a_idx[i]] - a_ref[i]))
+        return 0.5 * a_w[i] * r * r
+    i -= n
+    n = s_a.shape[0]
+    if i < n:
+        if with_sensors == 0:
+            return 0.0
+        r = sensordata[world, s_a[i]] - s_c[i]
+        b = s_b[i]
+        if b >= 0:
+            r = r - sensordata[world, b]
+        return 0.5 * s_w[i] * r * r
+    return 0.0
+
+
+@wp.kernel
+def fused_stage_kernel(
+    step: int,
+    per_candidate: int,
+    with_state: int,
+    with_sensors: int,
+    weights: wp.array2d[float],
+    knots: wp.array3d[float],
+    ctrl_low: wp.array[float],
+    ctrl_high: wp.array[float],
+    u_ref: wp.array[float],
+    u_w: wp.array[float],
+    qpos: wp.array2d[float],
+    qvel: wp.array2d[float],
+    sensordata: wp.array2d[float],
+    q_idx: wp.array[wp.int32],
+    q_ref: wp.array[float],
+    q_w: wp.array[float],
+    quat_adr: wp.array[wp.int32],
+    quat_ref: wp.array[wp.vec4],
+    quat_w: wp.array[wp.vec3],
+    v_idx: wp.array[wp.int32],
+    v_ref: wp.array[float],
+    v_w: wp.array[float],
+    a_idx: wp.array[wp.int32],
+    a_ref: wp.array[float],
+    a_w: wp.array[float],
+    s_a: wp.array[wp.int32],
+    s_b: wp.array[wp.int32],
+    s_c: wp.array[float],
+    s_w: wp.array[float],
+    ctrl: wp.array2d[float],
+    cost: wp.array[float],
+):
+    """One launch per planning step, one thread per (world, actuator or cost row).
+
+    Before step ``t``: thread ``j < nu`` interpolates, clamps and writes :math:`u_{t,j}` and
+    its control row; the other threads add one state row at :math:`x_t` (``with_state``)
+    or one sensor row of the previous step (``with_sensors``: ``sensordata`` still holds
+    the values MJWarp computed at :math:`x_{t-1}` inside step ``t - 1``).
+    """
+    world, j = wp.tid()
+    nu = ctrl.shape[1]
+    acc = float(0.0)  # noqa: UP018 - dynamic variable in Warp
+    if j < nu:
+        if step < weights.shape[0]:
+            cand = world // per_candidate
+            u = float(0.0)  # noqa: UP018 - dynamic variable in Warp
+            for k in range(weights.shape[1]):
+                u += weights[step, k] * knots[cand, k, j]
+            u = wp.clamp(u, ctrl_low[j], ctrl_high[j])
+            ctrl[world, j] = u
+            if with_state != 0:
+                r = u - u_ref[j]
+                acc = 0.5 * u_w[j] * r * r
+    else:
+        acc = row_cost(
+            world, j - nu, with_state, with_sensors, qpos, qvel, sensordata,
+            q_idx, q_ref, q_w, quat_adr, quat_ref, quat_w, v_idx, v_ref, v_w,
+            a_idx, a_ref, a_w, s_a, s_b, s_c, s_w,
+        )  # fmt: skip
+    if acc != 0.0:
+        wp.atomic_add(cost, world, acc)

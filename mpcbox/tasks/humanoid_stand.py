@@ -7,7 +7,7 @@ from typing import Any, ClassVar
 import mujoco
 import numpy as np
 
-from mpcbox.cost import ControlCost, Cost, FrameHeight, StateCost, Upright
+from mpcbox.cost import ComOverSupport, ControlCost, Cost, FrameHeight, StateCost, Upright
 from mpcbox.equilibrium import Equilibrium, find_equilibrium
 from mpcbox.model import ModelSource, object_id
 from mpcbox.problem import Problem
@@ -76,6 +76,7 @@ class HumanoidStand(Problem):
         root_cost: float = 10.0,
         velocity_cost: float = 0.05,
         ctrl_cost: float = 0.1,
+        balance_cost: float = 0.0,
         terminal_scale: float = 5.0,
         fall_height: float = 0.9,
         **kwargs: Any,
@@ -87,6 +88,7 @@ class HumanoidStand(Problem):
             root=root_cost,
             velocity=velocity_cost,
             ctrl=ctrl_cost,
+            balance=balance_cost,
             terminal=terminal_scale,
         )
         self.fall_height = float(fall_height)
@@ -112,7 +114,13 @@ class HumanoidStand(Problem):
                 adr = model.jnt_dofadr[j]
                 wq[adr : adr + 2] = w["root"]
                 wq[adr + 2 : adr + 6] = 0.0
+        balance = [
+            ComOverSupport(f"foot_{side}", scale * w["balance"], root="torso", name=f"com_{side}{suffix}")
+            for side in ("left", "right")
+            if w["balance"] > 0
+        ]
         return [
+            *balance,
             FrameHeight("torso", self.torso_height, scale * w["height"], name="height" + suffix),
             Upright("torso", scale * w["upright"], name="upright" + suffix),
             StateCost(self.qpos_ref, scale * wq, scale * w["velocity"], name="posture" + suffix),
