@@ -38,6 +38,7 @@ _LAZY: dict[str, str] = {
     "FramePosition": "mpcbox.cost",
     "FrameHeight": "mpcbox.cost",
     "Upright": "mpcbox.cost",
+    "QuadraticValue": "mpcbox.cost",
     "Controller": "mpcbox.controller",
     "Equilibrium": "mpcbox.equilibrium",
     "find_equilibrium": "mpcbox.equilibrium",
@@ -85,5 +86,3 @@ def __getattr__(name: str) -> Any:
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_LAZY))
-
-

@@ -255,6 +255,10 @@ class ILQR(Controller):
         threads: Threads for derivatives and parallel line search (default: the Problem's).
         planning_timestep: Plan on a copy of the Problem whose planning model has this
             timestep (:meth:`~mpcbox.Problem.with_planning_timestep`); default: ``problem.dt``.
+        terminal_value: ``"lqr"`` adds the infinite-horizon LQR value function of the planning
+            model at the reference (:class:`~mpcbox.cost.QuadraticValue` with the Riccati
+            matrix ``P``) to the terminal cost, so a short horizon still sees the cost-to-go;
+            ``None`` keeps the Problem's terminal cost.
     """
 
     name = "ilqr"
@@ -285,6 +289,7 @@ class ILQR(Controller):
         ctrls_init: np.ndarray | None = None,
         threads: int | None = None,
         planning_timestep: float | None = None,
+        terminal_value: str | None = None,
     ) -> None:
         if not isinstance(problem, Problem):
             raise InvalidArgumentError(
@@ -294,6 +299,12 @@ class ILQR(Controller):
             dt = positive("planning_timestep", planning_timestep)
             if abs(dt - problem.dt) > 1e-12:
                 problem = problem.with_planning_timestep(dt)
+        if terminal_value is not None:
+            if terminal_value != "lqr":
+                raise InvalidArgumentError(
+                    f"terminal_value must be None or 'lqr', got {terminal_value!r}"
+                )
+            problem = _with_lqr_terminal_value(problem)
         self.problem = problem
         self.horizon = positive_int("horizon", horizon)
         self.max_iterations = positive_int("max_iterations", max_iterations)
@@ -740,3 +751,13 @@ __all__ = [
     "backward_pass",
     "interpolate_linearization",
 ]
+
+
+def _with_lqr_terminal_value(problem: Problem) -> Problem:
+    """``problem`` with the LQR value function at its reference added to the terminal cost."""
+    from mpcbox.cost import Cost, QuadraticValue
+    from mpcbox.lqr import LQR
+
+    lqr = LQR(problem)
+    value = QuadraticValue(lqr.P, problem.qpos_ref, problem.qvel_ref, name="lqr_value")
+    return problem.with_cost(Cost(problem.cost.running, [*problem.cost.terminal, value]))

@@ -749,6 +749,30 @@ class Problem:
         clone.__dict__.pop("_rollout_data_list", None)
         return clone
 
+    def with_cost(self, cost: Cost) -> Problem:
+        """A shallow copy with another :class:`Cost` (bound to the planning model).
+
+        The new cost may only use sensors the models already have. Controllers use this to add
+        terms of their own, e.g. an LQR value function as terminal cost.
+        """
+        import copy
+
+        if not isinstance(cost, Cost):
+            raise InvalidArgumentError(f"cost must be an mpcbox.Cost, got {type(cost).__name__}")
+        missing = [
+            r.name
+            for r in cost.sensors(self.planning_model)
+            if mujoco.mj_name2id(self.planning_model, mujoco.mjtObj.mjOBJ_SENSOR, r.name) < 0
+        ]
+        if missing:
+            raise ModelLoadError(f"cost: sensors {missing} are not in the Problem's models")
+        clone = copy.copy(self)
+        clone.cost = cost
+        cost.bind(self.planning_model)
+        clone._local = threading.local()
+        clone._pool = None
+        return clone
+
     def close(self) -> None:
         """Shut down the thread pool."""
         if self._pool is not None:

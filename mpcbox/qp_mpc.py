@@ -30,9 +30,10 @@ Constraints over the horizon ``N``:
 * ``ctrlrange`` and, optionally, joint limits.
 
 The cost is the Problem's Gauss-Newton quadratization at the reference (``Q``, ``R``, cross
-term, gradients), the LQR Riccati matrix ``P`` of the soft-contact model at ``dt`` as terminal
-cost, and :math:`\tfrac{w_f}{2}\|f/(m g) - \bar\phi\|^2` pulling the forces toward an even
-share of the weight. Forces are solved in units of the weight :math:`m g` for conditioning.
+term), the Riccati matrix of the same linear model with the forces as inputs as terminal
+cost (``terminal``), and :math:`\tfrac{w_f}{2}\|f/(m g) - \bar\phi\|^2` pulling the forces
+toward an even share of the weight. Forces are solved in units of the weight :math:`m g`
+(conditioning).
 
 The QP is solved with OSQP's own API on a persistent solver whose sparsity pattern is built
 once; each tick updates the vectors (and the matrix values when relinearizing) and warm-starts
@@ -156,10 +157,13 @@ class QPMPC(Controller):
             (otherwise once, about the reference).
         solver: ``"osqp"`` (persistent OSQP solver) or a ``qpsolvers`` backend name.
         force_weight: Weight :math:`w_f` of the force regularization (forces in weights).
-        terminal: ``"lqr"`` (Riccati matrix of the soft-contact model at ``dt``), ``"cost"``
-            (the running ``Q``), or a matrix ``(nx, nx)``.
+        terminal: ``"stance"`` (Riccati matrix of the prediction model with the forces as
+            inputs and the stance constraint as a penalty), ``"lqr"`` (Riccati matrix of the
+            soft-contact model at ``dt``), ``"cost"`` (the running ``Q``), or ``(nx, nx)``.
         terminal_scale: Multiplier on the terminal matrix.
         drift_gain: Fraction :math:`\alpha` of the stance pose error removed in one step.
+        stance_weight: Weight of slack variables that soften the stance rows (keeps the QP
+            feasible when the feet cannot be held); ``None`` for hard stance rows.
         contact_margin: A point higher than this above the lowest reference point is lifted (m).
         joint_limits: Add the joints' ranges as constraints.
         cost_gradient: Keep the cost gradient at the reference (default: regulate to the
@@ -202,6 +206,7 @@ class QPMPC(Controller):
         warm_start: bool = True,
         period: float | None = None,
         fd_centered: bool = False,
+        substeps: int | None = None,
         osqp_settings: dict[str, Any] | None = None,
         export_dir: str | Path | None = None,
     ) -> None:
@@ -237,8 +242,14 @@ class QPMPC(Controller):
         self.export_dir = None if export_dir is None else Path(export_dir)
 
         # Prediction model: the planning model at the QP step, contacts off.
+        # The QP step is composed of ``substeps`` steps of the planning model's own timestep
+        # (a single semi-implicit step of 0.02 s mispredicts the 0.005 s simulation badly).
+        base_dt = float(problem.planning_model.opt.timestep)
+        self.substeps = max(1, round(self.dt / base_dt)) if substeps is None else int(substeps)
+        if self.substeps < 1:
+            raise InvalidArgumentError(f"substeps must be a positive integer, got {substeps!r}")
         self.model = copy.copy(problem.planning_model)
-        self.model.opt.timestep = self.dt
+        self.model.opt.timestep = self.dt / self.substeps
         self.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
         self.data = mujoco.MjData(self.model)
         self._kin = mujoco.MjData(self.model)
@@ -269,7 +280,7 @@ class QPMPC(Controller):
         self._groups = self._stance_rows()
         self.ns = sum(g[2] for g in self._groups)
         self._linearize(self.state_ref, self.ctrl_ref)
-        self.P_terminal = self._terminal(terminal) * self.terminal_scale
+        self.P_terminal = _psd(self._terminal(terminal)) * self.terminal_scale
 
         self._build_pattern()
         self._A.data[:] = self._matrix_values()[self._A_perm]
@@ -309,13 +320,15 @@ class QPMPC(Controller):
                     f"got {terminal!r}"
                 )
             soft = copy.copy(self.problem.planning_model)
-            soft.opt.timestep = self.dt
+            soft.opt.timestep = self.dt / self.substeps
             data = mujoco.MjData(soft)
             self.problem.set_state(data, self.state_ref)
             data.ctrl[:] = self.ctrl_ref
-            A = np.zeros((nx, nx))
-            B = np.zeros((nx, self.problem.nu))
-            mujoco.mjd_transitionFD(soft, data, self.problem.fd_eps, True, A, B, None, None)
+            Ah = np.zeros((nx, nx))
+            Bh = np.zeros((nx, self.problem.nu))
+            mujoco.mjd_transitionFD(soft, data, self.problem.fd_eps, True, Ah, Bh, None, None)
+            A, S = _compose(Ah, self.substeps)
+            B = S @ Bh
             N = self.N_ux.T if np.any(self.N_ux) else None
             try:
                 _, P = dlqr(A, B, self.Q, self.R, N)
@@ -338,7 +351,9 @@ class QPMPC(Controller):
         Sv[:, nv : 2 * nv] = lin["Js"]
         ws = 1e4 if self.stance_weight is None else self.stance_weight
         Q = self.Q + ws * Sv.T @ Sv
-        B = np.hstack([lin["B"], lin["Bc"]])
+        Bc = np.zeros((p.nx, lin["Bc"].shape[1]))
+        Bc[: 2 * nv] = lin["Bc"]
+        B = np.hstack([lin["B"], Bc])
         nf = 3 * self.points.count
         R = np.zeros((p.nu + nf, p.nu + nf))
         R[: p.nu, : p.nu] = self.R
@@ -491,13 +506,15 @@ class QPMPC(Controller):
         nx, nv = p.nx, p.nv
         p.set_state(d, state)
         d.ctrl[:] = ctrl
-        A = np.zeros((nx, nx))
-        B = np.zeros((nx, p.nu))
-        mujoco.mjd_transitionFD(m, d, p.fd_eps, self.fd_centered, A, B, None, None)
+        Ah = np.zeros((nx, nx))
+        Bh = np.zeros((nx, p.nu))
+        mujoco.mjd_transitionFD(m, d, p.fd_eps, self.fd_centered, Ah, Bh, None, None)
         p.set_state(d, state)
         d.ctrl[:] = ctrl
-        mujoco.mj_step(m, d)
+        mujoco.mj_step(m, d, self.substeps)
         drift = p.state_difference(p.get_state(d), state)
+        A, S = _compose(Ah, self.substeps)
+        B = S @ Bh
         # Kinematics, mass matrix and Jacobians at the linearization point.
         kin = self._kin
         p.set_state(kin, state)
@@ -507,8 +524,10 @@ class QPMPC(Controller):
         if m.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4:
             M += m.opt.timestep * np.diag(m.dof_damping)
         Jc = contact_jacobian(m, kin, self.points)
-        V = self.dt * np.linalg.solve(M, Jc.T) * self.weight  # per weight unit
-        Bc = np.vstack([self.dt * V, V])
+        h = m.opt.timestep
+        V = h * np.linalg.solve(M, Jc.T) * self.weight  # per weight unit, one substep
+        Bc_h = np.vstack([h * V, V, np.zeros((nx - 2 * nv, V.shape[1]))])
+        Bc = (S @ Bc_h)[: 2 * nv]
         world = self.points.world(kin)
         Js = np.vstack(
             [
@@ -522,7 +541,9 @@ class QPMPC(Controller):
                 for body, idx, rows in self._groups
             ]
         )
-        self._lin = dict(state=state.copy(), ctrl=ctrl.copy(), A=A, B=B, c=drift, Bc=Bc, Js=Js)
+        self._lin = dict(
+            state=state.copy(), ctrl=ctrl.copy(), A=A, B=B, c=drift, Bc=Bc, Js=Js, Bh=Bh, Ah=Ah
+        )
         if hasattr(self, "_A_perm"):
             self._A.data[:] = self._matrix_values()[self._A_perm]
 
@@ -853,6 +874,24 @@ def _shift(vec: np.ndarray, blocks: list[tuple[int, int]], horizon: int, shift: 
         stages[:-shift] = vec[off + shift * size : off + horizon * size].reshape(-1, size)
         stages[-shift:] = stages[-shift - 1]
     return out
+
+
+def _psd(P: np.ndarray) -> np.ndarray:
+    """Nearest positive semidefinite matrix (a Riccati solution with marginal modes can
+    carry tiny negative eigenvalues that OSQP rejects as non-convex)."""
+    w, V = np.linalg.eigh(0.5 * (P + P.T))
+    return (V * np.maximum(w, 0.0)) @ V.T
+
+
+def _compose(Ah: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``A = Ah^n`` and ``S = sum_{i<n} Ah^i``: ``n`` steps of ``x+ = Ah x + b`` with ``b``
+    held give ``x_n = A x_0 + S b``."""
+    A = np.eye(len(Ah))
+    S = np.zeros_like(Ah)
+    for _ in range(n):
+        S += A
+        A = Ah @ A
+    return A, S
 
 
 def _resolve_kinds(contacts: Sequence[str] | str) -> list[str]:

@@ -214,6 +214,22 @@ def test_bad_inputs_raise_named_errors():
             POINT_MASS.format(limited="false", bound=1),
             cost=Cost([StateCost(np.zeros(2), [1.0, np.inf])]),
         )
+    with pytest.raises(InvalidArgumentError, match="terminal_value"):
+        ILQR(problem, 10, terminal_value="riccati")
     # Every error is also the matching built-in exception.
     with pytest.raises(ValueError):
         ILQR(problem, 0)
+
+
+def test_lqr_terminal_value_makes_short_horizon_ilqr_match_lqr():
+    # On a linear-quadratic problem the LQR value function is the exact cost-to-go, so with
+    # it as terminal cost a short-horizon iLQR's first feedback gain equals the LQR gain.
+    problem = mpcbox.Problem(
+        POINT_MASS.format(limited="false", bound=100.0),
+        cost=Cost([StateCost(np.zeros(2), WQ, WV), ControlCost(WU)]),
+        threads=1,
+    )
+    lqr = mpcbox.LQR(problem)
+    ilqr = ILQR(problem, 3, terminal_value="lqr")
+    res = ilqr.solve(problem.reference_state() + np.array([0.1, -0.2, 0.0, 0.0]))
+    np.testing.assert_allclose(res.K[0], -lqr.K, rtol=1e-5, atol=1e-6)

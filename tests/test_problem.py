@@ -192,3 +192,20 @@ def test_bad_inputs_raise_clear_errors(balance):
         mpcbox.Problem(HUMANOID, cost=Cost([StateCost(np.zeros(5), 1.0)]))
     with pytest.raises(ValueError):  # every mpcbox argument error is a ValueError too
         mpcbox.Problem(HUMANOID, keyframe="nope")
+
+
+def test_quadratic_value_term_is_half_dx_P_dx(balance):
+    rng = np.random.default_rng(8)
+    M = rng.standard_normal((balance.nx, balance.nx))
+    P = M @ M.T
+    value = mpcbox.QuadraticValue(P, balance.qpos_ref)
+    prob = balance.with_cost(Cost([ControlCost(0.0)], [value]))
+    x, _ = random_humanoid_state(prob, rng, 0.05)
+    dx = prob.state_difference(x, prob.reference_state())
+    assert prob.terminal_cost(x) == pytest.approx(0.5 * dx @ P @ dx, rel=1e-10)
+    quad = prob.quadratize(x, prob.ctrl_ref, terminal=True)
+    np.testing.assert_allclose(quad.lxx, P, rtol=1e-10, atol=1e-10 * np.abs(P).max())
+    # The original Problem keeps its own cost.
+    assert balance.cost is not prob.cost and len(balance.cost.terminal) == 0
+    with pytest.raises(mpcbox.CostDefinitionError, match="positive semidefinite"):
+        balance.with_cost(Cost([ControlCost(0.0)], [mpcbox.QuadraticValue(-P, balance.qpos_ref)]))

@@ -158,6 +158,10 @@ class SamplingController(Controller):
                 f"unknown option(s) {unknown} for {type(self).__name__}; valid: {sorted(valid)}"
             )
         self.config = config = dataclasses.replace(config, **options)
+        if config.planning_timestep is not None:
+            dt = positive("planning_timestep", config.planning_timestep)
+            if abs(dt - problem.dt) > 1e-12:
+                problem = problem.with_planning_timestep(dt)
         self.problem = problem
         self.num_samples = positive_int("num_samples", config.num_samples)
         self.iterations = positive_int("iterations", config.iterations)

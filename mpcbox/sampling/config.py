@@ -48,6 +48,9 @@ class SamplingConfig:
         noise_scale: Standard deviation of the knot noise, in control units; a scalar or one
             value per actuator ``(nu,)``.
         iterations: Sample/update rounds per control tick.
+        planning_timestep: Plan on a copy of the Problem whose planning model takes steps of
+            this many seconds (:meth:`~mpcbox.Problem.with_planning_timestep`); default: the
+            Problem's planning timestep. A coarser step buys a longer horizon per rollout.
         period: Seconds between controller calls (``None``: every simulation step); without
             ``replan_period`` every call replans and the control is held in between.
         replan_period: Seconds between replans when the controller is called more often
@@ -71,6 +74,7 @@ class SamplingConfig:
     interpolation: Interpolation = "cubic"
     noise_scale: float | Sequence[float] = 0.3
     iterations: int = 1
+    planning_timestep: float | None = None
     period: float | None = None
     replan_period: float | None = None
     backend: Backend = "cpu"

@@ -47,20 +47,37 @@ class HumanoidBalance(Problem):
     #: Keyword arguments for each controller built by :func:`mpcbox.make_controller`.
     controller_options: ClassVar[dict[str, dict[str, Any]]] = {
         "lqr": {},
+        # Contact-force QP-MPC (issue #4): 10 steps of 0.02 s, stance-foot capsule ends.
+        "qp": dict(horizon=10, dt=0.02, contacts=("body:foot_left",)),
         # iLQR-MPC (issue #3): 0.35 s horizon on a 0.015 s planning model, 50 Hz replanning.
         "ilqr": dict(
-            horizon=23, planning_timestep=0.015, replan_period=0.02, mpc_iterations=1,
-            first_iterations=5, linearize_every=2, fd_centered=False, regularization=1e-3,
+            horizon=23,
+            planning_timestep=0.015,
+            replan_period=0.02,
+            mpc_iterations=1,
+            first_iterations=5,
+            linearize_every=2,
+            fd_centered=False,
+            regularization=1e-3,
         ),
         # Sampling MPC (issue #5), sized for the warp backend on one GPU.
         "ps": dict(num_samples=1024, horizon=0.3, num_knots=4, noise_scale=0.05, period=0.02),
         "mppi": dict(
-            num_samples=1024, horizon=0.3, num_knots=4, noise_scale=0.05, temperature=0.1,
+            num_samples=1024,
+            horizon=0.3,
+            num_knots=4,
+            noise_scale=0.05,
+            temperature=0.1,
             period=0.02,
         ),
         "cem": dict(
-            num_samples=1024, horizon=0.3, num_knots=4, noise_scale=0.08, num_elites=32,
-            std_min=0.02, period=0.02,
+            num_samples=1024,
+            horizon=0.3,
+            num_knots=4,
+            noise_scale=0.08,
+            num_elites=32,
+            std_min=0.02,
+            period=0.02,
         ),
     }
 
