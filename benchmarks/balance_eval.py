@@ -30,6 +30,23 @@ import numpy as np
 from mpcbox.compare import PushTest, Scenario, compare
 
 
+def problem_options(args: argparse.Namespace) -> dict:
+    """HumanoidBalance keyword arguments from the flags (model and cost weights)."""
+    options: dict = {"leg": args.leg, **json.loads(args.weights)}
+    if args.model == "classic":
+        from mpcbox.tasks.humanoid_balance import classic_humanoid_path
+
+        path = classic_humanoid_path()
+        if path is None:
+            raise SystemExit(
+                "--model classic needs mujoco-warp's test data (pip install mujoco-warp)"
+            )
+        options["model"] = str(path)
+    elif args.model:
+        options["model"] = args.model
+    return options
+
+
 def evaluate(args: argparse.Namespace) -> dict:
     """Run the evaluation and return the JSON-ready summary."""
     tests = [
@@ -50,13 +67,15 @@ def evaluate(args: argparse.Namespace) -> dict:
         Scenario(duration=args.duration, noise_scale=args.noise),
         range(args.seed, args.seed + args.seeds),
         push_tests=tests if args.push else (),
-        problem_options={"leg": args.leg},
+        problem_options=problem_options(args),
         workers=args.workers or None,
         progress=not args.quiet,
     )
     out = {
         "task": "humanoid_balance",
         "leg": args.leg,
+        "model": args.model or "scenes/humanoid.xml",
+        "cost_weights": json.loads(args.weights),
         "seeds": args.seeds,
         "first_seed": args.seed,
         "duration_s": args.duration,
@@ -108,6 +127,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=60.0, help="seconds per run")
     parser.add_argument("--noise", type=float, default=1.0, help="noise scale (1 = recipe)")
     parser.add_argument("--leg", choices=["left", "right"], default="left")
+    parser.add_argument(
+        "--model", default="", help="MJCF path, or 'classic' for mujoco-warp's classic humanoid"
+    )
+    parser.add_argument(
+        "--weights",
+        default="{}",
+        help="HumanoidBalance cost weights as JSON, e.g. '{\"ctrl_cost\": 0.3}'",
+    )
     parser.add_argument("--push-tolerance", type=float, default=1.0, help="bisection (N)")
     parser.add_argument("--no-push", dest="push", action="store_false", help="skip pushes")
     parser.add_argument("--workers", type=int, default=0, help="processes (0: one per core)")

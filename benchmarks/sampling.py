@@ -42,6 +42,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 HORIZON_STEPS = 32
+#: Solver-iteration cap of the "humanoid_capped" sweep and closed loop.
+CAPPED_ITERATIONS = 3
 
 
 def _problem(task: str):
@@ -61,13 +63,14 @@ def _start_state(problem, task: str) -> np.ndarray:
     return x
 
 
-def _controller(problem, n: int, backend: str = "warp", **kw):
+def _controller(problem, n: int, backend: str = "warp", steps: int = HORIZON_STEPS, **kw):
     from mpcbox.sampling import PredictiveSampling
 
+    dt = kw.get("planning_timestep") or problem.dt
     return PredictiveSampling(
         problem,
         num_samples=n,
-        horizon=HORIZON_STEPS * problem.dt,
+        horizon=steps * dt,
         num_knots=4,
         noise_scale=0.1,
         backend=backend,
@@ -104,13 +107,27 @@ def time_ticks(ctrl, state: np.ndarray, seconds: float = 1.5, max_ticks: int = 2
     return tick, backend, ev
 
 
-def raw_throughput(problem, n: int, nconmax: int, njmax: int, reps: int = 20) -> float:
-    """World-steps/s of ``mjw.step`` alone: a graph of T steps from a reset state."""
+def raw_throughput(
+    problem,
+    n: int,
+    nconmax: int,
+    njmax: int,
+    reps: int = 20,
+    model=None,
+    diverse: float = 0.0,
+    steps: int = HORIZON_STEPS,
+) -> float:
+    """World-steps/s of ``mjw.step`` alone: a graph of T steps from a reset state.
+
+    Every world holds the reference control (identical worlds), or with ``diverse > 0`` its
+    own constant control drawn around it with that standard deviation (as different
+    candidates make the worlds' constraint solvers take different iteration counts).
+    """
     import mujoco
     import mujoco_warp as mjw
     import warp as wp
 
-    model = problem.planning_model
+    model = problem.planning_model if model is None else model
     data = mujoco.MjData(model)
     problem.set_state(data, problem.initial_state())
     data.ctrl[:] = problem.clip_ctrl(problem.ctrl_ref)
@@ -118,12 +135,16 @@ def raw_throughput(problem, n: int, nconmax: int, njmax: int, reps: int = 20) ->
     m = mjw.put_model(model)
     m.opt.warn_overflow = 0
     d = mjw.put_data(model, data, nworld=n, nconmax=nconmax, njmax=njmax)
+    if diverse > 0:
+        rng = np.random.default_rng(0)
+        ctrl = problem.ctrl_ref + rng.normal(0.0, diverse, (n, problem.nu))
+        d.ctrl.assign(problem.clip_ctrl(ctrl).astype(np.float32))
     qpos0, qvel0 = wp.clone(d.qpos), wp.clone(d.qvel)
 
     def run():
         wp.copy(d.qpos, qpos0)
         wp.copy(d.qvel, qvel0)
-        for _ in range(HORIZON_STEPS):
+        for _ in range(steps):
             mjw.step(m, d)
 
     run()
@@ -141,38 +162,55 @@ def raw_throughput(problem, n: int, nconmax: int, njmax: int, reps: int = 20) ->
         else:
             run()
     wp.synchronize()
-    return n * HORIZON_STEPS * reps / (time.perf_counter() - t0)
+    return n * steps * reps / (time.perf_counter() - t0)
 
 
-def sweep(task: str, sizes: list[int], out: dict) -> None:
+def sweep(
+    task: str,
+    sizes: list[int],
+    out: dict,
+    key: str | None = None,
+    steps: int = HORIZON_STEPS,
+    **options,
+) -> None:
+    """Tick and backend timings against ``N``; ``options`` go to the controller."""
     problem = _problem(task)
     state = _start_state(problem, task)
     rows = []
-    out.setdefault("sweep", {})[task] = rows
+    out.setdefault("sweep", {})[key or task] = rows
     for n in sizes:
-        ctrl = _controller(problem, n)
+        ctrl = _controller(problem, n, steps=steps, **options)
         tick, backend, ev = time_ticks(ctrl, state)
         be = ctrl.backend
-        raw = raw_throughput(problem, n, be.nconmax, be.njmax)
-        steps = n * HORIZON_STEPS
+        # Raw MJWarp on the controller's own planning model (same timestep, solver options).
+        model = be.models[0]
+        raw = raw_throughput(problem, n, be.nconmax, be.njmax, model=model, steps=steps)
+        raw_div = raw_throughput(
+            problem, n, be.nconmax, be.njmax, model=model, diverse=0.1, steps=steps
+        )
+        world_steps = n * steps
         row = {
             "N": n,
-            "T": HORIZON_STEPS,
+            "T": steps,
+            "planning_timestep": float(model.opt.timestep),
+            "options": options,
             "tick_ms": tick * 1e3,
             "ticks_per_s": 1.0 / tick,
             "backend_ms": backend * 1e3,
-            "world_steps_per_s": steps / tick,
-            "backend_world_steps_per_s": steps / backend,
+            "world_steps_per_s": world_steps / tick,
+            "backend_world_steps_per_s": world_steps / backend,
             "raw_world_steps_per_s": raw,
-            "efficiency": (steps / tick) / raw,
-            "backend_efficiency": (steps / backend) / raw,
+            "raw_diverse_world_steps_per_s": raw_div,
+            "efficiency": (world_steps / tick) / raw,
+            "backend_efficiency": (world_steps / backend) / raw,
+            "efficiency_vs_diverse_raw": (world_steps / tick) / raw_div,
             "nconmax": be.nconmax,
             "njmax": be.njmax,
             "excluded": int((ev.overflow | ev.nonfinite).sum()),
             "stats": ctrl.stats,
         }
         rows.append(row)
-        print(json.dumps({task: {k: v for k, v in row.items() if k != "stats"}}), flush=True)
+        print(json.dumps({key or task: {k: v for k, v in row.items() if k != "stats"}}), flush=True)
         ctrl.close()
 
 
@@ -228,48 +266,63 @@ def agreement(out: dict) -> None:
         )
         a = cpu.backend.evaluate(state, cand).costs[:, 0]
         b = warp.backend.evaluate(state, cand).costs[:, 0]
-        res[task] = {
-            "max_rel_diff": float(np.max(np.abs(a - b) / np.maximum(np.abs(a), 1e-9))),
-            "median_rel_diff": float(np.median(np.abs(a - b) / np.maximum(np.abs(a), 1e-9))),
-        }
+        rel = np.abs(a - b) / np.maximum(np.abs(a), 1e-9)
+        res[task] = {"max_rel_diff": float(rel.max()), "median_rel_diff": float(np.median(rel))}
+        if task == "humanoid":
+            # The capped planning solver (sweep humanoid_capped) against the full CPU model.
+            capped = _controller(problem, 64, solver_iterations=CAPPED_ITERATIONS)
+            c = capped.backend.evaluate(state, cand).costs[:, 0]
+            rel = np.abs(a - c) / np.maximum(np.abs(a), 1e-9)
+            res["humanoid_capped_vs_full"] = {
+                "solver_iterations": CAPPED_ITERATIONS,
+                "max_rel_diff": float(rel.max()),
+                "median_rel_diff": float(np.median(rel)),
+                "rank_correlation": float(
+                    np.corrcoef(np.argsort(np.argsort(a)), np.argsort(np.argsort(c)))[0, 1]
+                ),
+            }
     out["agreement"] = res
 
 
 def closed_loop(out: dict, duration: float) -> None:
+    """The tasks' tuned sampling controllers (``controller_options``) under the recipe."""
     import mpcbox
-    from mpcbox.sampling import CEM, MPPI
     from mpcbox.tasks.humanoid_balance import HumanoidBalance
     from mpcbox.tasks.humanoid_stand import HumanoidStand
 
     runs = out.setdefault("closed_loop", [])
     stand = HumanoidStand()
     balance = HumanoidBalance()
-    longer = dict(num_samples=2048, horizon=0.5, num_knots=5)
+    capped = dict(solver_iterations=CAPPED_ITERATIONS)
     cases = [
-        ("humanoid_stand", stand, "mppi", MPPI, {}),
-        ("humanoid_stand", stand, "cem", CEM, {}),
-        ("humanoid_stand", stand, "mppi", MPPI, longer),
-        ("humanoid_balance", balance, "mppi", MPPI, {}),
-        ("humanoid_balance", balance, "cem", CEM, {}),
+        ("humanoid_stand", stand, "mppi", {}, 0),
+        ("humanoid_stand", stand, "cem", {}, 0),
+        ("humanoid_stand", stand, "ps", {}, 0),
+        ("humanoid_stand", stand, "mppi", {}, 1),
+        ("humanoid_stand", stand, "mppi", capped, 0),
+        ("humanoid_balance", balance, "mppi", {}, 0),
+        ("humanoid_balance", balance, "cem", {}, 0),
+        ("humanoid_balance", balance, "ps", {}, 0),
     ]
-    for task, problem, name, cls, extra in cases:
-        opts = dict(getattr(problem, "controller_options", {}).get(name, {}))
+    for task, problem, name, extra, seed in cases:
+        opts = dict(problem.controller_options.get(name, {}))
         opts.update(backend="warp", **extra)
-        opts.setdefault("num_samples", 1024)
         try:
-            ctrl = cls(problem, **opts)
+            ctrl = mpcbox.make_controller(name, problem, **opts)
             t0 = time.perf_counter()
-            res = mpcbox.simulate(problem, ctrl, duration, noise=problem.noise(), seed=0)
+            res = mpcbox.simulate(problem, ctrl, duration, noise=problem.noise(), seed=seed)
             row = {
                 "task": task,
                 "controller": name,
                 "options": {k: v for k, v in opts.items() if k != "randomization"},
                 "noise": "ActuatorNoise.balance_recipe (published recipe)",
+                "seed": seed,
                 "duration_s": duration,
                 "survived": bool(res.metrics.survived),
                 "time_to_fall_s": float(res.metrics.time_to_fall),
                 "failure": res.failure,
                 "tilt_rms_deg": float(res.metrics.tilt_rms_deg),
+                "tilt_max_deg": float(np.max(res.tilt_deg)),
                 "com_deviation_rms_m": float(res.metrics.com_deviation_rms),
                 "compute_mean_ms": float(res.metrics.compute_mean_ms),
                 "compute_p99_ms": float(res.metrics.compute_p99_ms),
@@ -331,12 +384,12 @@ def main() -> None:
     def save() -> None:
         out_path.write_text(json.dumps(out, indent=1, default=float))
 
-    def section(name: str, fn, *a) -> None:
+    def section(name: str, fn, *a, **kw) -> None:
         if name in args.skip:
             return
         t0 = time.perf_counter()
         try:
-            fn(*a)
+            fn(*a, **kw)
         except Exception:
             out["errors"][name] = traceback.format_exc()[-3000:]
             print(f"SECTION {name} FAILED\n{out['errors'][name]}", flush=True)
@@ -367,6 +420,29 @@ def main() -> None:
     section("agreement", agreement, out)
     for task in ("humanoid", "cartpole"):
         section(f"sweep_{task}", sweep, task, sizes, out)
+    # The humanoid with its planning solver capped at a few Newton iterations.
+    section(
+        "sweep_humanoid_capped",
+        sweep,
+        "humanoid",
+        sizes[-4:-1] if not args.quick else sizes,
+        out,
+        "humanoid_capped",
+        HORIZON_STEPS,
+        solver_iterations=CAPPED_ITERATIONS,
+    )
+    # The cart-pole over the same 0.32 s horizon on a 0.02 s planning model (16 steps), as
+    # its tuned sampling controllers plan.
+    section(
+        "sweep_cartpole_coarse",
+        sweep,
+        "cartpole",
+        [256, 1024, 4096] if not args.quick else sizes,
+        out,
+        "cartpole_coarse",
+        HORIZON_STEPS // 2,
+        planning_timestep=0.02,
+    )
     section(
         "cpu_rollout_humanoid",
         cpu_rollout,
@@ -395,9 +471,20 @@ def summarize(out: dict) -> dict[str, Any]:
     if 4096 in cpu and cpu[4096]["warp_speedup"] is not None:
         s["humanoid_N4096_speedup_vs_mujoco_rollout"] = cpu[4096]["warp_speedup"]
         s["target_6x_met"] = cpu[4096]["warp_speedup"] >= 6
+    if 2048 in hum:
+        s["humanoid_N2048_efficiency_vs_diverse_raw"] = hum[2048]["efficiency_vs_diverse_raw"]
+    capped = {r["N"]: r for r in out.get("sweep", {}).get("humanoid_capped", [])}
+    if 2048 in capped:
+        s["humanoid_capped_N2048_T32_ticks_per_s"] = capped[2048]["ticks_per_s"]
+        s["humanoid_capped_N2048_efficiency"] = capped[2048]["efficiency"]
     if 1024 in cart:
         s["cartpole_N1024_tick_ms"] = cart[1024]["tick_ms"]
         s["target_5ms_met"] = cart[1024]["tick_ms"] <= 5
+        raw = cart[1024]["raw_world_steps_per_s"]
+        s["cartpole_N1024_raw_ms"] = 1024 * HORIZON_STEPS / raw * 1e3
+    coarse = {r["N"]: r for r in out.get("sweep", {}).get("cartpole_coarse", [])}
+    if 1024 in coarse:
+        s["cartpole_coarse_N1024_T16_tick_ms"] = coarse[1024]["tick_ms"]
     warm = out.get("first_tick_warm", {})
     if "humanoid" in warm and "total_s" in warm["humanoid"]:
         s["warm_first_tick_s"] = warm["humanoid"]["total_s"]
@@ -405,8 +492,9 @@ def summarize(out: dict) -> dict[str, Any]:
     cold = out.get("first_tick_cold", {})
     if "humanoid" in cold:
         s["cold_first_tick_s"] = {k: v["total_s"] for k, v in cold.items()}
+    keys = ("task", "controller", "seed", "survived", "time_to_fall_s", "tilt_rms_deg", "error")
     s["closed_loop"] = [
-        {k: r.get(k) for k in ("task", "controller", "survived", "time_to_fall_s", "error")}
+        {**{k: r.get(k) for k in keys}, "capped": "solver_iterations" in r.get("options", {})}
         for r in out.get("closed_loop", [])
     ]
     return s

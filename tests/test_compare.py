@@ -177,6 +177,7 @@ def test_cli_end_to_end(tmp_path, capsys):
 
 def test_task_script_entry_point(tmp_path, capsys):
     argv = ["--duration", "0.3", "--workers", "1", "--no-progress", "--no-plots"]
+    argv += ["--controllers", "lqr,ilqr"]
     argv += ["--out", str(tmp_path), "--balance-cost", "500"]
     assert run_task_script("humanoid_balance", argv, seeds=1, push=10.0) == 0
     stdout = capsys.readouterr().out

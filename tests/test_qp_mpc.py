@@ -36,23 +36,37 @@ def test_sizes_and_contacts(qp, one_leg):
     assert set(qp.points.label) == {"foot_left"}
     N = qp.horizon
     assert qp.nvar == N * (one_leg.nx + one_leg.nu + 12) + N * 6
-    assert qp.model.opt.timestep == pytest.approx(0.02)
+    # The 0.02 s QP step is composed of 4 steps of the 0.005 s planning model.
+    assert qp.substeps == 4 and qp.model.opt.timestep == pytest.approx(0.005)
     assert qp.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
 
 
 def test_force_input_matrix_matches_the_actuator_columns(qp, one_leg):
-    """``dt M~^-1`` used for the forces reproduces the FD ``B`` through the actuator moments."""
+    """``h M~^-1`` used for the forces reproduces the FD ``B`` of one substep ``h`` through the
+    actuator moments, and the composed 0.02 s model matches 4 simulated substeps."""
     m, nv = qp.model, one_leg.nv
+    h = m.opt.timestep
     data = mujoco.MjData(m)
     one_leg.set_state(data, qp.state_ref)
     mujoco.mj_fwdPosition(m, data)
     M = np.zeros((nv, nv))
     mujoco.mj_fullM(m, data, M)
-    M += qp.dt * np.diag(m.dof_damping)
-    Bv = qp.dt * np.linalg.solve(M, actuator_moment(m, data).T)
-    B = qp._lin["B"]
-    np.testing.assert_allclose(B[nv : 2 * nv], Bv, atol=1e-6 * np.abs(Bv).max())
-    np.testing.assert_allclose(B[:nv], qp.dt * Bv, atol=1e-3 * np.abs(qp.dt * Bv).max())
+    M += h * np.diag(m.dof_damping)
+    Bv = h * np.linalg.solve(M, actuator_moment(m, data).T)
+    Bh = qp._lin["Bh"]
+    np.testing.assert_allclose(Bh[nv : 2 * nv], Bv, atol=1e-6 * np.abs(Bv).max())
+    np.testing.assert_allclose(Bh[:nv], h * Bv, atol=1e-3 * np.abs(h * Bv).max())
+    # Composition: a small control change held over the QP step, against the nonlinear model.
+    du = np.zeros(one_leg.nu)
+    du[0] = 1e-3
+    ends = []
+    for ctrl in (qp.ctrl_ref, qp.ctrl_ref + du):
+        one_leg.set_state(data, qp.state_ref)
+        data.ctrl[:] = ctrl
+        mujoco.mj_step(m, data, qp.substeps)
+        ends.append(one_leg.get_state(data))
+    fd = one_leg.state_difference(ends[1], ends[0])
+    np.testing.assert_allclose(qp._lin["B"] @ du, fd, atol=2e-2 * np.abs(fd).max())
 
 
 def _contact_force_per_body(model, data, bodies):
@@ -114,16 +128,25 @@ def test_predicted_forces_match_the_simulator_and_respect_the_cones(task, reques
         assert predicted == pytest.approx(measured[body], rel=0.10), (task, body)
 
 
+@pytest.mark.xfail(
+    reason="not reached: measured 4 s runs, push 0.1 s at 0.5 s: one leg falls at 2.65 s after "
+    "10 N and 2.29 s after 20 N (a slow torso-pitch drift); two feet falls at 2.75 s with no "
+    "push (57 fallbacks). LQR on the QP's own rigid-stance model fails in the simulator the "
+    "same way, LQR on the soft-contact model does not: the rigid stance model is the culprit",
+    strict=False,
+)
 def test_survives_a_moderate_push(one_leg, two_feet):
-    """Short-horizon push recovery on one leg (20 N) and two feet (100 N), 0.1 s at 0.5 s."""
+    """Push recovery on one leg (20 N) and two feet (100 N), 0.1 s at 0.5 s, 4 s runs (long
+    enough to see the slow drift that follows the push)."""
     for problem, force in ((one_leg, 20.0), (two_feet, 100.0)):
         push = [Push(force=(force, 0.0, 0.0), start=0.5, duration=0.1)]
-        res = simulate(problem, QPMPC(problem), 2.0, pushes=push)
+        res = simulate(problem, QPMPC(problem), 4.0, pushes=push)
         assert res.survived and res.metrics.fallbacks == 0, problem.name
 
 
 @pytest.mark.xfail(
-    reason="not reached: QP-MPC's largest one-leg push is below LQR's (see the issue #4 report)",
+    reason="not reached: with settle=1.5 s QP-MPC's largest one-leg push is 28 N (fails 32 N); "
+    "LQR survives 35 N in 3 s runs; with longer runs QP-MPC falls after 10 N (see the xfail above)",
     strict=False,
 )
 def test_push_limit_at_least_lqr(one_leg):

@@ -202,3 +202,84 @@ def test_warp_backend_rejects_custom_cost_terms():
     problem = mpcbox.Problem(scene_path("cartpole.xml"), cost=mpcbox.Cost([Tip(1.0, "tip")]))
     with pytest.raises(MpcboxError, match=r"Tip.*backend='cpu'"):
         PredictiveSampling(problem, backend="warp", device="cpu")
+
+
+class AsyncBackend:
+    """The CPU backend behind the submit/collect interface of the warp backend."""
+
+    def __init__(self, inner):
+        self.inner = inner
+        self.stats = inner.stats
+
+    def submit(self, state, candidates):
+        self._result = self.inner.evaluate(state, candidates)
+
+    def collect(self):
+        return self._result
+
+    def close(self):
+        pass
+
+
+@pytest.mark.parametrize("cls", [MPPI, CEM])
+def test_noise_prefetch_during_async_evaluation_keeps_the_draws(cartpole, cls):
+    """Drawing the next noise block while the backend computes changes no result."""
+    opts = dict(num_samples=16, horizon=0.3, num_knots=3, iterations=2, seed=3)
+    sync, overlapped = cls(cartpole, **opts), cls(cartpole, **opts)
+    overlapped.backend = AsyncBackend(overlapped.backend)
+    x = cartpole.initial_state()
+    for k in range(3):
+        np.testing.assert_array_equal(sync.plan(x, 0.01 * k), overlapped.plan(x, 0.01 * k))
+
+
+def test_replan_period_returns_the_spline_between_replans(cartpole):
+    ctrl = MPPI(cartpole, num_samples=16, horizon=0.5, num_knots=4, replan_period=0.03)
+    assert ctrl.period is None
+    x = cartpole.initial_state()
+    u0 = ctrl(x, 0.0)
+    knots = ctrl.knots.copy()
+    assert ctrl.stats["ticks"] == 1
+    u1 = ctrl(x, 0.01)
+    u2 = ctrl(x, 0.02)
+    assert ctrl.stats["ticks"] == 1  # no replan before 0.03 s
+    expect = cartpole.clip_ctrl(ctrl.spline.evaluate(knots, [0.0, 0.01, 0.02]))
+    np.testing.assert_allclose([u0, u1, u2], expect, atol=1e-12)
+    ctrl(x, 0.03)
+    assert ctrl.stats["ticks"] == 2
+    with pytest.raises(InvalidArgumentError, match="replan_period"):
+        MPPI(cartpole, replan_period=-1.0)
+
+
+def test_planning_timestep_and_solver_options_use_a_private_planning_model():
+    from mpcbox.tasks.humanoid_stand import HumanoidStand
+
+    problem = HumanoidStand()
+    iterations = problem.planning_model.opt.iterations
+    ctrl = PredictiveSampling(
+        problem, num_samples=4, horizon=0.1, planning_timestep=0.01, solver_iterations=2
+    )
+    assert ctrl.problem is not problem and ctrl.problem.dt == pytest.approx(0.01)
+    assert ctrl.horizon_steps == 10
+    assert ctrl.problem.planning_model.opt.iterations == 2
+    assert problem.planning_model.opt.iterations == iterations
+    assert problem.dt == pytest.approx(0.005)
+    ctrl.plan(problem.initial_state(), 0.0)
+    assert np.isfinite(ctrl.last.best_cost)
+
+
+def test_humanoid_stand_balance_cost_terms():
+    from mpcbox.tasks.humanoid_stand import HumanoidStand
+
+    names = {t.name for t in HumanoidStand().cost.running}
+    assert {"com_left", "com_right"} <= names
+    names = {t.name for t in HumanoidStand(balance_cost=0.0).cost.running}
+    assert not names & {"com_left", "com_right"}
+
+
+def test_collidable_pairs_detection():
+    pytest.importorskip("mujoco_warp")
+    from mpcbox.sampling.warp_backend import has_collidable_pairs
+    from mpcbox.tasks.humanoid_stand import HumanoidStand
+
+    assert not has_collidable_pairs(CartpoleSwingup().planning_model)
+    assert has_collidable_pairs(HumanoidStand().planning_model)

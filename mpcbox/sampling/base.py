@@ -162,6 +162,13 @@ class SamplingController(Controller):
             dt = positive("planning_timestep", config.planning_timestep)
             if abs(dt - problem.dt) > 1e-12:
                 problem = problem.with_planning_timestep(dt)
+        if config.solver_iterations is not None or config.solver_tolerance is not None:
+            problem = problem.with_planning_timestep(problem.dt)  # a private planning model
+            opt = problem.planning_model.opt
+            if config.solver_iterations is not None:
+                opt.iterations = positive_int("solver_iterations", config.solver_iterations)
+            if config.solver_tolerance is not None:
+                opt.tolerance = positive("solver_tolerance", config.solver_tolerance)
         self.problem = problem
         self.num_samples = positive_int("num_samples", config.num_samples)
         self.iterations = positive_int("iterations", config.iterations)

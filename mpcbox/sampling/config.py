@@ -51,6 +51,12 @@ class SamplingConfig:
         planning_timestep: Plan on a copy of the Problem whose planning model takes steps of
             this many seconds (:meth:`~mpcbox.Problem.with_planning_timestep`); default: the
             Problem's planning timestep. A coarser step buys a longer horizon per rollout.
+        solver_iterations: Cap on the constraint solver's iterations in the planning model
+            (``opt.iterations``; default: the model's). On the warp backend every world waits
+            for the slowest one to converge, so a low cap (2-3 for Newton) makes contact-rich
+            rollouts markedly faster at a small cost in planning accuracy.
+        solver_tolerance: The planning model's solver tolerance (``opt.tolerance``; MJWarp
+            uses at least 1e-6).
         period: Seconds between controller calls (``None``: every simulation step); without
             ``replan_period`` every call replans and the control is held in between.
         replan_period: Seconds between replans when the controller is called more often
@@ -75,6 +81,8 @@ class SamplingConfig:
     noise_scale: float | Sequence[float] = 0.3
     iterations: int = 1
     planning_timestep: float | None = None
+    solver_iterations: int | None = None
+    solver_tolerance: float | None = None
     period: float | None = None
     replan_period: float | None = None
     backend: Backend = "cpu"
