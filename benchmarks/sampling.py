@@ -13,13 +13,16 @@ stopping the run. Measured:
   building a warp-backend controller to its first tick;
 * ``sweep``: for the humanoid and the cart-pole, ticks/s and world-steps/s of the full tick
   (noise sampling, upload, graph replay, read-back, update) and of the backend alone, against
-  ``N``, with ``T = 32`` planning steps;
-* ``raw``: MJWarp step throughput for the same ``N`` (a CUDA graph of ``T`` steps from a
-  reset state), and ``efficiency = in-loop world-steps/s / raw world-steps/s``;
+  ``N``, with ``T = 32`` planning steps; ``humanoid_capped`` with the planning solver capped
+  at 3 iterations, ``cartpole_coarse`` over the same horizon on a 0.02 s planning model;
+* ``raw``: MJWarp step throughput on the controller's planning model for the same ``N`` (a
+  CUDA graph of ``T`` steps from a reset state), with identical worlds
+  (``efficiency = in-loop world-steps/s / raw world-steps/s``) and with a different control
+  per world (``efficiency_vs_diverse_raw``);
 * ``cpu_rollout``: :func:`mujoco.rollout` on all host cores (the CPU backend) for the same
   candidates and horizon, and the speed-up of the warp tick;
-* ``closed_loop``: humanoid standing (MPPI and CEM) and one-leg balance under the published
-  actuator-noise recipe, 10 s each.
+* ``closed_loop``: the tasks' tuned sampling controllers (``controller_options``) on the
+  humanoid standing and on one leg under the published actuator-noise recipe, 10 s each.
 """
 
 from __future__ import annotations

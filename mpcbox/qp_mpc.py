@@ -179,6 +179,13 @@ class QPMPC(Controller):
         warm_start: Warm-start OSQP from the shifted previous solution (else cold start).
         period: Seconds between calls (default ``dt``).
         fd_centered: Centered finite differences for the linearization.
+        stance_model: ``"soft"`` (default): predict with the soft-contact model and tie the
+            explicit forces to its linearized contact-force law, :math:`f_k = \bar f + F_x
+            \delta x_k + F_u \delta u_k + s_k`, where the slack :math:`s_k` (weight
+            ``stance_weight``) is a force the soft model does not predict and enters the
+            dynamics through :math:`B_c`; the friction pyramid then constrains the forces the
+            simulator will actually produce. ``"rigid"``: contact-free prediction with the
+            stance feet held still (the forces are free inputs).
         osqp_settings: OSQP settings overriding the defaults.
         export_dir: When set, every tick's QP is written there as ``tick_00000.npz`` ...
 
@@ -215,6 +222,7 @@ class QPMPC(Controller):
         period: float | None = None,
         fd_centered: bool = False,
         substeps: int | None = None,
+        stance_model: str = "soft",
         osqp_settings: dict[str, Any] | None = None,
         export_dir: str | Path | None = None,
     ) -> None:
@@ -246,6 +254,13 @@ class QPMPC(Controller):
         self.warm_start = bool(warm_start)
         self.period = self.dt if period is None else positive("period", period)
         self.fd_centered = bool(fd_centered)
+        if stance_model not in ("soft", "rigid"):
+            raise InvalidArgumentError(
+                f"stance_model must be 'soft' or 'rigid', got {stance_model!r}"
+            )
+        self.stance_model = stance_model
+        if stance_model == "soft" and self.stance_weight is None:
+            raise InvalidArgumentError("stance_model='soft' needs a finite stance_weight")
         self.osqp_settings = {**_OSQP_DEFAULTS, **(osqp_settings or {})}
         self.export_dir = None if export_dir is None else Path(export_dir)
 
@@ -261,6 +276,10 @@ class QPMPC(Controller):
         self.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
         self.data = mujoco.MjData(self.model)
         self._kin = mujoco.MjData(self.model)
+        # The soft-contact model (contacts on) at the same substep, for stance_model="soft".
+        self.soft_model = copy.copy(problem.planning_model)
+        self.soft_model.opt.timestep = self.dt / self.substeps
+        self._soft = mujoco.MjData(self.soft_model)
 
         self.state_ref = problem.reference_state()
         self.ctrl_ref = problem.ctrl_ref.copy()
@@ -286,7 +305,11 @@ class QPMPC(Controller):
         self.lx = quad.lx if cost_gradient else np.zeros_like(quad.lx)
         self.lu = quad.lu if cost_gradient else np.zeros_like(quad.lu)
         self._groups = self._stance_rows()
-        self.ns = sum(g[2] for g in self._groups)
+        self.ns = (
+            3 * self.points.count
+            if self.stance_model == "soft"
+            else sum(g[2] for g in self._groups)
+        )
         self._linearize(self.state_ref, self.ctrl_ref)
         self.P_terminal = _psd(self._terminal(terminal)) * self.terminal_scale
 
@@ -460,9 +483,18 @@ class QPMPC(Controller):
             block(r_dyn + i * nx, xs(i - 1), nx, nx)  # -A on x_i
         for i in range(N):
             block(r_dyn + i * nx, us(i), nx, nu)  # -B
+        soft = self.stance_model == "soft"
         for i in range(N):
-            block(r_dyn + i * nx, fs(i), 2 * nv, nf)  # -Bc (q and v rows)
+            # -Bc (q and v rows) on the forces, or on the unpredicted force for a soft stance.
+            block(r_dyn + i * nx, osl + i * ns if soft else fs(i), 2 * nv, nf)
         for i in range(N):
+            if soft:  # f_i - F_x x_i - F_u u_i - s_i = fbar
+                diag(r_st + i * ns, fs(i), nf)
+                if i >= 1:
+                    block(r_st + i * ns, xs(i - 1), nf, nx)
+                block(r_st + i * ns, us(i), nf, nu)
+                diag(r_st + i * ns, osl + i * ns, ns)
+                continue
             block(r_st + i * ns, xs(i) + nv, ns, nv)  # J_s on v_{i+1}
             if nsl:
                 diag(r_st + i * ns, osl + i * ns, ns)  # -slack
@@ -500,7 +532,8 @@ class QPMPC(Controller):
             hp[us(i) : us(i) + nu, us(i) : us(i) + nu] = np.triu(self.R)
             if i >= 1 and np.any(self.N_ux):
                 hp[xs(i - 1) : xs(i - 1) + nx, us(i) : us(i) + nu] = self.N_ux.T
-            hp[fs(i) : fs(i) + nf, fs(i) : fs(i) + nf] = self.force_weight * np.eye(nf)
+            wf = 1e-6 if soft else self.force_weight  # soft: the force law fixes the forces
+            hp[fs(i) : fs(i) + nf, fs(i) : fs(i) + nf] = wf * np.eye(nf)
         if nsl:
             hp[osl:, osl:] = self.stance_weight * sp.eye(nsl)
         self._P = sp.csc_matrix(hp)
@@ -552,8 +585,68 @@ class QPMPC(Controller):
         self._lin = dict(
             state=state.copy(), ctrl=ctrl.copy(), A=A, B=B, c=drift, Bc=Bc, Js=Js, Bh=Bh, Ah=Ah
         )
+        if self.stance_model == "soft":
+            self._lin.update(self._soft_linearization(state, ctrl))
         if hasattr(self, "_A_perm"):
             self._A.data[:] = self._matrix_values()[self._A_perm]
+
+    def _soft_linearization(self, state: np.ndarray, ctrl: np.ndarray) -> dict[str, np.ndarray]:
+        r"""Soft-contact prediction (``A``, ``B``, drift ``c``) and its contact-force law.
+
+        The force law :math:`f \approx \bar f + F_x \delta x + F_u \delta u` (per point,
+        world frame, in weights) is differentiated forward in the tangent space.
+        """
+        p, m, d = self.problem, self.soft_model, self._soft
+        nx, nu = p.nx, p.nu
+        p.set_state(d, state)
+        d.ctrl[:] = ctrl
+        Ah = np.zeros((nx, nx))
+        Bh = np.zeros((nx, nu))
+        mujoco.mjd_transitionFD(m, d, p.fd_eps, self.fd_centered, Ah, Bh, None, None)
+        p.set_state(d, state)
+        d.ctrl[:] = ctrl
+        mujoco.mj_step(m, d, self.substeps)
+        drift = p.state_difference(p.get_state(d), state)
+        A, S = _compose(Ah, self.substeps)
+        fbar = self._point_forces(state, ctrl)
+        eps = 1e-6
+        Fx = np.zeros((fbar.size, nx))
+        Fu = np.zeros((fbar.size, nu))
+        for i in range(nx):
+            dx = np.zeros(nx)
+            dx[i] = eps
+            Fx[:, i] = (self._point_forces(p.state_add(state, dx), ctrl) - fbar) / eps
+        for i in range(nu):
+            du = np.zeros(nu)
+            du[i] = eps
+            Fu[:, i] = (self._point_forces(state, ctrl + du) - fbar) / eps
+        return dict(A=A, B=S @ Bh, c=drift, fbar=fbar, Fx=Fx, Fu=Fu)
+
+    def _point_forces(self, state: np.ndarray, ctrl: np.ndarray) -> np.ndarray:
+        """Ground forces on the contact points in the soft-contact model, ``(3 k,)`` in weights.
+
+        Each MuJoCo contact on a contact body is given to the nearest point of that body.
+        """
+        p, m, d = self.problem, self.soft_model, self._soft
+        p.set_state(d, state)
+        d.ctrl[:] = ctrl
+        mujoco.mj_forward(m, d)
+        world = self.points.world(d)
+        out = np.zeros((self.points.count, 3))
+        f6 = np.zeros(6)
+        for c in range(d.ncon):
+            con = d.contact[c]
+            b1, b2 = m.geom_bodyid[con.geom1], m.geom_bodyid[con.geom2]
+            for body, sign in ((b2, 1.0), (b1, -1.0)):
+                idx = np.flatnonzero(self.points.body == body)
+                if idx.size == 0:
+                    continue
+                mujoco.mj_contactForce(m, d, c, f6)
+                force = sign * (con.frame.reshape(3, 3).T @ f6[:3])
+                near = idx[np.argmin(np.linalg.norm(world[idx] - con.pos, axis=1))]
+                out[near] += force
+                break
+        return out.ravel() / self.weight
 
     def _matrix_values(self) -> np.ndarray:
         lin = self._lin
@@ -565,18 +658,26 @@ class QPMPC(Controller):
             np.tile(-lin["A"].ravel(), N - 1),
             np.tile(-lin["B"].ravel(), N),
             np.tile(-lin["Bc"].ravel(), N),
-            np.tile(
-                np.concatenate([lin["Js"].ravel(), -np.ones(self.ns)])
-                if self.stance_weight is not None
-                else lin["Js"].ravel(),
-                N,
-            ),
+            self._stance_values(),
             np.tile(self.pyramid.ravel(), N * k),
             np.ones(N * k),
             np.ones(N * nu),
             np.ones(N * nl),
         ]
         return np.concatenate(parts)
+
+    def _stance_values(self) -> np.ndarray:
+        lin, N, ns = self._lin, self.horizon, self.ns
+        if self.stance_model == "soft":
+            first = [np.ones(ns), -lin["Fu"].ravel(), -np.ones(ns)]
+            later = [np.ones(ns), -lin["Fx"].ravel(), -lin["Fu"].ravel(), -np.ones(ns)]
+            return np.concatenate(first + later * (N - 1))
+        row = (
+            np.concatenate([lin["Js"].ravel(), -np.ones(ns)])
+            if self.stance_weight is not None
+            else lin["Js"].ravel()
+        )
+        return np.tile(row, N)
 
     # ------------------------------------------------------------------ per tick
     def reset(self) -> None:
@@ -617,7 +718,7 @@ class QPMPC(Controller):
     def _vectors(self, state: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         p, lin = self.problem, self._lin
         N, nx, nu, nv = self.horizon, p.nx, p.nu, p.nv
-        k, F, ns = self.points.count, self.facets, self.ns
+        k, ns = self.points.count, self.ns
         x0 = p.state_difference(state, lin["state"])
         d0 = p.state_difference(lin["state"], self.state_ref)
         w0 = lin["ctrl"] - self.ctrl_ref
@@ -634,9 +735,10 @@ class QPMPC(Controller):
         for i in range(N):
             q[self._ou + i * nu : self._ou + (i + 1) * nu] = gu
         q[self._ou : self._ou + nu] += self.N_ux @ x0
-        phi = np.zeros((k, 3))
-        phi[active, 2] = 1.0 / n_active
-        q[self._of : self._osl] = np.tile(-self.force_weight * phi.ravel(), N)
+        if self.stance_model == "rigid":
+            phi = np.zeros((k, 3))
+            phi[active, 2] = 1.0 / n_active
+            q[self._of : self._osl] = np.tile(-self.force_weight * phi.ravel(), N)
 
         lo = np.full(self.ncon, -np.inf)
         hi = np.full(self.ncon, np.inf)
@@ -645,6 +747,13 @@ class QPMPC(Controller):
         dyn[:nx] += lin["A"] @ x0
         lo[r["dyn"] : r["dyn"] + N * nx] = dyn
         hi[r["dyn"] : r["dyn"] + N * nx] = dyn
+
+        if self.stance_model == "soft":
+            law = np.tile(lin["fbar"], N)
+            law[:ns] += lin["Fx"] @ x0
+            lo[r["st"] : r["st"] + N * ns] = law
+            hi[r["st"] : r["st"] + N * ns] = law
+            return (q, *self._common_bounds(lo, hi, active))
 
         # Stance rows: anchors, drift correction.
         Js, v_lin = lin["Js"], lin["state"][p.nq : p.nq + nv]
@@ -682,6 +791,12 @@ class QPMPC(Controller):
             lo[s0 + i * ns : s0 + (i + 1) * ns] = a
             hi[s0 + i * ns : s0 + (i + 1) * ns] = b
 
+        return (q, *self._common_bounds(lo, hi, active))
+
+    def _common_bounds(self, lo, hi, active) -> tuple[np.ndarray, np.ndarray]:
+        """Friction, normal-force, control and joint-limit bounds (in place)."""
+        p, lin, r = self.problem, self._lin, self._rows
+        N, nu, k, F = self.horizon, p.nu, self.points.count, self.facets
         # Friction pyramid (upper bound 0) and normal force bounds (0 for lifted points).
         hi[r["fr"] : r["fr"] + N * k * F] = 0.0
         fn_hi = np.where(active, self.f_max / self.weight, 0.0)
@@ -696,7 +811,7 @@ class QPMPC(Controller):
             ql = lin["state"][qa]
             lo[r["lim"] :] = np.tile(jlo - ql, N)
             hi[r["lim"] :] = np.tile(jhi - ql, N)
-        return q, lo, hi
+        return lo, hi
 
     def _shifted_warm_start(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Previous primal and dual solutions moved ``period / dt`` stages earlier."""

@@ -35,7 +35,12 @@ def test_sizes_and_contacts(qp, one_leg):
     assert qp.points.count == 4  # two capsules on the stance foot, two ends each
     assert set(qp.points.label) == {"foot_left"}
     N = qp.horizon
-    assert qp.nvar == N * (one_leg.nx + one_leg.nu + 12) + N * 6
+    # States, controls, forces, and per force one slack (force not predicted by the soft model).
+    assert qp.stance_model == "soft"
+    assert qp.nvar == N * (one_leg.nx + one_leg.nu + 12) + N * 12
+    rigid = QPMPC(one_leg, stance_model="rigid")
+    assert rigid.nvar == N * (one_leg.nx + one_leg.nu + 12) + N * 6  # 6 stance-twist slacks
+    assert not qp.soft_model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
     # The 0.02 s QP step is composed of 4 steps of the 0.005 s planning model.
     assert qp.substeps == 4 and qp.model.opt.timestep == pytest.approx(0.005)
     assert qp.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
@@ -56,17 +61,34 @@ def test_force_input_matrix_matches_the_actuator_columns(qp, one_leg):
     Bh = qp._lin["Bh"]
     np.testing.assert_allclose(Bh[nv : 2 * nv], Bv, atol=1e-6 * np.abs(Bv).max())
     np.testing.assert_allclose(Bh[:nv], h * Bv, atol=1e-3 * np.abs(h * Bv).max())
-    # Composition: a small control change held over the QP step, against the nonlinear model.
+    # Composition: a small control change held over the QP step, against the nonlinear
+    # soft-contact model that the soft stance predicts with.
     du = np.zeros(one_leg.nu)
     du[0] = 1e-3
     ends = []
+    soft = mujoco.MjData(qp.soft_model)
     for ctrl in (qp.ctrl_ref, qp.ctrl_ref + du):
-        one_leg.set_state(data, qp.state_ref)
-        data.ctrl[:] = ctrl
-        mujoco.mj_step(m, data, qp.substeps)
-        ends.append(one_leg.get_state(data))
+        one_leg.set_state(soft, qp.state_ref)
+        soft.ctrl[:] = ctrl
+        mujoco.mj_step(qp.soft_model, soft, qp.substeps)
+        ends.append(one_leg.get_state(soft))
     fd = one_leg.state_difference(ends[1], ends[0])
     np.testing.assert_allclose(qp._lin["B"] @ du, fd, atol=2e-2 * np.abs(fd).max())
+
+
+def test_force_law_predicts_the_soft_contact_forces(qp, one_leg):
+    """``fbar + F_x dx + F_u du`` matches the simulator's contact forces near the reference,
+    and at the reference the stance foot carries the whole weight."""
+    lin = qp._lin
+    fbar = lin["fbar"].reshape(-1, 3)
+    assert fbar[:, 2].sum() == pytest.approx(1.0, rel=1e-3)  # in weights
+    rng = np.random.default_rng(0)
+    dx = 1e-4 * rng.standard_normal(one_leg.nx)
+    du = 1e-3 * rng.standard_normal(one_leg.nu)
+    actual = qp._point_forces(one_leg.state_add(qp.state_ref, dx), qp.ctrl_ref + du)
+    predicted = lin["fbar"] + lin["Fx"] @ dx + lin["Fu"] @ du
+    change = actual - lin["fbar"]
+    np.testing.assert_allclose(predicted - lin["fbar"], change, atol=0.05 * np.abs(change).max())
 
 
 def _contact_force_per_body(model, data, bodies):
@@ -87,14 +109,7 @@ def _contact_force_per_body(model, data, bodies):
     "task",
     [
         "one_leg",
-        pytest.param(
-            "two_feet",
-            marks=pytest.mark.xfail(
-                reason="known issue: on two feet the N=10 QP-MPC drifts in torso pitch (its "
-                "terminal cost is too optimistic), shifting the load between the feet (~13%)",
-                strict=False,
-            ),
-        ),
+        "two_feet",
     ],
 )
 def test_predicted_forces_match_the_simulator_and_respect_the_cones(task, request):
@@ -128,13 +143,6 @@ def test_predicted_forces_match_the_simulator_and_respect_the_cones(task, reques
         assert predicted == pytest.approx(measured[body], rel=0.10), (task, body)
 
 
-@pytest.mark.xfail(
-    reason="not reached: measured 4 s runs, push 0.1 s at 0.5 s: one leg falls at 2.65 s after "
-    "10 N and 2.29 s after 20 N (a slow torso-pitch drift); two feet falls at 2.75 s with no "
-    "push (57 fallbacks). LQR on the QP's own rigid-stance model fails in the simulator the "
-    "same way, LQR on the soft-contact model does not: the rigid stance model is the culprit",
-    strict=False,
-)
 def test_survives_a_moderate_push(one_leg, two_feet):
     """Push recovery on one leg (20 N) and two feet (100 N), 0.1 s at 0.5 s, 4 s runs (long
     enough to see the slow drift that follows the push)."""
@@ -144,18 +152,13 @@ def test_survives_a_moderate_push(one_leg, two_feet):
         assert res.survived and res.metrics.fallbacks == 0, problem.name
 
 
-@pytest.mark.xfail(
-    reason="not reached: with settle=1.5 s QP-MPC's largest one-leg push is 28 N (fails 32 N); "
-    "LQR survives 35 N in 3 s runs; with longer runs QP-MPC falls after 10 N (see the xfail above)",
-    strict=False,
-)
 def test_push_limit_at_least_lqr(one_leg):
     from mpcbox.evaluation import largest_push
     from mpcbox.lqr import LQR
 
-    kw = dict(tolerance=8.0, max_force=64.0, settle=1.5)
+    kw = dict(tolerance=4.0, max_force=96.0, settle=2.5)
     lqr = largest_push(one_leg, LQR(one_leg), **kw)
-    qp = largest_push(one_leg, QPMPC(one_leg), **kw)
+    qp = largest_push(one_leg, QPMPC(one_leg, **one_leg.controller_options["qp"]), **kw)
     assert qp.force >= lqr.force
 
 

@@ -65,3 +65,15 @@ def test_gpu_closed_loop_cartpole_swingup():
     res = mpcbox.simulate(problem, ctrl, 8.0)
     err = np.array([problem.upright_error(s) for s in res.states])
     assert np.all(err[res.time >= 3.0] < 0.3)
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("name", ["mppi", "cem"])
+def test_gpu_humanoid_stands_10s_under_the_noise_recipe(name):
+    """Issue #5 acceptance: the tuned controllers keep the humanoid standing on the GPU."""
+    from mpcbox.tasks.humanoid_stand import HumanoidStand
+
+    problem = HumanoidStand()
+    ctrl = mpcbox.make_controller(name, problem, backend="warp")
+    res = mpcbox.simulate(problem, ctrl, 10.0, noise=problem.noise(), seed=0)
+    assert res.survived, res.failure

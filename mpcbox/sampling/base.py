@@ -14,7 +14,12 @@ Every control tick, from the measured state :math:`x`:
    samples whose rollout overflowed the backend's contact capacity or produced non-finite
    numbers get :math:`J_n = +\infty` (excluded) and are counted; the algorithm then refits
    the nominal knots (:meth:`update`);
-3. the control returned is the nominal spline at the start of the horizon.
+3. the control returned is the nominal spline at the start of the horizon. With
+   ``replan_period`` (and the controller called every simulation step, ``period=None``),
+   calls between replans return the nominal spline at the elapsed time instead.
+
+The backend may compute asynchronously (``submit``/``collect``, the warp backend): the
+noise of the next iteration is then drawn while the device works.
 
 Subclasses implement only :meth:`sample` and :meth:`update`.
 """

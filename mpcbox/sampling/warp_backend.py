@@ -5,15 +5,25 @@ One tick, for ``W = N M`` worlds (world ``w`` rolls out candidate ``w // M`` on 
 
 1. the host uploads the start state ``(nstate,)`` and the knots ``(N, K, nu)``;
 2. on the device: broadcast the state to every world and clear costs and overflow flags;
-   then for ``t = 0 .. T-1``: interpolate and clamp :math:`u_t` and add the state/control
-   rows at :math:`x_t`, ``mjw.step``, add the sensor rows (MJWarp computes sensors at
-   :math:`x_t` inside the step); then the terminal rows at :math:`x_T` (after
+   then for ``t = 0 .. T-1`` one fused launch (a thread per world and actuator or cost row:
+   :func:`~mpcbox.sampling.warp_costs.fused_stage_kernel`) interpolates and clamps
+   :math:`u_t`, adds the state/control rows at :math:`x_t` and the sensor rows of step
+   ``t - 1`` (MJWarp computes sensors at :math:`x_{t-1}` inside that step), followed by
+   ``mjw.step``; then the last sensor rows, the terminal rows at :math:`x_T` (after
    ``mjw.forward`` if they read sensors) and per-world flags for capacity overflow and
    non-finite numbers;
 3. the host reads back only the costs ``(W,)`` and flags ``(W,)``.
 
 On CUDA, step 2 is captured once as a CUDA graph and replayed each tick, so nothing
-synchronizes with the host inside the horizon. Contact (``nconmax``) and constraint
+synchronizes with the host inside the horizon. :meth:`WarpBackend.submit` returns as soon
+as the graph is launched, so the controller draws the next iteration's noise while the
+device works; :meth:`WarpBackend.collect` waits for the read-back. Models without any
+collidable geom pair plan with contacts disabled (MJWarp then skips its collision
+pipeline).
+
+Every world waits for the slowest one: MJWarp's constraint solver iterates (inside the
+graph) until all worlds have converged, so diverse candidates cost more than identical
+worlds; ``solver_iterations`` on the controller caps that. Contact (``nconmax``) and constraint
 (``njmax``) capacities come from calibration rollouts on the CPU with ``headroom``; a tick
 that overflows marks the affected worlds (their samples are excluded by the controller) and
 doubles the capacities for the next tick.
