@@ -38,6 +38,18 @@ cost (``terminal``), and :math:`\tfrac{w_f}{2}\|f/(m g) - \bar\phi\|^2` pulling 
 toward an even share of the weight. Forces are solved in units of the weight :math:`m g`
 (conditioning).
 
+**Soft stance (``stance_model="soft"``, the default).** MuJoCo's contacts are soft, and a foot
+held rigidly still mispredicts them (an LQR designed on that rigid model falls where one
+designed on the soft model holds). The soft stance therefore predicts with the soft-contact
+model, :math:`\delta x_{k+1} = A_s \delta x_k + B_s \delta u_k + B_c s_k + c_s`, and keeps the
+forces explicit through the linearized contact-force law of the same model,
+:math:`f_k = \bar f + F_x \delta x_k + F_u \delta u_k + s_k` (forward differences of the forces
+:func:`mujoco.mj_contactForce` reports, each contact given to the nearest point). The slack
+:math:`s_k`, weighted by ``stance_weight``, is a force the soft model does not predict; the
+friction pyramid and unilateral bounds above apply to :math:`f_k`, so they constrain the forces
+the simulator will produce. The stance rows and the force regularization are replaced by
+these force-law rows.
+
 The QP is solved with OSQP's own API on a persistent solver whose sparsity pattern is built
 once; each tick updates the vectors (and the matrix values when relinearizing) and warm-starts
 from the previous solution shifted by one step. Any ``qpsolvers`` backend can solve the same
