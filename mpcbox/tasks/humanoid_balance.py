@@ -9,14 +9,13 @@ import mujoco
 import numpy as np
 
 from mpcbox.cost import ComOverSupport, ControlCost, Cost, StateCost
-from mpcbox.equilibrium import Equilibrium, find_equilibrium
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.model import ModelSource, frame_object, object_id
-from mpcbox.problem import Problem
 from mpcbox.tasks import scene_path
+from mpcbox.tasks.humanoid import HumanoidProblem, balance_dofs, joint_weights
 
 
-class HumanoidBalance(Problem):
+class HumanoidBalance(HumanoidProblem):
     """Balance a humanoid on one leg.
 
     The reference posture is the keyframe ``stand_on_left_leg`` for the left leg, or a
@@ -59,6 +58,7 @@ class HumanoidBalance(Problem):
             linearize_every=2,
             fd_centered=False,
             regularization=1e-3,
+            terminal_value="lqr",
         ),
         # Sampling MPC (issue #5), sized for the warp backend on one GPU (H200 results under
         # the noise recipe in benchmarks/results/sampling_gpu.json).
@@ -116,7 +116,7 @@ class HumanoidBalance(Problem):
             ctrl=ctrl_cost,
         )
         self.fall_height = float(fall_height)
-        self.equilibrium: Equilibrium | None = None
+        self.noise_stance = leg
         source: ModelSource = scene_path("humanoid.xml") if model is None else model
         if leg == "left":
             kwargs.setdefault("keyframe", "stand_on_left_leg")
@@ -140,32 +140,13 @@ class HumanoidBalance(Problem):
                 model, start, stance=self.foot("right"), swing=self.foot("left")
             )
             self.qpos_ref = self.posture.qpos
-        self.equilibrium = find_equilibrium(model, self.qpos_ref)
-        self.qpos_ref = self.equilibrium.qpos
-        self.ctrl_ref = self.equilibrium.ctrl
+        super().prepare(model)
         frame_object(model, self.foot(self.leg))  # fails early with the valid names
-        self._torso = object_id(model, "body", "torso")
-
-    def balance_dofs(self, model: mujoco.MjModel) -> np.ndarray:
-        """Dof indices of the abdomen and stance-leg joints without a ``z`` in their names."""
-        dofs = []
-        for j in range(model.njnt):
-            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or ""
-            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE or "z" in name:
-                continue
-            leg = self.leg in name and any(k in name for k in ("hip", "knee", "ankle"))
-            if "abdomen" in name or leg:
-                dofs.append(int(model.jnt_dofadr[j]))
-        return np.array(dofs, dtype=int)
 
     def build_cost(self, model: mujoco.MjModel) -> Cost:
         w = self.weights
-        wq = np.full(model.nv, w["other_joint"])
-        for j in range(model.njnt):
-            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
-                adr = model.jnt_dofadr[j]
-                wq[adr : adr + 6] = 0.0
-        wq[self.balance_dofs(model)] = w["balance_joint"]
+        dofs = balance_dofs(model, (self.leg,))
+        wq = joint_weights(model, dofs, w["balance_joint"], w["other_joint"])
         return Cost(
             [
                 ComOverSupport(self.foot(self.leg), w["balance"], root="torso", name="balance"),
@@ -174,23 +155,8 @@ class HumanoidBalance(Problem):
             ]
         )
 
-    def failure(self, model: mujoco.MjModel, data: mujoco.MjData) -> str | None:
-        reason = super().failure(model, data)
-        if reason is None and data.xpos[self._torso, 2] < self.fall_height:
-            reason = f"fell: torso below {self.fall_height} m"
-        return reason
-
     def support_point(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
         return self.frame_xy(model, data, self.foot(self.leg))
-
-    def tilt_body(self) -> int:
-        return self._torso
-
-    def noise(self, scale: float = 1.0):
-        """The published actuator-noise recipe for this stance leg."""
-        from mpcbox.disturbances import ActuatorNoise
-
-        return ActuatorNoise.balance_recipe(self.model, stance=self.leg, scale=scale)
 
 
 def classic_humanoid_path() -> Path | None:

@@ -8,13 +8,12 @@ import mujoco
 import numpy as np
 
 from mpcbox.cost import ComOverSupport, ControlCost, Cost, FrameHeight, StateCost, Upright
-from mpcbox.equilibrium import Equilibrium, find_equilibrium
-from mpcbox.model import ModelSource, object_id
-from mpcbox.problem import Problem
+from mpcbox.model import ModelSource
 from mpcbox.tasks import scene_path
+from mpcbox.tasks.humanoid import HumanoidProblem
 
 
-class HumanoidStand(Problem):
+class HumanoidStand(HumanoidProblem):
     r"""Keep a humanoid standing on both feet (keyframe ``stand`` of ``scenes/humanoid.xml``).
 
     The reference posture is the keyframe with the root height adjusted until the contacts
@@ -95,15 +94,11 @@ class HumanoidStand(Problem):
             terminal=terminal_scale,
         )
         self.fall_height = float(fall_height)
-        self.equilibrium: Equilibrium | None = None
         kwargs.setdefault("keyframe", "stand")
         super().__init__(scene_path("humanoid.xml") if model is None else model, **kwargs)
 
     def prepare(self, model: mujoco.MjModel) -> None:
-        self.equilibrium = find_equilibrium(model, self.qpos_ref)
-        self.qpos_ref = self.equilibrium.qpos
-        self.ctrl_ref = self.equilibrium.ctrl
-        self._torso = object_id(model, "body", "torso")
+        super().prepare(model)
         data = mujoco.MjData(model)
         data.qpos[:] = self.qpos_ref
         mujoco.mj_kinematics(model, data)
@@ -135,23 +130,8 @@ class HumanoidStand(Problem):
         running = [*self._terms(model, 1.0, ""), ControlCost(self.weights["ctrl"], self.ctrl_ref)]
         return Cost(running, self._terms(model, self.weights["terminal"], "_terminal"))
 
-    def failure(self, model: mujoco.MjModel, data: mujoco.MjData) -> str | None:
-        reason = super().failure(model, data)
-        if reason is None and data.xpos[self._torso, 2] < self.fall_height:
-            reason = f"fell: torso below {self.fall_height} m"
-        return reason
-
     def support_point(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
         """Midpoint of the two foot sites."""
         return 0.5 * (
             self.frame_xy(model, data, "foot_left") + self.frame_xy(model, data, "foot_right")
         )
-
-    def tilt_body(self) -> int:
-        return self._torso
-
-    def noise(self, scale: float = 1.0):
-        """The published actuator-noise recipe (two-foot stance: the left-stance weights)."""
-        from mpcbox.disturbances import ActuatorNoise
-
-        return ActuatorNoise.balance_recipe(self.model, stance="left", scale=scale)

@@ -8,16 +8,15 @@ import mujoco
 import numpy as np
 
 from mpcbox.cost import ComOverSupport, ControlCost, Cost, StateCost
-from mpcbox.equilibrium import Equilibrium, find_equilibrium
 from mpcbox.model import ModelSource, compile_spec, load_spec, object_id
-from mpcbox.problem import Problem
 from mpcbox.tasks import scene_path
+from mpcbox.tasks.humanoid import HumanoidProblem, balance_dofs, joint_weights
 
 #: Name of the world site added midway between the feet.
 FEET_CENTER = "feet_center"
 
 
-class HumanoidTwoFeet(Problem):
+class HumanoidTwoFeet(HumanoidProblem):
     """Stand on both feet and keep the center of mass above the middle of the feet.
 
     A world-fixed site ``feet_center`` is added to the model at the midpoint of the sites
@@ -69,7 +68,6 @@ class HumanoidTwoFeet(Problem):
             ctrl=ctrl_cost,
         )
         self.fall_height = float(fall_height)
-        self.equilibrium: Equilibrium | None = None
         spec = load_spec(scene_path("humanoid.xml") if model is None else model)
         kwargs.setdefault("keyframe", "stand")
         base = compile_spec(spec)
@@ -82,31 +80,10 @@ class HumanoidTwoFeet(Problem):
         spec.worldbody.add_site(name=FEET_CENTER, pos=[center[0], center[1], 0.0])
         super().__init__(spec, **kwargs)
 
-    def prepare(self, model: mujoco.MjModel) -> None:
-        self.equilibrium = find_equilibrium(model, self.qpos_ref)
-        self.qpos_ref = self.equilibrium.qpos
-        self.ctrl_ref = self.equilibrium.ctrl
-        self._torso = object_id(model, "body", "torso")
-
-    def balance_dofs(self, model: mujoco.MjModel) -> np.ndarray:
-        """Dof indices of the abdomen and leg joints without a ``z`` in their names."""
-        dofs = []
-        for j in range(model.njnt):
-            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or ""
-            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE or "z" in name:
-                continue
-            if "abdomen" in name or any(k in name for k in ("hip", "knee", "ankle")):
-                dofs.append(int(model.jnt_dofadr[j]))
-        return np.array(dofs, dtype=int)
-
     def build_cost(self, model: mujoco.MjModel) -> Cost:
         w = self.weights
-        wq = np.full(model.nv, w["other_joint"])
-        for j in range(model.njnt):
-            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
-                adr = model.jnt_dofadr[j]
-                wq[adr : adr + 6] = 0.0
-        wq[self.balance_dofs(model)] = w["balance_joint"]
+        dofs = balance_dofs(model, ("left", "right"))
+        wq = joint_weights(model, dofs, w["balance_joint"], w["other_joint"])
         return Cost(
             [
                 ComOverSupport(FEET_CENTER, w["balance"], root="torso", name="balance"),
@@ -115,14 +92,5 @@ class HumanoidTwoFeet(Problem):
             ]
         )
 
-    def failure(self, model: mujoco.MjModel, data: mujoco.MjData) -> str | None:
-        reason = super().failure(model, data)
-        if reason is None and data.xpos[self._torso, 2] < self.fall_height:
-            reason = f"fell: torso below {self.fall_height} m"
-        return reason
-
     def support_point(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
         return self.frame_xy(model, data, FEET_CENTER)
-
-    def tilt_body(self) -> int:
-        return self._torso
