@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mpcbox.compare import PushTest, Scenario, compare
+from mpcbox.comparison import PushTest, Scenario, compare
 
 
 def problem_options(args: argparse.Namespace) -> dict:

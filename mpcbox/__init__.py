@@ -55,8 +55,8 @@ _LAZY: dict[str, str] = {
     "simulate": "mpcbox.simulation",
     "SimulationResult": "mpcbox.simulation",
     "Metrics": "mpcbox.simulation",
-    "compare": "mpcbox.compare",
-    "Scenario": "mpcbox.compare",
+    "compare": "mpcbox.comparison",
+    "Scenario": "mpcbox.comparison",
     "make_controller": "mpcbox.registry",
 }
 

@@ -165,7 +165,7 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
 
 
 def _scenarios(args: argparse.Namespace):
-    from mpcbox.compare import Scenario
+    from mpcbox.comparison import Scenario
     from mpcbox.disturbances import ModelMismatch, Push
 
     try:
@@ -229,7 +229,7 @@ def run_comparison(
     Returns:
         The exit status (0).
     """
-    from mpcbox.compare import PushTest, compare, resolve_controllers
+    from mpcbox.comparison import PushTest, compare, resolve_controllers
     from mpcbox.registry import task_class
 
     stream = stream or sys.stdout

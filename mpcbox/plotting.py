@@ -1,7 +1,7 @@
 """PNG plots of closed-loop runs and comparisons (matplotlib with the headless Agg backend).
 
 * :func:`plot_balance`: COM deviation and tilt of a few :class:`~mpcbox.SimulationResult`.
-* :func:`plot_comparison`: every figure of a :class:`~mpcbox.compare.Comparison`:
+* :func:`plot_comparison`: every figure of a :class:`~mpcbox.comparison.Comparison`:
   :func:`plot_time_series` per scenario, :func:`plot_survival` against the noise scale and
   :func:`plot_compute_times`.
 """
@@ -18,7 +18,7 @@ import numpy as np
 from mpcbox.simulation import SimulationResult
 
 if TYPE_CHECKING:  # pragma: no cover
-    from mpcbox.compare import Comparison, Trace
+    from mpcbox.comparison import Comparison, Trace
 
 
 def _pyplot():

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mpcbox.cli import main, run_task_script
-from mpcbox.compare import Comparison, PushTest, Scenario, compare
+from mpcbox.comparison import Comparison, PushTest, Scenario, compare
 from mpcbox.disturbances import ModelMismatch, Push
 from mpcbox.errors import InvalidArgumentError, UnknownNameError
 from mpcbox.lqr import LQR

@@ -20,8 +20,6 @@ import io
 import math
 import os
 import pickle
-import sys
-import types
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -716,17 +714,3 @@ def compare(
         push_limits=push_limits,
         wall_time=time.perf_counter() - wall0,
     )
-
-
-class _CallableModule(types.ModuleType):
-    """Lets ``mpcbox.compare(...)`` work after ``import mpcbox.compare`` too.
-
-    Importing the submodule sets the package attribute ``mpcbox.compare`` to this module,
-    shadowing the function of the same name; calling the module calls the function.
-    """
-
-    def __call__(self, *args: Any, **kwargs: Any) -> Comparison:
-        return compare(*args, **kwargs)
-
-
-sys.modules[__name__].__class__ = _CallableModule
