@@ -160,7 +160,8 @@ def test_push_limit_at_least_lqr(one_leg):
     kw = dict(tolerance=4.0, max_force=96.0, settle=2.5)
     lqr = largest_push(one_leg, LQR(one_leg), **kw)
     qp = largest_push(one_leg, QPMPC(one_leg, **one_leg.controller_options["qp"]), **kw)
-    assert qp.force >= lqr.force
+    print(f"largest push: QP-MPC {qp.force:.1f} N, LQR {lqr.force:.1f} N")
+    assert qp.force >= 1.4 * lqr.force
 
 
 def test_warm_start_reduces_iterations(one_leg):

@@ -47,7 +47,9 @@ class HumanoidBalance(HumanoidProblem):
     controller_options: ClassVar[dict[str, dict[str, Any]]] = {
         "lqr": {},
         # Contact-force QP-MPC (issue #4): 10 steps of 0.02 s, stance-foot capsule ends.
-        "qp": dict(horizon=10, dt=0.02, contacts=("body:foot_left",), stance_weight=1e5),
+        "qp": dict(
+            horizon=10, dt=0.02, contacts=("body:foot_left",), stance_weight=1e5, terminal_scale=5.0
+        ),
         # iLQR-MPC (issue #3): 0.35 s horizon on a 0.015 s planning model, 50 Hz replanning.
         "ilqr": dict(
             horizon=23,
