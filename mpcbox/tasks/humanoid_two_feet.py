@@ -43,7 +43,11 @@ class HumanoidTwoFeet(HumanoidProblem):
     #: Keyword arguments for each controller built by :func:`mpcbox.make_controller`.
     controller_options: ClassVar[dict[str, dict[str, Any]]] = {
         "lqr": {},
-        "qp": {"contacts": ("body:foot_left", "body:foot_right"), "period": 0.02},
+        "qp": {
+            "contacts": ("body:foot_left", "body:foot_right"),
+            "period": 0.02,
+            "stance_weight": 1e5,
+        },
     }
     #: Contact bodies for contact-aware controllers.
     contacts = ("body:foot_left", "body:foot_right")
