@@ -555,18 +555,9 @@ class QPMPC(Controller):
 
     # ------------------------------------------------------------------ linearization
     def _linearize(self, state: np.ndarray, ctrl: np.ndarray) -> None:
-        p, m, d = self.problem, self.model, self.data
+        p, m = self.problem, self.model
         nx, nv = p.nx, p.nv
-        p.set_state(d, state)
-        d.ctrl[:] = ctrl
-        Ah = np.zeros((nx, nx))
-        Bh = np.zeros((nx, p.nu))
-        mujoco.mjd_transitionFD(m, d, p.fd_eps, self.fd_centered, Ah, Bh, None, None)
-        p.set_state(d, state)
-        d.ctrl[:] = ctrl
-        mujoco.mj_step(m, d, self.substeps)
-        drift = p.state_difference(p.get_state(d), state)
-        A, S = _compose(Ah, self.substeps)
+        Ah, Bh, A, S, drift = self._composed_step(m, self.data, state, ctrl)
         B = S @ Bh
         # Kinematics, mass matrix and Jacobians at the linearization point.
         kin = self._kin
@@ -602,24 +593,37 @@ class QPMPC(Controller):
         if hasattr(self, "_A_perm"):
             self._A.data[:] = self._matrix_values()[self._A_perm]
 
-    def _soft_linearization(self, state: np.ndarray, ctrl: np.ndarray) -> dict[str, np.ndarray]:
-        r"""Soft-contact prediction (``A``, ``B``, drift ``c``) and its contact-force law.
+    def _composed_step(
+        self, m: mujoco.MjModel, d: mujoco.MjData, state: np.ndarray, ctrl: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """One QP step of ``m`` (``substeps`` steps, control held) about ``(state, ctrl)``.
 
-        The force law :math:`f \approx \bar f + F_x \delta x + F_u \delta u` (per point,
-        world frame, in weights) is differentiated forward in the tangent space.
+        Returns:
+            ``A_h``, ``B_h`` of one substep (``mjd_transitionFD``), the composed ``A`` and
+            the input sum ``S`` (:func:`_compose`), and the drift ``step(x, u) ⊖ x``.
         """
-        p, m, d = self.problem, self.soft_model, self._soft
-        nx, nu = p.nx, p.nu
+        p = self.problem
         p.set_state(d, state)
         d.ctrl[:] = ctrl
-        Ah = np.zeros((nx, nx))
-        Bh = np.zeros((nx, nu))
+        Ah = np.zeros((p.nx, p.nx))
+        Bh = np.zeros((p.nx, p.nu))
         mujoco.mjd_transitionFD(m, d, p.fd_eps, self.fd_centered, Ah, Bh, None, None)
         p.set_state(d, state)
         d.ctrl[:] = ctrl
         mujoco.mj_step(m, d, self.substeps)
         drift = p.state_difference(p.get_state(d), state)
         A, S = _compose(Ah, self.substeps)
+        return Ah, Bh, A, S, drift
+
+    def _soft_linearization(self, state: np.ndarray, ctrl: np.ndarray) -> dict[str, np.ndarray]:
+        r"""Soft-contact prediction (``A``, ``B``, drift ``c``) and its contact-force law.
+
+        The force law :math:`f \approx \bar f + F_x \delta x + F_u \delta u` (per point,
+        world frame, in weights) is differentiated forward in the tangent space.
+        """
+        p = self.problem
+        nx, nu = p.nx, p.nu
+        _, Bh, A, S, drift = self._composed_step(self.soft_model, self._soft, state, ctrl)
         fbar = self._point_forces(state, ctrl)
         eps = 1e-6
         Fx = np.zeros((fbar.size, nx))
