@@ -436,6 +436,7 @@ class Problem:
 
         Returns:
             A :class:`Rollout` with a leading batch axis (``B = 1`` for a single sequence).
+            A rollout that diverged (MuJoCo reset it) holds NaN from that step on.
         """
         from mujoco import rollout as mj_rollout
 
@@ -461,6 +462,16 @@ class Problem:
         states = np.empty((nbatch, horizon + 1, self.nstate))
         states[:, 0] = state
         states[:, 1:] = out_state[:, :horizon, cols]
+        # MuJoCo resets a diverged simulation (warning mjWARN_BADQACC) and carries on from the
+        # model's reference pose, time 0: the time column then steps back. Mark those
+        # rollouts non-finite from the reset on, so that no one scores the reset pose.
+        times = np.concatenate([np.full((nbatch, 1), init[0]), out_state[:, :, 0]], axis=1)
+        stepped_back = np.diff(times, axis=1) <= 0.0  # (B, T + 1)
+        if stepped_back.any():
+            after = np.cumsum(stepped_back, axis=1) > 0
+            states[:, 1:][after[:, :horizon]] = np.nan
+            out_sens = np.array(out_sens)
+            out_sens[after] = np.nan
         return Rollout(states, out_sens, ctrls)
 
     def _rollout_datas(self) -> list[mujoco.MjData]:

@@ -150,6 +150,36 @@ def test_rollout_sensordata_rows_match_forward(balance):
     assert costs[0] == pytest.approx(manual, rel=1e-9)
 
 
+def test_rollouts_that_mujoco_reset_after_diverging_are_marked_nan():
+    """With one Newton iteration MuJoCo's CPU solver blows up on the humanoid: mj_step warns
+    (mjWARN_BADQACC) and resets. Those rollouts must not be scored from the reset pose."""
+    from mpcbox.tasks.humanoid_stand import HumanoidStand
+
+    problem = HumanoidStand().with_planning_timestep(0.01)
+    model = problem.planning_model
+    model.opt.iterations = 1
+    rng = np.random.default_rng(0)
+    ctrls = np.repeat(problem.clip_ctrl(problem.ctrl_ref + rng.normal(0, 0.2, (8, 1, 21))), 40, 1)
+    roll = problem.rollout(problem.initial_state(), ctrls)
+    # Reference: step each sequence by hand and read MuJoCo's warning counter, over the T
+    # steps of the states and over one more (the terminal sensors are read in step T + 1).
+    data = mujoco.MjData(model)
+    warned, warned_terminal = [], []
+    for seq in ctrls:
+        mujoco.mj_resetData(model, data)
+        problem.set_state(data, problem.initial_state())
+        for t, u in enumerate([*seq, seq[-1]]):
+            if t == len(seq):
+                warned.append(data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0)
+            data.ctrl[:] = u
+            mujoco.mj_step(model, data)
+        warned_terminal.append(data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0)
+    nan = ~np.isfinite(roll.states).all(axis=(1, 2))
+    assert np.array_equal(nan, np.array(warned)) and 0 < nan.sum() < 8
+    costs = problem.rollout_cost(roll)
+    assert np.array_equal(~np.isfinite(costs), np.array(warned_terminal))
+
+
 def test_equilibrium_holds_the_pose(balance):
     eq = balance.equilibrium
     assert abs(eq.vertical_residual) <= 1e-3

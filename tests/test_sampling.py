@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import importlib.util
 from typing import ClassVar
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -250,18 +252,48 @@ def test_replan_period_returns_the_spline_between_replans(cartpole):
         MPPI(cartpole, replan_period=-1.0)
 
 
-def test_planning_timestep_and_solver_options_use_a_private_planning_model():
+def test_planning_timestep_and_solver_options_use_a_private_planning_model(warp_device):
     from mpcbox.tasks.humanoid_stand import HumanoidStand
 
     problem = HumanoidStand()
     iterations = problem.planning_model.opt.iterations
+    integrator = problem.planning_model.opt.integrator
     ctrl = PredictiveSampling(
-        problem, num_samples=4, horizon=0.1, planning_timestep=0.01, solver_iterations=2
+        problem,
+        num_samples=4,
+        horizon=0.1,
+        planning_timestep=0.01,
+        solver_iterations=2,
+        planning_integrator="euler",
     )
     assert ctrl.problem is not problem and ctrl.problem.dt == pytest.approx(0.01)
     assert ctrl.horizon_steps == 10
-    assert ctrl.problem.planning_model.opt.iterations == 2
+    # The CPU backend ignores the solver cap (MuJoCo's CPU solver diverges when capped low).
+    assert ctrl.problem.planning_model.opt.iterations == iterations
+    assert ctrl.problem.planning_model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
     assert problem.planning_model.opt.iterations == iterations
+    assert problem.planning_model.opt.integrator == integrator
+    if importlib.util.find_spec("mujoco_warp") is not None:
+        warp = PredictiveSampling(
+            problem, num_samples=4, horizon=0.1, solver_iterations=2, backend="warp",
+            device=warp_device,
+        )  # fmt: skip
+        assert warp.problem.planning_model.opt.iterations == 2
+        assert warp.backend.models[0].opt.iterations == 2
+    with pytest.raises(InvalidArgumentError, match="solver_iterations"):
+        PredictiveSampling(problem, num_samples=4, horizon=0.1, solver_iterations=0)
+    ctrl = PredictiveSampling(
+        problem, num_samples=4, horizon=0.1, planning_disable=("constraint", "EulerDamp")
+    )
+    bits = mujoco.mjtDisableBit.mjDSBL_CONSTRAINT | mujoco.mjtDisableBit.mjDSBL_EULERDAMP
+    assert ctrl.problem.planning_model.opt.disableflags & bits == bits
+    assert problem.planning_model.opt.disableflags & bits == 0
+    with pytest.raises(InvalidArgumentError, match=r"planning_disable.*'eulerdamp'"):
+        PredictiveSampling(problem, num_samples=4, horizon=0.1, planning_disable=("damping",))
+    with pytest.raises(InvalidArgumentError, match="planning_disable"):
+        PredictiveSampling(problem, num_samples=4, horizon=0.1, planning_disable="contact")
+    with pytest.raises(InvalidArgumentError, match=r"planning_integrator.*'euler'"):
+        PredictiveSampling(problem, num_samples=4, horizon=0.1, planning_integrator="verlet")
     assert problem.dt == pytest.approx(0.005)
     ctrl.plan(problem.initial_state(), 0.0)
     assert np.isfinite(ctrl.last.best_cost)

@@ -46,6 +46,63 @@ def test_humanoid_costs_agree_with_the_cpu_backend(warp_device):
     assert warp.backend.nconmax >= 4 and warp.stats["resizes"] == 0
 
 
+def test_capped_euler_planning_model_stays_close_to_the_full_model(warp_device):
+    """The humanoid's fast planning model (2 solver iterations, unrolled in the graph, Euler)
+    predicts costs within a few percent of the full model and ranks candidates alike."""
+    from mpcbox.tasks.humanoid_stand import HumanoidStand
+
+    problem = HumanoidStand()
+    fast = dict(solver_iterations=2, planning_integrator="euler")
+    a, _, _ = _agreement(problem, warp_device, horizon_steps=20)
+    rng = np.random.default_rng(0)
+    cand = problem.clip_ctrl(problem.ctrl_ref + rng.normal(0, 0.3, (8, 3, problem.nu)))
+    state = problem.initial_state().copy()
+    state[problem.nq :] += rng.normal(0, 0.2, problem.nv + problem.na)
+    warp = PredictiveSampling(
+        problem, num_samples=8, horizon=20 * problem.dt, num_knots=3, backend="warp",
+        device=warp_device, **fast,
+    )  # fmt: skip
+    assert not warp.backend.m.opt.graph_conditional  # a low cap is unrolled
+    b = warp.backend.evaluate(state, cand)
+    assert not b.overflow.any() and not b.nonfinite.any()
+    rel = np.abs(b.costs[:, 0] - a[:, 0]) / np.abs(a[:, 0])
+    assert rel.max() < 0.05, rel
+    assert np.argmin(b.costs[:, 0]) == np.argmin(a[:, 0])
+    full = PredictiveSampling(
+        problem, num_samples=8, horizon=0.1, backend="warp", device=warp_device
+    )
+    assert full.backend.m.opt.graph_conditional
+
+
+def test_broadphase_candidate_bound_covers_mjwarp(warp_device):
+    """The calibration's count bounds MJWarp's own broadphase candidates from above."""
+    import mujoco
+    import mujoco_warp as mjw
+    import warp as wp
+
+    from mpcbox.sampling.warp_backend import broadphase_candidates
+    from mpcbox.tasks.humanoid_stand import HumanoidStand
+
+    problem = HumanoidStand()
+    model = problem.planning_model
+    rng = np.random.default_rng(3)
+    with wp.ScopedDevice(warp_device):
+        m = mjw.put_model(model)
+        pairs = m.nxn_geom_pair_filtered.numpy().reshape(-1, 2)
+        for scale in (0.0, 0.5, 1.0):
+            state = problem.initial_state().copy()
+            state[7 : problem.nq] += rng.normal(0.0, scale, problem.nq - 7)
+            state[2] -= 0.3 * scale  # lower the root: limbs reach the floor
+            data = mujoco.MjData(model)
+            problem.set_state(data, state)
+            mujoco.mj_forward(model, data)
+            d = mjw.put_data(model, data, nworld=1, nconmax=len(pairs) * 4, njmax=600)
+            mjw.forward(m, d)
+            ours = broadphase_candidates(model, data, pairs)
+            assert ours >= int(d.ncollision.numpy()[0]) > 0
+            assert ours >= data.ncon
+
+
 def test_randomized_models_agree_with_the_cpu_backend(warp_device):
     from mpcbox.tasks.swingup import CartpoleSwingup
 

@@ -30,6 +30,7 @@ import abc
 import dataclasses
 import time as _time
 import warnings
+from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import mujoco
@@ -38,7 +39,13 @@ import numpy as np
 from mpcbox.controller import Controller
 from mpcbox.errors import BackendUnavailableError, InvalidArgumentError
 from mpcbox.problem import Problem
-from mpcbox.sampling.config import BACKENDS, RISKS, Randomization, SamplingConfig
+from mpcbox.sampling.config import (
+    BACKENDS,
+    INTEGRATORS,
+    RISKS,
+    Randomization,
+    SamplingConfig,
+)
 from mpcbox.sampling.splines import Spline
 from mpcbox.validation import one_of, positive, positive_int
 
@@ -100,6 +107,23 @@ def aggregate_risk(costs: np.ndarray, risk: str, alpha: float = 0.25) -> np.ndar
         k = max(1, int(np.ceil(alpha * m)))
         return np.sort(costs, axis=1)[:, m - k :].mean(axis=1)
     raise InvalidArgumentError(f"risk must be one of {RISKS}; got {risk!r}")
+
+
+def _disable_bits(names: Sequence[str]) -> int:
+    """``mjtDisableBit`` flags from names such as ``"constraint"`` (the error lists them)."""
+    valid = {
+        n[len("mjDSBL_") :].lower(): int(getattr(mujoco.mjtDisableBit, n))
+        for n in dir(mujoco.mjtDisableBit)
+        if n.startswith("mjDSBL_")
+    }
+    if isinstance(names, str):
+        raise InvalidArgumentError(
+            f"planning_disable must be a sequence of names, got the string {names!r}"
+        )
+    bits = 0
+    for name in names:
+        bits |= valid[one_of("planning_disable", str(name).lower(), sorted(valid))]
+    return bits
 
 
 def randomized_models(model: mujoco.MjModel, rand: Randomization) -> list[mujoco.MjModel]:
@@ -167,11 +191,21 @@ class SamplingController(Controller):
             dt = positive("planning_timestep", config.planning_timestep)
             if abs(dt - problem.dt) > 1e-12:
                 problem = problem.with_planning_timestep(dt)
-        if config.solver_iterations is not None or config.solver_tolerance is not None:
+        disable = _disable_bits(config.planning_disable)
+        # The solver cap is for MJWarp only (see SamplingConfig.solver_iterations).
+        cap = config.solver_iterations if config.backend == "warp" else None
+        if config.solver_iterations is not None:
+            positive_int("solver_iterations", config.solver_iterations)
+        planning_opts = (cap, config.solver_tolerance, config.planning_integrator)
+        if disable or any(v is not None for v in planning_opts):
             problem = problem.with_planning_timestep(problem.dt)  # a private planning model
             opt = problem.planning_model.opt
-            if config.solver_iterations is not None:
-                opt.iterations = positive_int("solver_iterations", config.solver_iterations)
+            if config.planning_integrator is not None:
+                name = one_of("planning_integrator", config.planning_integrator, list(INTEGRATORS))
+                opt.integrator = INTEGRATORS[name]
+            opt.disableflags |= disable
+            if cap is not None:
+                opt.iterations = cap
             if config.solver_tolerance is not None:
                 opt.tolerance = positive("solver_tolerance", config.solver_tolerance)
         self.problem = problem

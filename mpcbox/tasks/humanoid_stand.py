@@ -52,19 +52,25 @@ class HumanoidStand(HumanoidProblem):
     #: Keyword arguments for controllers built by :func:`mpcbox.make_controller`.
     controller_options: ClassVar[dict[str, dict[str, Any]]] = {
         # Sampling MPC (issue #5), sized for the warp backend on one GPU: a 0.5 s horizon on
-        # a 0.01 s planning model (50 steps), six knots, replanning at 50 Hz. Survives 10 s
-        # of the published actuator noise on an H200 with MPPI and CEM.
+        # a 0.01 s planning model (50 steps), six knots, replanning at 50 Hz. The planning
+        # model integrates with Euler and caps the constraint solver (MPPI and CEM at one
+        # Newton iteration, predictive sampling at two), about 1.5x faster per tick than the
+        # full model (benchmarks/sampling_planning_model.py). Survives 10 s of the published
+        # actuator noise on an H200 (benchmarks/sampling.py, closed_loop).
         "ps": dict(
             num_samples=2048, horizon=0.5, num_knots=6, noise_scale=0.2,
-            planning_timestep=0.01, period=0.02,
+            planning_timestep=0.01, period=0.02, planning_integrator="euler",
+            solver_iterations=2,
         ),
         "mppi": dict(
             num_samples=2048, horizon=0.5, num_knots=6, noise_scale=0.2, temperature=0.1,
-            planning_timestep=0.01, period=0.02,
+            planning_timestep=0.01, period=0.02, planning_integrator="euler",
+            solver_iterations=1,
         ),
         "cem": dict(
             num_samples=2048, horizon=0.5, num_knots=6, noise_scale=0.2, num_elites=64,
-            std_min=0.05, planning_timestep=0.01, period=0.02,
+            std_min=0.05, planning_timestep=0.01, period=0.02, planning_integrator="euler",
+            solver_iterations=1,
         ),
     }  # fmt: skip
 
