@@ -81,7 +81,7 @@ from mpcbox.controller import Controller
 from mpcbox.errors import InvalidArgumentError, SolverError, UnknownNameError
 from mpcbox.lqr import dlqr
 from mpcbox.problem import Problem
-from mpcbox.validation import as_array, positive, positive_int
+from mpcbox.validation import as_array, one_of, positive, positive_int
 
 _OSQP_DEFAULTS: dict[str, Any] = dict(
     eps_abs=1e-4,
@@ -200,6 +200,13 @@ class QPMPC(Controller):
             stance feet held still (the forces are free inputs).
         osqp_settings: OSQP settings overriding the defaults.
         export_dir: When set, every tick's QP is written there as ``tick_00000.npz`` ...
+        fallback: What a failed solve (its status counted in :attr:`stats`) does:
+            ``"lqr"`` (default) applies the LQR about the reference; ``"plan"`` replays the
+            last accepted plan open loop while it lasts, then LQR. On two feet after a
+            forward push, ``"plan"`` fell at 97.5 N and 100 N yet survived 105 N, because
+            the open-loop replay runs just when the state leaves the plan. ``"lqr"``
+            survived every push up to 100 N (``README.md``).
+
 
     Attributes:
         points: The :class:`~mpcbox.contact.ContactPoints`.
@@ -237,6 +244,7 @@ class QPMPC(Controller):
         stance_model: str = "soft",
         osqp_settings: dict[str, Any] | None = None,
         export_dir: str | Path | None = None,
+        fallback: str = "lqr",
     ) -> None:
         if not isinstance(problem, Problem):
             raise InvalidArgumentError(
@@ -275,6 +283,7 @@ class QPMPC(Controller):
             raise InvalidArgumentError("stance_model='soft' needs a finite stance_weight")
         self.osqp_settings = {**_OSQP_DEFAULTS, **(osqp_settings or {})}
         self.export_dir = None if export_dir is None else Path(export_dir)
+        self.fallback = one_of("fallback", fallback, ("lqr", "plan"))
 
         # Prediction model: the planning model at the QP step, contacts off.
         # The QP step is composed of ``substeps`` steps of the planning model's own timestep
@@ -934,16 +943,20 @@ class QPMPC(Controller):
             self._fallbacks += 1
             self._plan_age += 1
             step = round(self._plan_age * self.period / self.dt)
-            if self.last_plan is not None and step < self.horizon:
-                ctrl = self.problem.clip_ctrl(self.last_plan.ctrls[step])
+            plan = self.last_plan
+            if self.fallback == "plan" and plan is not None and step < self.horizon:
+                ctrl = self.problem.clip_ctrl(plan.ctrls[step])
             else:
-                if self._lqr is None:
-                    from mpcbox.lqr import LQR
-
-                    self._lqr = LQR(self.problem)
-                ctrl = self._lqr(state, time)
+                ctrl = self._fallback_lqr()(state, time)
         self._last_ctrl = ctrl
         return ctrl
+
+    def _fallback_lqr(self):
+        if self._lqr is None:
+            from mpcbox.lqr import LQR
+
+            self._lqr = LQR(self.problem)
+        return self._lqr
 
     # ------------------------------------------------------------------ export
     def export(self, path: str | Path) -> Path:

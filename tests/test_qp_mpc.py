@@ -183,6 +183,25 @@ def test_failed_solve_falls_back_and_is_counted(one_leg):
     assert np.all(np.isfinite(res.ctrls))
 
 
+@pytest.mark.parametrize("fallback", ["lqr", "plan"])
+def test_fallback_after_failed_solves(one_leg, fallback):
+    ctl = QPMPC(one_leg, horizon=10, dt=0.02, period=0.02, fallback=fallback)
+    x0 = one_leg.reference_state()
+    ctl(x0, 0.0)
+    plan = ctl.last_plan
+    ctl.solve = lambda state: None  # every later solve fails
+    x1 = x0.copy()
+    x1[one_leg.nq + 3] = 0.1  # a roll rate the plan did not predict
+    lqr = ctl._fallback_lqr()
+    for k in range(1, 11):
+        u = ctl(x1, 0.02 * k)
+        if fallback == "plan" and k < 10:  # open-loop replay while the plan lasts
+            np.testing.assert_allclose(u, one_leg.clip_ctrl(plan.ctrls[k]), atol=1e-12)
+        else:
+            np.testing.assert_allclose(u, lqr(x1, 0.02 * k), atol=1e-12)
+    assert ctl.stats["fallbacks"] == 10
+
+
 def test_qpsolvers_backend_agrees_with_osqp(qp, one_leg, tmp_path):
     import qpsolvers
 
@@ -216,3 +235,5 @@ def test_bad_input(one_leg):
         QPMPC(one_leg, solver="gurobi-not-installed")
     with pytest.raises(InvalidArgumentError, match="facets"):
         QPMPC(one_leg, facets=3)
+    with pytest.raises(InvalidArgumentError, match=r"fallback.*'lqr'"):
+        QPMPC(one_leg, fallback="hold")
