@@ -36,7 +36,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sampling import HORIZON_STEPS, _controller, raw_throughput, time_ticks
+from sampling import HORIZON_STEPS, _controller, _problem, _start_state, raw_throughput, time_ticks
 
 EULER = {"planning_integrator": "euler"}
 CARTPOLE_OFF = {"planning_disable": ("constraint", "eulerdamp")}
@@ -73,23 +73,6 @@ VARIANTS: dict[str, dict] = {
 CONTROLLER_KEYS = ("solver_iterations", "planning_integrator", "planning_disable")
 
 
-def task_problem(task: str):
-    if task == "cartpole":
-        from mpcbox.tasks.swingup import CartpoleSwingup
-
-        return CartpoleSwingup()
-    from mpcbox.tasks.humanoid_stand import HumanoidStand
-
-    return HumanoidStand()
-
-
-def start_state(problem, task: str) -> np.ndarray:
-    x = problem.initial_state().copy()
-    if task == "cartpole":
-        x[1] = np.pi - 0.3
-    return x
-
-
 def variant_problem(base, spec: dict):
     """A copy of ``base`` with the variant's model-level planning options."""
     import mujoco
@@ -119,11 +102,11 @@ def rank_corr(a: np.ndarray, b: np.ndarray) -> float:
 
 def measure(name: str, spec: dict, quick: bool, out: dict) -> None:
     task = spec.get("task", "humanoid")
-    base = task_problem(task)
+    base = _problem(task)
     p = variant_problem(base, spec)
     steps = spec.get("steps", HORIZON_STEPS)
     n = 16 if quick else spec.get("n", 1024 if task == "cartpole" else 2048)
-    state = start_state(base, task)
+    state = _start_state(base, task)
     ctrl = _controller(p, n, steps=steps, **controller_options(spec))
     unroll(ctrl, spec)
     tick, backend, ev = time_ticks(ctrl, state)
@@ -178,7 +161,7 @@ def closed_loop(name: str, spec: dict, seed: int, quick: bool, out: dict, contro
     import mpcbox
 
     task = spec.get("task", "humanoid")
-    base = task_problem(task)
+    base = _problem(task)
     p = variant_problem(base, spec)
     opts = dict(base.controller_options[controller], backend="warp", seed=seed)
     opts.update(controller_options(spec))
