@@ -207,7 +207,6 @@ class QPMPC(Controller):
             the open-loop replay runs just when the state leaves the plan. ``"lqr"``
             survived every push up to 100 N (``README.md``).
 
-
     Attributes:
         points: The :class:`~mpcbox.contact.ContactPoints`.
         last_plan: The last accepted :class:`QPPlan` (``None`` before the first solve).

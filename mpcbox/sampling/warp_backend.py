@@ -108,8 +108,8 @@ def broadphase_candidates(model: mujoco.MjModel, data: mujoco.MjData, pairs: np.
         return 0
     g1, g2 = pairs[:, 0], pairs[:, 1]
     r1, r2 = model.geom_rbound[g1], model.geom_rbound[g2]
-    margin = model.geom_margin[g1] + model.geom_gap[g1] + model.geom_margin[g2]
-    margin = margin + model.geom_gap[g2]
+    margin = model.geom_margin + model.geom_gap
+    margin = margin[g1] + margin[g2]
     x1, x2 = data.geom_xpos[g1], data.geom_xpos[g2]
     z1 = data.geom_xmat[g1].reshape(-1, 3, 3)[:, :, 2]
     z2 = data.geom_xmat[g2].reshape(-1, 3, 3)[:, :, 2]
@@ -348,19 +348,16 @@ class WarpBackend:
             )
         if term.has_sensors:
             mjw.forward(m, d)
+        if term.has_state or term.has_sensors:
             wp.launch(
-                wc.sensor_kernel,
+                wc.terminal_kernel,
                 dim=nw,
-                inputs=[d.sensordata, *term.sensor_inputs()],
+                inputs=[
+                    int(term.has_state), int(term.has_sensors), term.u_ref_dense,
+                    term.u_w_dense, d.qpos, d.qvel, d.sensordata, *term.row_inputs(), d.ctrl,
+                ],
                 outputs=[self.cost],
-            )
-        if term.has_state:
-            wp.launch(
-                wc.terminal_state_kernel,
-                dim=nw,
-                inputs=[d.qpos, d.qvel, d.ctrl, *term.state_inputs()],
-                outputs=[self.cost],
-            )
+            )  # fmt: skip
         wp.launch(
             wc.finalize_kernel,
             dim=nw,

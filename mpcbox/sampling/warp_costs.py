@@ -217,18 +217,6 @@ class DeviceRows:
             self.s_a, self.s_b, self.s_c, self.s_w,
         ]  # fmt: skip
 
-    def state_inputs(self) -> list:
-        """Kernel inputs for :func:`state_cost`-style rows, in kernel order."""
-        return [
-            self.q_idx, self.q_ref, self.q_w, self.quat_adr, self.quat_ref, self.quat_w,
-            self.v_idx, self.v_ref, self.v_w, self.u_idx, self.u_ref, self.u_w,
-            self.a_idx, self.a_ref, self.a_w,
-        ]  # fmt: skip
-
-    def sensor_inputs(self) -> list:
-        """Kernel inputs for sensor rows, in kernel order."""
-        return [self.s_a, self.s_b, self.s_c, self.s_w]
-
 
 @wp.func
 def quat_log_difference(q: wp.vec4, ref: wp.vec4) -> wp.vec3:
@@ -252,157 +240,6 @@ def quat_log_difference(q: wp.vec4, ref: wp.vec4) -> wp.vec3:
     if s > 1.0e-15:
         scale = angle / s
     return wp.vec3(x * scale, y * scale, z * scale)
-
-
-@wp.func
-def state_rows_cost(
-    world: int,
-    qpos: wp.array2d[float],
-    qvel: wp.array2d[float],
-    ctrl: wp.array2d[float],
-    q_idx: wp.array[wp.int32],
-    q_ref: wp.array[float],
-    q_w: wp.array[float],
-    quat_adr: wp.array[wp.int32],
-    quat_ref: wp.array[wp.vec4],
-    quat_w: wp.array[wp.vec3],
-    v_idx: wp.array[wp.int32],
-    v_ref: wp.array[float],
-    v_w: wp.array[float],
-    u_idx: wp.array[wp.int32],
-    u_ref: wp.array[float],
-    u_w: wp.array[float],
-    a_idx: wp.array[wp.int32],
-    a_ref: wp.array[float],
-    a_w: wp.array[float],
-) -> float:
-    """Sum of ``0.5 w r^2`` over position, quaternion, velocity and control rows."""
-    acc = float(0.0)  # noqa: UP018 - dynamic variable in Warp
-    for i in range(q_idx.shape[0]):
-        r = qpos[world, q_idx[i]] - q_ref[i]
-        acc += q_w[i] * r * r
-    for i in range(quat_adr.shape[0]):
-        a = quat_adr[i]
-        q = wp.vec4(qpos[world, a], qpos[world, a + 1], qpos[world, a + 2], qpos[world, a + 3])
-        d = quat_log_difference(q, quat_ref[i])
-        ww = quat_w[i]
-        acc += ww[0] * d[0] * d[0] + ww[1] * d[1] * d[1] + ww[2] * d[2] * d[2]
-    for i in range(v_idx.shape[0]):
-        r = qvel[world, v_idx[i]] - v_ref[i]
-        acc += v_w[i] * r * r
-    for i in range(u_idx.shape[0]):
-        r = ctrl[world, u_idx[i]] - u_ref[i]
-        acc += u_w[i] * r * r
-    for i in range(a_idx.shape[0]):
-        r = 2.0 * wp.sin(0.5 * (qpos[world, a_idx[i]] - a_ref[i]))
-        acc += a_w[i] * r * r
-    return 0.5 * acc
-
-
-@wp.func
-def sensor_rows_cost(
-    world: int,
-    sensordata: wp.array2d[float],
-    s_a: wp.array[wp.int32],
-    s_b: wp.array[wp.int32],
-    s_c: wp.array[float],
-    s_w: wp.array[float],
-) -> float:
-    """Sum of ``0.5 w r^2`` over sensor rows ``r = s_a - s_b - c``."""
-    acc = float(0.0)  # noqa: UP018 - dynamic variable in Warp
-    for i in range(s_a.shape[0]):
-        r = sensordata[world, s_a[i]] - s_c[i]
-        b = s_b[i]
-        if b >= 0:
-            r = r - sensordata[world, b]
-        acc += s_w[i] * r * r
-    return 0.5 * acc
-
-
-@wp.kernel
-def stage_kernel(
-    step: int,
-    per_candidate: int,
-    weights: wp.array2d[float],
-    knots: wp.array3d[float],
-    ctrl_low: wp.array[float],
-    ctrl_high: wp.array[float],
-    qpos: wp.array2d[float],
-    qvel: wp.array2d[float],
-    q_idx: wp.array[wp.int32],
-    q_ref: wp.array[float],
-    q_w: wp.array[float],
-    quat_adr: wp.array[wp.int32],
-    quat_ref: wp.array[wp.vec4],
-    quat_w: wp.array[wp.vec3],
-    v_idx: wp.array[wp.int32],
-    v_ref: wp.array[float],
-    v_w: wp.array[float],
-    u_idx: wp.array[wp.int32],
-    u_ref: wp.array[float],
-    u_w: wp.array[float],
-    a_idx: wp.array[wp.int32],
-    a_ref: wp.array[float],
-    a_w: wp.array[float],
-    ctrl: wp.array2d[float],
-    cost: wp.array[float],
-):
-    """Before step ``t``: interpolate ``u_t`` and add the state/control rows at ``x_t``."""
-    world = wp.tid()
-    cand = world // per_candidate
-    for j in range(ctrl.shape[1]):
-        u = float(0.0)  # noqa: UP018 - dynamic variable in Warp
-        for k in range(weights.shape[1]):
-            u += weights[step, k] * knots[cand, k, j]
-        ctrl[world, j] = wp.clamp(u, ctrl_low[j], ctrl_high[j])
-    cost[world] += state_rows_cost(
-        world, qpos, qvel, ctrl, q_idx, q_ref, q_w, quat_adr, quat_ref, quat_w,
-        v_idx, v_ref, v_w, u_idx, u_ref, u_w, a_idx, a_ref, a_w,
-    )  # fmt: skip
-
-
-@wp.kernel
-def sensor_kernel(
-    sensordata: wp.array2d[float],
-    s_a: wp.array[wp.int32],
-    s_b: wp.array[wp.int32],
-    s_c: wp.array[float],
-    s_w: wp.array[float],
-    cost: wp.array[float],
-):
-    """After step ``t`` (sensors computed at ``x_t``): add the sensor rows."""
-    world = wp.tid()
-    cost[world] += sensor_rows_cost(world, sensordata, s_a, s_b, s_c, s_w)
-
-
-@wp.kernel
-def terminal_state_kernel(
-    qpos: wp.array2d[float],
-    qvel: wp.array2d[float],
-    ctrl: wp.array2d[float],
-    q_idx: wp.array[wp.int32],
-    q_ref: wp.array[float],
-    q_w: wp.array[float],
-    quat_adr: wp.array[wp.int32],
-    quat_ref: wp.array[wp.vec4],
-    quat_w: wp.array[wp.vec3],
-    v_idx: wp.array[wp.int32],
-    v_ref: wp.array[float],
-    v_w: wp.array[float],
-    u_idx: wp.array[wp.int32],
-    u_ref: wp.array[float],
-    u_w: wp.array[float],
-    a_idx: wp.array[wp.int32],
-    a_ref: wp.array[float],
-    a_w: wp.array[float],
-    cost: wp.array[float],
-):
-    """Terminal state/control rows at ``x_T`` (with the last control)."""
-    world = wp.tid()
-    cost[world] += state_rows_cost(
-        world, qpos, qvel, ctrl, q_idx, q_ref, q_w, quat_adr, quat_ref, quat_w,
-        v_idx, v_ref, v_w, u_idx, u_ref, u_w, a_idx, a_ref, a_w,
-    )  # fmt: skip
 
 
 @wp.kernel
@@ -596,3 +433,50 @@ def fused_stage_kernel(
         )  # fmt: skip
     if acc != 0.0:
         wp.atomic_add(cost, world, acc)
+
+
+@wp.kernel
+def terminal_kernel(
+    with_state: int,
+    with_sensors: int,
+    u_ref: wp.array[float],
+    u_w: wp.array[float],
+    qpos: wp.array2d[float],
+    qvel: wp.array2d[float],
+    sensordata: wp.array2d[float],
+    q_idx: wp.array[wp.int32],
+    q_ref: wp.array[float],
+    q_w: wp.array[float],
+    quat_adr: wp.array[wp.int32],
+    quat_ref: wp.array[wp.vec4],
+    quat_w: wp.array[wp.vec3],
+    v_idx: wp.array[wp.int32],
+    v_ref: wp.array[float],
+    v_w: wp.array[float],
+    a_idx: wp.array[wp.int32],
+    a_ref: wp.array[float],
+    a_w: wp.array[float],
+    s_a: wp.array[wp.int32],
+    s_b: wp.array[wp.int32],
+    s_c: wp.array[float],
+    s_w: wp.array[float],
+    ctrl: wp.array2d[float],
+    cost: wp.array[float],
+):
+    """Terminal rows at :math:`x_T`, one thread per world: the control rows (with the last
+    control) and the state rows (``with_state``), the sensor rows (``with_sensors``, after
+    ``mjw.forward``), each through :func:`row_cost`."""
+    world = wp.tid()
+    acc = float(0.0)  # noqa: UP018 - dynamic variable in Warp
+    if with_state != 0:
+        for j in range(u_w.shape[0]):
+            r = ctrl[world, j] - u_ref[j]
+            acc += 0.5 * u_w[j] * r * r
+    rows = q_idx.shape[0] + quat_adr.shape[0] + v_idx.shape[0] + a_idx.shape[0] + s_a.shape[0]
+    for i in range(rows):
+        acc += row_cost(
+            world, i, with_state, with_sensors, qpos, qvel, sensordata,
+            q_idx, q_ref, q_w, quat_adr, quat_ref, quat_w, v_idx, v_ref, v_w,
+            a_idx, a_ref, a_w, s_a, s_b, s_c, s_w,
+        )  # fmt: skip
+    cost[world] += acc
