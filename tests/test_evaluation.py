@@ -1,0 +1,66 @@
+"""Robustness measures: the push grid and its agreement with the bisection."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mpcbox import LQR, InvalidArgumentError
+from mpcbox.evaluation import largest_push, push_grid, summarize_push_grid
+from mpcbox.tasks.humanoid_two_feet import HumanoidTwoFeet
+
+
+@pytest.mark.parametrize(
+    ("survived", "limit", "largest", "monotone"),
+    [
+        ([True, True, False, False], 20.0, 20.0, True),
+        ([True, False, True, False], 10.0, 30.0, False),
+        ([False, True, True, True], 0.0, 40.0, False),
+        ([False, False, False, False], 0.0, 0.0, True),
+        ([True, True, True, True], 40.0, 40.0, True),
+    ],
+)
+def test_push_grid_summary(survived, limit, largest, monotone):
+    grid = summarize_push_grid(np.array([10.0, 20.0, 30.0, 40.0]), np.array(survived))
+    assert grid.limit == limit
+    assert grid.largest_survived == largest
+    assert grid.monotone is monotone
+    assert np.all(np.isnan(grid.time_to_fall))
+
+
+def test_push_grid_summary_rejects_bad_grids():
+    with pytest.raises(InvalidArgumentError, match="strictly increasing"):
+        summarize_push_grid(np.array([20.0, 10.0]), np.array([True, True]))
+    with pytest.raises(InvalidArgumentError, match="one length"):
+        summarize_push_grid(np.array([10.0, 20.0]), np.array([True]))
+
+
+@pytest.fixture(scope="module")
+def two_feet() -> HumanoidTwoFeet:
+    return HumanoidTwoFeet(threads=1)
+
+
+def test_push_grid_brackets_the_bisection(two_feet):
+    """LQR on two feet survives no push and a moderate one and falls at ten times that; the
+    bisection's limit lies between the grid's last survived and first failed force."""
+    lqr = LQR(two_feet)
+    kw = dict(settle=1.5, direction=(1.0, 0.0, 0.0))
+    grid = push_grid(two_feet, lqr, [400.0, 0.0, 40.0], **kw)
+    np.testing.assert_array_equal(grid.forces, [0.0, 40.0, 400.0])
+    np.testing.assert_array_equal(grid.survived, [True, True, False])
+    assert grid.monotone and grid.limit == 40.0
+    assert grid.time_to_fall[0] == pytest.approx(2.6) and grid.time_to_fall[2] < 2.6
+    limit = largest_push(two_feet, lqr, max_force=400.0, tolerance=25.0, **kw)
+    assert 40.0 <= limit.force < limit.smallest_failed <= 400.0
+
+
+def test_push_grid_argument_errors(two_feet):
+    lqr = LQR(two_feet)
+    with pytest.raises(InvalidArgumentError, match="forces"):
+        push_grid(two_feet, lqr, [])
+    with pytest.raises(InvalidArgumentError, match="forces"):
+        push_grid(two_feet, lqr, [-1.0, 10.0])
+    with pytest.raises(InvalidArgumentError, match="direction"):
+        push_grid(two_feet, lqr, [10.0], direction=(0.0, 0.0, 0.0))
+    with pytest.raises(InvalidArgumentError, match="settle"):
+        push_grid(two_feet, lqr, [10.0], settle=0.0)
