@@ -398,7 +398,7 @@ class QPMPC(Controller):
         """
         p, lin = self.problem, self._lin
         nv = p.nv
-        Sv = np.zeros((self.ns, p.nx))
+        Sv = np.zeros((lin["Js"].shape[0], p.nx))
         Sv[:, nv : 2 * nv] = lin["Js"]
         ws = 1e4 if self.stance_weight is None else self.stance_weight
         Q = self.Q + ws * Sv.T @ Sv

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+
 import mujoco
 import numpy as np
 import pytest
@@ -237,3 +239,34 @@ def test_bad_input(one_leg):
         QPMPC(one_leg, facets=3)
     with pytest.raises(InvalidArgumentError, match=r"fallback.*'lqr'"):
         QPMPC(one_leg, fallback="hold")
+
+
+@pytest.mark.parametrize("stance_model", ["soft", "rigid"])
+def test_terminal_matrices(two_feet, stance_model):
+    """Every terminal choice builds for both stance models (two feet: 12 stance-twist rows, 24
+    force rows). ``"cost"`` is the running ``Q``; the Riccati ones solve their DARE, so they
+    dominate ``Q`` (``P - Q = A^T (P^{-1} + B R^{-1} B^T)^{-1} A >= 0``)."""
+    from mpcbox.qp_mpc import _compose
+
+    opts = dict(contacts=two_feet.contacts, stance_model=stance_model, horizon=3)
+    for terminal in ("cost", "lqr", "stance"):
+        qp = QPMPC(two_feet, terminal=terminal, terminal_scale=2.0, **opts)
+        P = qp.P_terminal / 2.0
+        np.testing.assert_allclose(P, P.T, atol=1e-12 * np.abs(P).max())
+        assert np.linalg.eigvalsh(P - qp.Q).min() > -1e-6 * np.abs(P).max()
+        if terminal == "cost":
+            np.testing.assert_allclose(P, qp.Q, atol=1e-9 * np.abs(qp.Q).max())
+        if terminal == "lqr":  # the soft-contact model at dt, composed of its substeps
+            soft = copy.copy(two_feet.planning_model)
+            soft.opt.timestep = qp.dt / qp.substeps
+            d = mujoco.MjData(soft)
+            two_feet.set_state(d, qp.state_ref)
+            d.ctrl[:] = qp.ctrl_ref
+            nx, nu = two_feet.nx, two_feet.nu
+            Ah, Bh = np.zeros((nx, nx)), np.zeros((nx, nu))
+            mujoco.mjd_transitionFD(soft, d, two_feet.fd_eps, True, Ah, Bh, None, None)
+            A, S = _compose(Ah, qp.substeps)
+            B = S @ Bh
+            G = qp.R + B.T @ P @ B
+            rhs = qp.Q + A.T @ P @ A - A.T @ P @ B @ np.linalg.solve(G, B.T @ P @ A)
+            np.testing.assert_allclose(rhs, P, atol=1e-6 * np.abs(P).max())
