@@ -756,8 +756,8 @@ __all__ = [
 def _with_lqr_terminal_value(problem: Problem) -> Problem:
     """``problem`` with the LQR value function at its reference added to the terminal cost."""
     from mpcbox.cost import Cost, QuadraticValue
-    from mpcbox.lqr import LQR
+    from mpcbox.lqr import LQR, nearest_psd
 
     lqr = LQR(problem)
-    value = QuadraticValue(lqr.P, problem.qpos_ref, problem.qvel_ref, name="lqr_value")
+    value = QuadraticValue(nearest_psd(lqr.P), problem.qpos_ref, problem.qvel_ref, name="lqr_value")
     return problem.with_cost(Cost(problem.cost.running, [*problem.cost.terminal, value]))

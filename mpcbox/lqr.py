@@ -83,6 +83,17 @@ def check_stabilizable(
     return marginal
 
 
+def nearest_psd(P: np.ndarray) -> np.ndarray:
+    """Nearest positive semidefinite matrix to the symmetric part of ``P`` ``(n, n)``.
+
+    A Riccati solution with marginal modes (the humanoid's free heading, say) carries
+    negative eigenvalues of order 1e-6 of its largest from the solver's rounding; quadratic
+    forms that must be convex (a QP's Hessian, a terminal value) use this projection.
+    """
+    w, V = np.linalg.eigh(0.5 * (P + P.T))
+    return (V * np.maximum(w, 0.0)) @ V.T
+
+
 def dlqr(
     A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, N: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:

@@ -79,7 +79,7 @@ from mpcbox.contact import (
 )
 from mpcbox.controller import Controller
 from mpcbox.errors import InvalidArgumentError, SolverError, UnknownNameError
-from mpcbox.lqr import dlqr
+from mpcbox.lqr import dlqr, nearest_psd
 from mpcbox.problem import Problem
 from mpcbox.validation import as_array, one_of, positive, positive_int
 
@@ -331,7 +331,7 @@ class QPMPC(Controller):
             else sum(g[2] for g in self._groups)
         )
         self._linearize(self.state_ref, self.ctrl_ref)
-        self.P_terminal = _psd(self._terminal(terminal)) * self.terminal_scale
+        self.P_terminal = nearest_psd(self._terminal(terminal)) * self.terminal_scale
 
         self._build_pattern()
         self._A.data[:] = self._matrix_values()[self._A_perm]
@@ -1025,13 +1025,6 @@ def _shift(vec: np.ndarray, blocks: list[tuple[int, int]], horizon: int, shift: 
         stages[:-shift] = vec[off + shift * size : off + horizon * size].reshape(-1, size)
         stages[-shift:] = stages[-shift - 1]
     return out
-
-
-def _psd(P: np.ndarray) -> np.ndarray:
-    """Nearest positive semidefinite matrix (a Riccati solution with marginal modes can
-    carry tiny negative eigenvalues that OSQP rejects as non-convex)."""
-    w, V = np.linalg.eigh(0.5 * (P + P.T))
-    return (V * np.maximum(w, 0.0)) @ V.T
 
 
 def _compose(Ah: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -233,3 +233,20 @@ def test_lqr_terminal_value_makes_short_horizon_ilqr_match_lqr():
     ilqr = ILQR(problem, 3, terminal_value="lqr")
     res = ilqr.solve(problem.reference_state() + np.array([0.1, -0.2, 0.0, 0.0]))
     np.testing.assert_allclose(res.K[0], -lqr.K, rtol=1e-5, atol=1e-6)
+
+
+def test_lqr_terminal_value_on_the_humanoid_at_its_own_timestep():
+    """The humanoid's Riccati solution at 0.005 s has a marginal mode whose eigenvalue comes
+    out about -2e-6 of the largest; the terminal value projects it onto the PSD cone instead
+    of rejecting it, and changes nothing else."""
+    from mpcbox.tasks.humanoid_balance import HumanoidBalance
+
+    problem = HumanoidBalance(threads=1)
+    P = mpcbox.LQR(problem).P
+    ilqr = ILQR(problem, 3, terminal_value="lqr", max_iterations=1)
+    (value,) = [t for t in ilqr.problem.cost.terminal if t.name == "lqr_value"]
+    V = np.asarray(value.P)
+    assert np.linalg.eigvalsh(V).min() >= -1e-9 * np.abs(V).max()
+    np.testing.assert_allclose(V, 0.5 * (P + P.T), atol=1e-5 * np.abs(P).max())
+    u = ilqr(problem.reference_state(), 0.0)
+    assert u.shape == (problem.nu,) and np.all(np.isfinite(u))
