@@ -126,6 +126,11 @@ class Problem:
 
         spec = None if isinstance(model, mujoco.MjModel) else load_spec(model)
         base = model if isinstance(model, mujoco.MjModel) else compile_spec(spec)
+        if base.nv == 0:
+            raise InvalidArgumentError(
+                "model has no degrees of freedom (nv = 0): a Problem needs at least one joint "
+                "or free body to predict and control"
+            )
         self.nq, self.nv, self.nu, self.na = base.nq, base.nv, base.nu, base.na
         self.nx = 2 * self.nv + self.na
         self.nstate = self.nq + self.nv + self.na

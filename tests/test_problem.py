@@ -218,6 +218,9 @@ def test_bad_inputs_raise_clear_errors(balance):
         mpcbox.Problem(HUMANOID, cost=Cost([ControlCost([np.inf] * 21)]))
     with pytest.raises(mpcbox.InvalidArgumentError, match="fd_eps"):
         mpcbox.Problem(HUMANOID, fd_eps=-1.0)
+    static = "<mujoco><worldbody><geom type='plane' size='1 1 0.1'/></worldbody></mujoco>"
+    with pytest.raises(mpcbox.InvalidArgumentError, match="degrees of freedom"):
+        mpcbox.Problem(static)
     with pytest.raises(mpcbox.ShapeError, match="qpos_ref"):
         mpcbox.Problem(HUMANOID, cost=Cost([StateCost(np.zeros(5), 1.0)]))
     with pytest.raises(ValueError):  # every mpcbox argument error is a ValueError too
