@@ -29,6 +29,7 @@ TASKS: dict[str, str] = {
     "pendulum_swingup": "mpcbox.tasks.swingup:PendulumSwingup",
     "cartpole_swingup": "mpcbox.tasks.swingup:CartpoleSwingup",
     "humanoid_stand": "mpcbox.tasks.humanoid_stand:HumanoidStand",
+    "humanoid_two_feet": "mpcbox.tasks.humanoid_two_feet:HumanoidTwoFeet",
 }
 
 

@@ -156,7 +156,8 @@ def test_cli_unknown_names(capsys):
     assert main(["frobnicate"]) == 2
     assert "'compare'" in capsys.readouterr().err
     assert main(["list"]) == 0
-    assert "humanoid_balance: lqr" in capsys.readouterr().out
+    listing = capsys.readouterr().out
+    assert "humanoid_balance: lqr" in listing and "humanoid_two_feet: lqr, qp" in listing
 
 
 def test_cli_end_to_end(tmp_path, capsys):
