@@ -69,11 +69,17 @@ def main() -> None:
         "nnz_A": int(ctl._A.nnz),
         "nnz_P": int(ctl._P.nnz),
     }
-    _, _, cold_iters, _ = _run(problem, args.ticks, relinearize=True, warm_start=False)
-    warm_iters = _run(problem, args.ticks, relinearize=True)[2]
+    # Iteration counts without the controller's iteration cap, so cold solves are not cut off.
+    uncapped = {"max_iter": 4000}
+    cold_iters = _run(
+        problem, args.ticks, relinearize=True, warm_start=False, osqp_settings=uncapped
+    )[2]
+    warm_iters = _run(problem, args.ticks, relinearize=True, osqp_settings=uncapped)[2]
     out["osqp_iterations"] = {
         "warm_start_mean": float(np.mean([i for i in warm_iters if i >= 0])),
         "cold_start_mean": float(np.mean([i for i in cold_iters if i >= 0])),
+        "failed_warm": sum(i < 0 for i in warm_iters),
+        "failed_cold": sum(i < 0 for i in cold_iters),
     }
 
     import qpsolvers
