@@ -21,6 +21,7 @@ from mpcbox.errors import (
     ShapeError,
     SolverError,
     UnknownNameError,
+    UnsupportedModelError,
 )
 
 __version__ = "0.1.0"
@@ -72,6 +73,7 @@ __all__ = [
     "ShapeError",
     "SolverError",
     "UnknownNameError",
+    "UnsupportedModelError",
     *sorted(_LAZY),
 ]
 

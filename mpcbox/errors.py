@@ -66,6 +66,10 @@ class BackendUnavailableError(MpcboxError, RuntimeError):
     """An optional backend (GPU, CasADi, ...) is not installed or has no device."""
 
 
+class UnsupportedModelError(MpcboxError, NotImplementedError):
+    """A backend does not implement a MuJoCo feature that the model uses."""
+
+
 def require_finite(name: str, value: object) -> None:
     """Raise :class:`InvalidArgumentError` if ``value`` holds NaN or infinity.
 

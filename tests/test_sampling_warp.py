@@ -134,3 +134,20 @@ def test_gpu_humanoid_stands_10s_under_the_noise_recipe(name):
     ctrl = mpcbox.make_controller(name, problem, backend="warp")
     res = mpcbox.simulate(problem, ctrl, 10.0, noise=problem.noise(), seed=0)
     assert res.survived, res.failure
+
+
+def test_a_model_mjwarp_cannot_run_gets_a_clear_error(warp_device):
+    """MJWarp rejects some MuJoCo features (here the forward/inverse comparison flag); the
+    warp backend says so and points to the CPU backend, which runs the same model."""
+    xml = """
+    <mujoco>
+      <option><flag fwdinv="enable"/></option>
+      <worldbody><body><joint name="j" type="hinge"/><geom size="0.1" mass="1"/></body></worldbody>
+      <actuator><motor joint="j" ctrlrange="-1 1"/></actuator>
+    </mujoco>"""
+    problem = mpcbox.Problem(xml, cost=mpcbox.Cost([mpcbox.ControlCost(1.0)]))
+    with pytest.raises(mpcbox.UnsupportedModelError, match="backend='cpu'") as err:
+        MPPI(problem, num_samples=4, horizon=0.05, num_knots=2, backend="warp", device=warp_device)
+    assert isinstance(err.value, NotImplementedError)
+    cpu = MPPI(problem, num_samples=4, horizon=0.05, num_knots=2)
+    assert np.all(np.isfinite(cpu(problem.initial_state(), 0.0)))

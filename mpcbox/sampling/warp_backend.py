@@ -41,7 +41,7 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from mpcbox.errors import BackendUnavailableError, InvalidArgumentError
+from mpcbox.errors import BackendUnavailableError, InvalidArgumentError, UnsupportedModelError
 from mpcbox.problem import Problem
 from mpcbox.sampling.base import Evaluation
 
@@ -234,10 +234,15 @@ class WarpBackend:
             self._stats["contacts_disabled"] = 1
         base = self.models[0]
         nmod = len(self.models)
-        if nmod == 1:
-            m = mjw.put_model(base)
-        else:
-            m = mjw.put_model(base, batch_sizes={f: nmod for f in RANDOMIZED_FIELDS})
+        batch = None if nmod == 1 else {f: nmod for f in RANDOMIZED_FIELDS}
+        try:
+            m = mjw.put_model(base) if batch is None else mjw.put_model(base, batch_sizes=batch)
+        except NotImplementedError as exc:
+            raise UnsupportedModelError(
+                f"backend='warp': MuJoCo Warp cannot run this model ({exc}); use "
+                "backend='cpu' (mujoco.rollout), which runs every MuJoCo model"
+            ) from exc
+        if batch is not None:
             for field in RANDOMIZED_FIELDS:
                 arr = getattr(m, field)
                 stacked = np.stack([getattr(mi, field) for mi in self.models])
