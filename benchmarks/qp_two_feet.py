@@ -84,8 +84,11 @@ def main() -> None:
     args = parser.parse_args()
     variants = args.variants.split(",")
     directions = args.directions.split(",")
-    for name, valid in (("variants", VARIANTS), ("directions", DIRECTIONS)):
-        unknown = [v for v in (variants if name == "variants" else directions) if v not in valid]
+    for name, chosen, valid in (
+        ("variants", variants, VARIANTS),
+        ("directions", directions, DIRECTIONS),
+    ):
+        unknown = [v for v in chosen if v not in valid]
         if unknown:
             parser.error(f"--{name}: unknown {unknown}; valid: {', '.join(valid)}")
 

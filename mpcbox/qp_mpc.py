@@ -339,9 +339,8 @@ class QPMPC(Controller):
 
         self._build_pattern()
         self._A.data[:] = self._matrix_values()[self._A_perm]
-        # Built now, not on the first failed solve: a failing tick must stay fast.
         self._lqr = None
-        if self.fallback == "lqr":
+        if self.fallback == "lqr":  # built now, not on the first failed (already slow) tick
             self._fallback_lqr()
         self.reset()
 

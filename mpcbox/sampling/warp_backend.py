@@ -236,7 +236,7 @@ class WarpBackend:
         nmod = len(self.models)
         batch = None if nmod == 1 else {f: nmod for f in RANDOMIZED_FIELDS}
         try:
-            m = mjw.put_model(base) if batch is None else mjw.put_model(base, batch_sizes=batch)
+            m = mjw.put_model(base, batch_sizes=batch)
         except NotImplementedError as exc:
             raise UnsupportedModelError(
                 f"backend='warp': MuJoCo Warp cannot run this model ({exc}); use "
