@@ -151,3 +151,33 @@ def test_a_model_mjwarp_cannot_run_gets_a_clear_error(warp_device):
     assert isinstance(err.value, NotImplementedError)
     cpu = MPPI(problem, num_samples=4, horizon=0.05, num_knots=2)
     assert np.all(np.isfinite(cpu(problem.initial_state(), 0.0)))
+
+
+def test_diverging_rollouts_are_flagged_like_on_the_cpu(warp_device):
+    """Explicit Euler with stiff velocity feedback on light links diverges once the links
+    move. MuJoCo resets on a huge ``qacc`` (the CPU backend then sees NaN); MJWarp does not
+    check, and within 5 steps its states are still finite (``|qvel|`` ~ 1e15) and the
+    control-only cost is small, so the warp backend must flag these rollouts itself. The
+    candidate with zero control never moves and stays valid."""
+    xml = """
+    <mujoco>
+      <worldbody>
+        <body><joint name="a" axis="1 0 0"/><geom size=".03"/>
+          <body><joint name="b" axis="1 0 0"/><geom size=".03"/></body>
+        </body>
+      </worldbody>
+      <actuator><position joint="a" kp="1" kv="2"/><position joint="b" kp="11" kv="12"/></actuator>
+    </mujoco>"""
+    problem = mpcbox.Problem(xml, cost=mpcbox.Cost([mpcbox.ControlCost(1.0)]))
+    opts = dict(num_samples=8, horizon=5 * problem.dt, num_knots=2)
+    cpu = PredictiveSampling(problem, **opts)
+    warp = PredictiveSampling(problem, backend="warp", device=warp_device, **opts)
+    cand = np.linspace(0.0, 3.0, 8)[:, None, None] * np.ones((8, 2, problem.nu))
+    state = problem.initial_state()
+    a = cpu.backend.evaluate(state, cand)
+    b = warp.backend.evaluate(state, cand)
+    expected = np.arange(8)[:, None] > 0
+    np.testing.assert_array_equal(a.nonfinite, expected)
+    np.testing.assert_array_equal(b.nonfinite, expected)
+    assert np.all(np.isfinite(b.costs))  # finite: only the flag tells the rollouts diverged
+    np.testing.assert_allclose(b.costs[0], a.costs[0], atol=1e-6)

@@ -56,7 +56,10 @@ class Evaluation(NamedTuple):
     Attributes:
         costs: Total rollout costs ``(N, M)`` (float64).
         overflow: ``(N, M)`` True where the backend ran out of contact/constraint capacity.
-        nonfinite: ``(N, M)`` True where the cost or state was NaN or infinite.
+        nonfinite: ``(N, M)`` True where the rollout diverged: a NaN or infinite cost or
+            state, or a ``qpos``, ``qvel`` or ``qacc`` entry beyond ``1e10`` (MuJoCo's
+            ``mjMAXVAL``, where MuJoCo resets and :func:`mujoco.rollout` returns NaN; the
+            warp backend checks it after every step).
     """
 
     costs: np.ndarray

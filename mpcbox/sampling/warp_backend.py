@@ -11,7 +11,8 @@ One tick, for ``W = N M`` worlds (world ``w`` rolls out candidate ``w // M`` on 
    ``t - 1`` (MJWarp computes sensors at :math:`x_{t-1}` inside that step), followed by
    ``mjw.step``; then the last sensor rows, the terminal rows at :math:`x_T` (after
    ``mjw.forward`` if they read sensors) and per-world flags for capacity overflow and
-   non-finite numbers;
+   divergence (as MuJoCo checks after each step: a non-finite ``qacc`` or one beyond
+   ``1e10``, tested in the fused launch; the same for the final ``qpos`` and ``qvel``);
 3. the host reads back only the costs ``(W,)`` and flags ``(W,)``.
 
 On CUDA, step 2 is captured once as a CUDA graph and replayed each tick, so nothing
@@ -325,13 +326,15 @@ class WarpBackend:
             wc.broadcast_kernel,
             dim=nw,
             inputs=[self.state, p.nq, p.nv],
-            outputs=[d.qpos, d.qvel, d.act, d.time, d.qacc_warmstart, d.overflow, self.cost],
-        )
+            outputs=[
+                d.qpos, d.qvel, d.act, d.time, d.qacc_warmstart, d.overflow, self.cost, self.flags,
+            ],
+        )  # fmt: skip
         run, term = self.running, self.terminal
         ncols = p.nu + run.num_state_rows + run.num_sensor_rows
         common = [
-            per, self.weights, self.knots, self.ctrl_low, self.ctrl_high,
-            run.u_ref_dense, run.u_w_dense, d.qpos, d.qvel, d.sensordata, *run.row_inputs(),
+            self.weights, self.knots, self.ctrl_low, self.ctrl_high, run.u_ref_dense,
+            run.u_w_dense, d.qpos, d.qvel, d.qacc, d.sensordata, run.arrays,
         ]  # fmt: skip
         sensors = int(run.has_sensors)
         # One fused launch per step: controls, state/control rows at x_t, and the sensor rows
@@ -340,16 +343,16 @@ class WarpBackend:
             wp.launch(
                 wc.fused_stage_kernel,
                 dim=(nw, ncols),
-                inputs=[t, common[0], 1, sensors if t > 0 else 0, *common[1:]],
-                outputs=[d.ctrl, self.cost],
+                inputs=[t, per, 1, sensors if t > 0 else 0, *common],
+                outputs=[d.ctrl, self.cost, self.flags],
             )
             mjw.step(m, d)
         if run.has_sensors:
             wp.launch(
                 wc.fused_stage_kernel,
                 dim=(nw, ncols),
-                inputs=[self.horizon_steps, common[0], 0, 1, *common[1:]],
-                outputs=[d.ctrl, self.cost],
+                inputs=[self.horizon_steps, per, 0, 1, *common],
+                outputs=[d.ctrl, self.cost, self.flags],
             )
         if term.has_sensors:
             mjw.forward(m, d)
@@ -359,16 +362,19 @@ class WarpBackend:
                 dim=nw,
                 inputs=[
                     int(term.has_state), int(term.has_sensors), term.u_ref_dense,
-                    term.u_w_dense, d.qpos, d.qvel, d.sensordata, *term.row_inputs(), d.ctrl,
+                    term.u_w_dense, d.qpos, d.qvel, d.sensordata, term.arrays, d.ctrl,
                 ],
                 outputs=[self.cost],
             )  # fmt: skip
         wp.launch(
             wc.finalize_kernel,
             dim=nw,
-            inputs=[self.cost, d.overflow, self.capacity_mask, self.solver_mask, d.qpos, d.qvel],
+            inputs=[
+                self.cost, d.overflow, self.capacity_mask, self.solver_mask, d.qpos, d.qvel,
+                d.qacc,
+            ],
             outputs=[self.flags],
-        )
+        )  # fmt: skip
 
     def evaluate(self, state: np.ndarray, candidates: np.ndarray) -> Evaluation:
         """Costs ``(N, M)`` of candidate knots ``(N, K, nu)`` from ``state``."""
@@ -411,12 +417,14 @@ class WarpBackend:
         with wp.ScopedDevice(self.device):
             costs = self.cost.numpy().astype(np.float64).reshape(n, m)
             flags = self.flags.numpy().reshape(n, m)
-        overflow = (flags & 1) != 0
-        nonfinite = (flags & 2) != 0
-        self._stats["solver_limit_samples"] += int(((flags & 4) != 0).any(axis=1).sum())
+        wc = self._wc
+        overflow = (flags & int(wc.FLAG_CAPACITY)) != 0
+        diverged = (flags & int(wc.FLAG_DIVERGED)) != 0
+        solver_limit = (flags & int(wc.FLAG_SOLVER_LIMIT)) != 0
+        self._stats["solver_limit_samples"] += int(solver_limit.any(axis=1).sum())
         if overflow.any():
             self._grow()
-        return Evaluation(costs, overflow, nonfinite)
+        return Evaluation(costs, overflow, diverged)
 
     def _grow(self) -> None:
         if self._stats["resizes"] >= _MAX_RESIZES:

@@ -174,15 +174,47 @@ def _nonzero(rows: list[tuple]) -> list[tuple]:
     return [r for r in rows if np.any(np.asarray(r[-1]) != 0.0)]
 
 
+@wp.struct
+class RowArrays:
+    """The state and sensor row tables of :class:`RowTables` on a device, as one kernel
+    argument (the control rows travel densely, see :class:`DeviceRows`)."""
+
+    q_idx: wp.array[wp.int32]
+    q_ref: wp.array[float]
+    q_w: wp.array[float]
+    quat_adr: wp.array[wp.int32]
+    quat_ref: wp.array[wp.vec4]
+    quat_w: wp.array[wp.vec3]
+    v_idx: wp.array[wp.int32]
+    v_ref: wp.array[float]
+    v_w: wp.array[float]
+    a_idx: wp.array[wp.int32]
+    a_ref: wp.array[float]
+    a_w: wp.array[float]
+    s_a: wp.array[wp.int32]
+    s_b: wp.array[wp.int32]
+    s_c: wp.array[float]
+    s_w: wp.array[float]
+
+
 class DeviceRows:
-    """Row tables on a Warp device (same fields as :class:`RowTables`)."""
+    """Row tables on a Warp device.
+
+    Attributes:
+        arrays: The state and sensor rows (:class:`RowArrays`).
+        u_ref_dense, u_w_dense: Control rows, one per actuator (weight 0 where none).
+        has_state, has_sensors: Whether any state/control or sensor row exists.
+        num_state_rows, num_sensor_rows: Rows handled by one thread each in
+            :func:`fused_stage_kernel` (besides the controls).
+    """
 
     def __init__(self, rows: RowTables, device: str, nu_hint: int = 0) -> None:
         self.has_sensors = rows.has_sensors
         self.has_state = any(
             getattr(rows, f).size for f in ("q_idx", "quat_adr", "v_idx", "u_idx", "a_idx")
         )
-        for field in RowTables._fields:
+        self.arrays = RowArrays()
+        for field in RowArrays.vars:
             arr = getattr(rows, field)
             if field == "quat_ref":
                 dev = wp.array(arr.reshape(-1, 4), dtype=wp.vec4, device=device)
@@ -192,7 +224,7 @@ class DeviceRows:
                 dev = wp.array(arr, dtype=wp.int32, device=device)
             else:
                 dev = wp.array(arr, dtype=wp.float32, device=device)
-            setattr(self, field, dev)
+            setattr(self.arrays, field, dev)
         # Dense control rows (one per actuator, zero weight where there is no row) for the
         # fused per-step kernel, where thread ``j < nu`` owns actuator ``j``.
         nu = int(rows.u_idx.max()) + 1 if rows.u_idx.size else 0
@@ -203,19 +235,10 @@ class DeviceRows:
         u_w[rows.u_idx] = rows.u_w
         self.u_ref_dense = wp.array(u_ref, dtype=wp.float32, device=device)
         self.u_w_dense = wp.array(u_w, dtype=wp.float32, device=device)
-        #: Rows handled by one thread each in the fused kernel (besides the controls).
         self.num_state_rows = int(
             rows.q_idx.size + rows.quat_adr.size + rows.v_idx.size + rows.a_idx.size
         )
         self.num_sensor_rows = int(rows.s_a.size)
-
-    def row_inputs(self) -> list:
-        """Kernel inputs of :func:`row_cost` (state rows without controls, sensor rows)."""
-        return [
-            self.q_idx, self.q_ref, self.q_w, self.quat_adr, self.quat_ref, self.quat_w,
-            self.v_idx, self.v_ref, self.v_w, self.a_idx, self.a_ref, self.a_w,
-            self.s_a, self.s_b, self.s_c, self.s_w,
-        ]  # fmt: skip
 
 
 @wp.func
@@ -242,6 +265,16 @@ def quat_log_difference(q: wp.vec4, ref: wp.vec4) -> wp.vec3:
     return wp.vec3(x * scale, y * scale, z * scale)
 
 
+#: MuJoCo's ``mjMAXVAL``: a ``qpos``, ``qvel`` or ``qacc`` entry beyond it makes MuJoCo warn
+#: and reset, and :func:`mujoco.rollout` return NaN; MJWarp does not check, so the kernels do.
+MAX_VALUE = wp.constant(1.0e10)
+
+#: Bits of the per-world flags.
+FLAG_CAPACITY = wp.constant(1)
+FLAG_DIVERGED = wp.constant(2)
+FLAG_SOLVER_LIMIT = wp.constant(4)
+
+
 @wp.kernel
 def broadcast_kernel(
     state: wp.array[float],
@@ -254,6 +287,7 @@ def broadcast_kernel(
     qacc_warmstart: wp.array2d[float],
     overflow: wp.array[int],
     cost: wp.array[float],
+    flags: wp.array[wp.int32],
 ):
     """Start of a tick: every world gets the measured state; clear costs and flags."""
     world = wp.tid()
@@ -267,6 +301,17 @@ def broadcast_kernel(
     time[world] = 0.0
     overflow[world] = 0
     cost[world] = 0.0
+    flags[world] = wp.int32(0)
+
+
+@wp.func
+def diverged(world: int, values: wp.array2d[float]) -> bool:
+    """Whether a row of ``values`` holds a non-finite entry or one beyond :data:`MAX_VALUE`."""
+    for i in range(values.shape[1]):
+        x = values[world, i]
+        if not wp.isfinite(x) or wp.abs(x) > MAX_VALUE:
+            return True
+    return False
 
 
 @wp.kernel
@@ -277,24 +322,24 @@ def finalize_kernel(
     solver_mask: int,
     qpos: wp.array2d[float],
     qvel: wp.array2d[float],
+    qacc: wp.array2d[float],
     flags: wp.array[wp.int32],
 ):
-    """Per-world flags: bit 0 capacity overflow, bit 1 non-finite, bit 2 solver limit hit."""
+    """Per-world flags (:data:`FLAG_CAPACITY`, :data:`FLAG_DIVERGED`, :data:`FLAG_SOLVER_LIMIT`):
+    adds to the divergence bit set during the horizon by :func:`fused_stage_kernel`."""
     world = wp.tid()
-    f = int(0)  # noqa: UP018, RUF046 - dynamic variable in Warp
+    f = int(flags[world])
     if (overflow[world] & capacity_mask) != 0:
-        f = f | 1
+        f = f | FLAG_CAPACITY
     if (overflow[world] & solver_mask) != 0:
-        f = f | 4
-    bad = not wp.isfinite(cost[world])
-    for i in range(qpos.shape[1]):
-        if not wp.isfinite(qpos[world, i]):
-            bad = True
-    for i in range(qvel.shape[1]):
-        if not wp.isfinite(qvel[world, i]):
-            bad = True
-    if bad:
-        f = f | 2
+        f = f | FLAG_SOLVER_LIMIT
+    if (
+        not wp.isfinite(cost[world])
+        or diverged(world, qpos)
+        or diverged(world, qvel)
+        or diverged(world, qacc)
+    ):
+        f = f | FLAG_DIVERGED
     flags[world] = wp.int32(f)
 
 
@@ -307,66 +352,51 @@ def row_cost(
     qpos: wp.array2d[float],
     qvel: wp.array2d[float],
     sensordata: wp.array2d[float],
-    q_idx: wp.array[wp.int32],
-    q_ref: wp.array[float],
-    q_w: wp.array[float],
-    quat_adr: wp.array[wp.int32],
-    quat_ref: wp.array[wp.vec4],
-    quat_w: wp.array[wp.vec3],
-    v_idx: wp.array[wp.int32],
-    v_ref: wp.array[float],
-    v_w: wp.array[float],
-    a_idx: wp.array[wp.int32],
-    a_ref: wp.array[float],
-    a_w: wp.array[float],
-    s_a: wp.array[wp.int32],
-    s_b: wp.array[wp.int32],
-    s_c: wp.array[float],
-    s_w: wp.array[float],
+    rows: RowArrays,
 ) -> float:
     """``0.5 w r^2`` of one row: position, quaternion, velocity, wrapped-angle or sensor rows
     in this order (``row`` indexes their concatenation; rows of a disabled group give 0)."""
     i = row
-    n = q_idx.shape[0]
+    n = rows.q_idx.shape[0]
     if i < n:
         if with_state == 0:
             return 0.0
-        r = qpos[world, q_idx[i]] - q_ref[i]
-        return 0.5 * q_w[i] * r * r
+        r = qpos[world, rows.q_idx[i]] - rows.q_ref[i]
+        return 0.5 * rows.q_w[i] * r * r
     i -= n
-    n = quat_adr.shape[0]
+    n = rows.quat_adr.shape[0]
     if i < n:
         if with_state == 0:
             return 0.0
-        a = quat_adr[i]
+        a = rows.quat_adr[i]
         q = wp.vec4(qpos[world, a], qpos[world, a + 1], qpos[world, a + 2], qpos[world, a + 3])
-        d = quat_log_difference(q, quat_ref[i])
-        ww = quat_w[i]
+        d = quat_log_difference(q, rows.quat_ref[i])
+        ww = rows.quat_w[i]
         return 0.5 * (ww[0] * d[0] * d[0] + ww[1] * d[1] * d[1] + ww[2] * d[2] * d[2])
     i -= n
-    n = v_idx.shape[0]
+    n = rows.v_idx.shape[0]
     if i < n:
         if with_state == 0:
             return 0.0
-        r = qvel[world, v_idx[i]] - v_ref[i]
-        return 0.5 * v_w[i] * r * r
+        r = qvel[world, rows.v_idx[i]] - rows.v_ref[i]
+        return 0.5 * rows.v_w[i] * r * r
     i -= n
-    n = a_idx.shape[0]
+    n = rows.a_idx.shape[0]
     if i < n:
         if with_state == 0:
             return 0.0
-        r = 2.0 * wp.sin(0.5 * (qpos[world, a_idx[i]] - a_ref[i]))
-        return 0.5 * a_w[i] * r * r
+        r = 2.0 * wp.sin(0.5 * (qpos[world, rows.a_idx[i]] - rows.a_ref[i]))
+        return 0.5 * rows.a_w[i] * r * r
     i -= n
-    n = s_a.shape[0]
+    n = rows.s_a.shape[0]
     if i < n:
         if with_sensors == 0:
             return 0.0
-        r = sensordata[world, s_a[i]] - s_c[i]
-        b = s_b[i]
+        r = sensordata[world, rows.s_a[i]] - rows.s_c[i]
+        b = rows.s_b[i]
         if b >= 0:
             r = r - sensordata[world, b]
-        return 0.5 * s_w[i] * r * r
+        return 0.5 * rows.s_w[i] * r * r
     return 0.0
 
 
@@ -384,35 +414,26 @@ def fused_stage_kernel(
     u_w: wp.array[float],
     qpos: wp.array2d[float],
     qvel: wp.array2d[float],
+    qacc: wp.array2d[float],
     sensordata: wp.array2d[float],
-    q_idx: wp.array[wp.int32],
-    q_ref: wp.array[float],
-    q_w: wp.array[float],
-    quat_adr: wp.array[wp.int32],
-    quat_ref: wp.array[wp.vec4],
-    quat_w: wp.array[wp.vec3],
-    v_idx: wp.array[wp.int32],
-    v_ref: wp.array[float],
-    v_w: wp.array[float],
-    a_idx: wp.array[wp.int32],
-    a_ref: wp.array[float],
-    a_w: wp.array[float],
-    s_a: wp.array[wp.int32],
-    s_b: wp.array[wp.int32],
-    s_c: wp.array[float],
-    s_w: wp.array[float],
+    rows: RowArrays,
     ctrl: wp.array2d[float],
     cost: wp.array[float],
+    flags: wp.array[wp.int32],
 ):
     """One launch per planning step, one thread per (world, actuator or cost row).
 
     Before step ``t``: thread ``j < nu`` interpolates, clamps and writes :math:`u_{t,j}` and
     its control row; the other threads add one state row at :math:`x_t` (``with_state``)
     or one sensor row of the previous step (``with_sensors``: ``sensordata`` still holds
-    the values MJWarp computed at :math:`x_{t-1}` inside step ``t - 1``).
+    the values MJWarp computed at :math:`x_{t-1}` inside step ``t - 1``). Thread 0 also
+    checks the accelerations of step ``t - 1`` as MuJoCo does after each step, setting
+    :data:`FLAG_DIVERGED` (a diverging rollout can come back to finite, huge states).
     """
     world, j = wp.tid()
     nu = ctrl.shape[1]
+    if j == 0 and step > 0 and diverged(world, qacc):
+        flags[world] = flags[world] | wp.int32(FLAG_DIVERGED)
     acc = float(0.0)  # noqa: UP018 - dynamic variable in Warp
     if j < nu:
         if step < weights.shape[0]:
@@ -426,11 +447,7 @@ def fused_stage_kernel(
                 r = u - u_ref[j]
                 acc = 0.5 * u_w[j] * r * r
     else:
-        acc = row_cost(
-            world, j - nu, with_state, with_sensors, qpos, qvel, sensordata,
-            q_idx, q_ref, q_w, quat_adr, quat_ref, quat_w, v_idx, v_ref, v_w,
-            a_idx, a_ref, a_w, s_a, s_b, s_c, s_w,
-        )  # fmt: skip
+        acc = row_cost(world, j - nu, with_state, with_sensors, qpos, qvel, sensordata, rows)
     if acc != 0.0:
         wp.atomic_add(cost, world, acc)
 
@@ -444,22 +461,7 @@ def terminal_kernel(
     qpos: wp.array2d[float],
     qvel: wp.array2d[float],
     sensordata: wp.array2d[float],
-    q_idx: wp.array[wp.int32],
-    q_ref: wp.array[float],
-    q_w: wp.array[float],
-    quat_adr: wp.array[wp.int32],
-    quat_ref: wp.array[wp.vec4],
-    quat_w: wp.array[wp.vec3],
-    v_idx: wp.array[wp.int32],
-    v_ref: wp.array[float],
-    v_w: wp.array[float],
-    a_idx: wp.array[wp.int32],
-    a_ref: wp.array[float],
-    a_w: wp.array[float],
-    s_a: wp.array[wp.int32],
-    s_b: wp.array[wp.int32],
-    s_c: wp.array[float],
-    s_w: wp.array[float],
+    rows: RowArrays,
     ctrl: wp.array2d[float],
     cost: wp.array[float],
 ):
@@ -472,11 +474,13 @@ def terminal_kernel(
         for j in range(u_w.shape[0]):
             r = ctrl[world, j] - u_ref[j]
             acc += 0.5 * u_w[j] * r * r
-    rows = q_idx.shape[0] + quat_adr.shape[0] + v_idx.shape[0] + a_idx.shape[0] + s_a.shape[0]
-    for i in range(rows):
-        acc += row_cost(
-            world, i, with_state, with_sensors, qpos, qvel, sensordata,
-            q_idx, q_ref, q_w, quat_adr, quat_ref, quat_w, v_idx, v_ref, v_w,
-            a_idx, a_ref, a_w, s_a, s_b, s_c, s_w,
-        )  # fmt: skip
+    n = (
+        rows.q_idx.shape[0]
+        + rows.quat_adr.shape[0]
+        + rows.v_idx.shape[0]
+        + rows.a_idx.shape[0]
+        + rows.s_a.shape[0]
+    )
+    for i in range(n):
+        acc += row_cost(world, i, with_state, with_sensors, qpos, qvel, sensordata, rows)
     cost[world] += acc
