@@ -6,8 +6,9 @@ push on the torso at t = 1 s, the robot must stay up 3 s after it (no noise, see
 summarized by :func:`mpcbox.evaluation.summarize_push_grid` (largest force below the first
 failure, and whether survival is monotone in the force) and the QP-MPC fallbacks are counted.
 
-The QP-MPC variants: the task's tuning (soft stance, 10 x 0.02 s), a 0.6 s horizon
-(15 x 0.04 s), relinearization every tick, and the rigid stance with OSQP and with Clarabel.
+The QP-MPC variants: the task's tuning (soft stance, 10 x 0.02 s, solved at 50 Hz), a 0.6 s
+horizon (15 x 0.04 s), relinearization every tick, the rigid stance with OSQP and with
+Clarabel, and the task's QP (and a 0.4 s horizon) re-solved at LQR's 200 Hz instead of 50 Hz.
 LQR is the peer; iLQR-MPC with the one-leg tuning is the nonlinear reference::
 
     python benchmarks/qp_two_feet.py --workers 16 --json benchmarks/results/qp_two_feet.json
@@ -39,6 +40,8 @@ VARIANTS: dict[str, tuple[str, dict]] = {
     "qp_relinearize": ("qp", {"relinearize": True}),
     "qp_rigid": ("qp", {"stance_model": "rigid"}),
     "qp_rigid_clarabel": ("qp", {"stance_model": "rigid", "solver": "clarabel"}),
+    "qp_200hz": ("qp", {"period": 0.005}),
+    "qp_h20_200hz": ("qp", {"horizon": 20, "period": 0.005}),
 }
 DIRECTIONS = {"fwd": (1.0, 0.0, 0.0), "bwd": (-1.0, 0.0, 0.0), "lat": (0.0, 1.0, 0.0)}
 FORCES = {
