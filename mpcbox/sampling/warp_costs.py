@@ -214,7 +214,9 @@ class DeviceRows:
             getattr(rows, f).size for f in ("q_idx", "quat_adr", "v_idx", "u_idx", "a_idx")
         )
         self.arrays = RowArrays()
-        for field in RowArrays.vars:
+        for field in RowTables._fields:
+            if field.startswith("u_"):  # the control rows go dense, below
+                continue
             arr = getattr(rows, field)
             if field == "quat_ref":
                 dev = wp.array(arr.reshape(-1, 4), dtype=wp.vec4, device=device)
