@@ -26,6 +26,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from sampling import HORIZON_STEPS, raw_throughput
 
+from mpcbox.sampling.warp_backend import UNROLL_MAX_ITERATIONS
+
 #: name -> MjOption fields of the planning model.
 MODELS: dict[str, dict] = {
     "full": {},
@@ -51,7 +53,7 @@ def profile(base, name: str, options: dict, nworld: int) -> dict:
     mujoco.mj_forward(model, data)
     m = mjw.put_model(model)
     m.opt.warn_overflow = 0
-    if 0 < model.opt.iterations <= 3:
+    if 0 < model.opt.iterations <= UNROLL_MAX_ITERATIONS:  # as the warp backend does
         m.opt.graph_conditional = False
     d = mjw.put_data(model, data, nworld=nworld, nconmax=16, njmax=96)
     rng = np.random.default_rng(0)

@@ -333,8 +333,8 @@ class WarpBackend:
         run, term = self.running, self.terminal
         ncols = p.nu + run.num_state_rows + run.num_sensor_rows
         common = [
-            self.weights, self.knots, self.ctrl_low, self.ctrl_high, run.u_ref_dense,
-            run.u_w_dense, d.qpos, d.qvel, d.qacc, d.sensordata, run.arrays,
+            self.weights, self.knots, self.ctrl_low, self.ctrl_high, d.qpos, d.qvel, d.qacc,
+            d.sensordata, run.arrays,
         ]  # fmt: skip
         sensors = int(run.has_sensors)
         # One fused launch per step: controls, state/control rows at x_t, and the sensor rows
@@ -361,8 +361,8 @@ class WarpBackend:
                 wc.terminal_kernel,
                 dim=nw,
                 inputs=[
-                    int(term.has_state), int(term.has_sensors), term.u_ref_dense,
-                    term.u_w_dense, d.qpos, d.qvel, d.sensordata, term.arrays, d.ctrl,
+                    int(term.has_state), int(term.has_sensors), d.qpos, d.qvel,
+                    d.sensordata, term.arrays, d.ctrl,
                 ],
                 outputs=[self.cost],
             )  # fmt: skip

@@ -176,9 +176,12 @@ def _nonzero(rows: list[tuple]) -> list[tuple]:
 
 @wp.struct
 class RowArrays:
-    """The state and sensor row tables of :class:`RowTables` on a device, as one kernel
-    argument (the control rows travel densely, see :class:`DeviceRows`)."""
+    """The row tables of :class:`RowTables` on a device, as one kernel argument. The control
+    rows are dense, one per actuator (weight 0 where there is no row), so that thread
+    ``j < nu`` of :func:`fused_stage_kernel` owns actuator ``j``."""
 
+    u_ref: wp.array[float]
+    u_w: wp.array[float]
     q_idx: wp.array[wp.int32]
     q_ref: wp.array[float]
     q_w: wp.array[float]
@@ -201,8 +204,7 @@ class DeviceRows:
     """Row tables on a Warp device.
 
     Attributes:
-        arrays: The state and sensor rows (:class:`RowArrays`).
-        u_ref_dense, u_w_dense: Control rows, one per actuator (weight 0 where none).
+        arrays: The rows (:class:`RowArrays`).
         has_state, has_sensors: Whether any state/control or sensor row exists.
         num_state_rows, num_sensor_rows: Rows handled by one thread each in
             :func:`fused_stage_kernel` (besides the controls).
@@ -215,7 +217,7 @@ class DeviceRows:
         )
         self.arrays = RowArrays()
         for field in RowTables._fields:
-            if field.startswith("u_"):  # the control rows go dense, below
+            if field.startswith("u_"):  # dense, below
                 continue
             arr = getattr(rows, field)
             if field == "quat_ref":
@@ -227,16 +229,14 @@ class DeviceRows:
             else:
                 dev = wp.array(arr, dtype=wp.float32, device=device)
             setattr(self.arrays, field, dev)
-        # Dense control rows (one per actuator, zero weight where there is no row) for the
-        # fused per-step kernel, where thread ``j < nu`` owns actuator ``j``.
         nu = int(rows.u_idx.max()) + 1 if rows.u_idx.size else 0
         nu = max(nu, int(nu_hint))
         u_ref = np.zeros(nu, dtype=np.float32)
         u_w = np.zeros(nu, dtype=np.float32)
         u_ref[rows.u_idx] = rows.u_ref
         u_w[rows.u_idx] = rows.u_w
-        self.u_ref_dense = wp.array(u_ref, dtype=wp.float32, device=device)
-        self.u_w_dense = wp.array(u_w, dtype=wp.float32, device=device)
+        self.arrays.u_ref = wp.array(u_ref, dtype=wp.float32, device=device)
+        self.arrays.u_w = wp.array(u_w, dtype=wp.float32, device=device)
         self.num_state_rows = int(
             rows.q_idx.size + rows.quat_adr.size + rows.v_idx.size + rows.a_idx.size
         )
@@ -412,8 +412,6 @@ def fused_stage_kernel(
     knots: wp.array3d[float],
     ctrl_low: wp.array[float],
     ctrl_high: wp.array[float],
-    u_ref: wp.array[float],
-    u_w: wp.array[float],
     qpos: wp.array2d[float],
     qvel: wp.array2d[float],
     qacc: wp.array2d[float],
@@ -446,8 +444,8 @@ def fused_stage_kernel(
             u = wp.clamp(u, ctrl_low[j], ctrl_high[j])
             ctrl[world, j] = u
             if with_state != 0:
-                r = u - u_ref[j]
-                acc = 0.5 * u_w[j] * r * r
+                r = u - rows.u_ref[j]
+                acc = 0.5 * rows.u_w[j] * r * r
     else:
         acc = row_cost(world, j - nu, with_state, with_sensors, qpos, qvel, sensordata, rows)
     if acc != 0.0:
@@ -458,8 +456,6 @@ def fused_stage_kernel(
 def terminal_kernel(
     with_state: int,
     with_sensors: int,
-    u_ref: wp.array[float],
-    u_w: wp.array[float],
     qpos: wp.array2d[float],
     qvel: wp.array2d[float],
     sensordata: wp.array2d[float],
@@ -473,9 +469,9 @@ def terminal_kernel(
     world = wp.tid()
     acc = float(0.0)  # noqa: UP018 - dynamic variable in Warp
     if with_state != 0:
-        for j in range(u_w.shape[0]):
-            r = ctrl[world, j] - u_ref[j]
-            acc += 0.5 * u_w[j] * r * r
+        for j in range(rows.u_w.shape[0]):
+            r = ctrl[world, j] - rows.u_ref[j]
+            acc += 0.5 * rows.u_w[j] * r * r
     n = (
         rows.q_idx.shape[0]
         + rows.quat_adr.shape[0]
