@@ -27,14 +27,14 @@ from pathlib import Path
 
 import numpy as np
 
-from mpcbox.comparison import PushTest, Scenario, compare
+from mpcbox.comparison.comparison import PushTest, Scenario, compare
 
 
 def problem_options(args: argparse.Namespace) -> dict:
     """HumanoidBalance keyword arguments from the flags (model and cost weights)."""
     options: dict = {"leg": args.leg, **json.loads(args.weights)}
     if args.model == "classic":
-        from mpcbox.tasks.humanoid_balance import classic_humanoid_path
+        from mpcbox.tasks.humanoid.balance import classic_humanoid_path
 
         path = classic_humanoid_path()
         if path is None:
@@ -74,7 +74,7 @@ def evaluate(args: argparse.Namespace) -> dict:
     out = {
         "task": "humanoid_balance",
         "leg": args.leg,
-        "model": args.model or "scenes/humanoid.xml",
+        "model": args.model or "mpcbox/tasks/scenes/humanoid.xml",
         "cost_weights": json.loads(args.weights),
         "seeds": args.seeds,
         "first_seed": args.seed,

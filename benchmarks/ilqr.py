@@ -17,8 +17,8 @@ import time
 import numpy as np
 
 import mpcbox
-from mpcbox.ilqr import ILQR
-from mpcbox.tasks.humanoid_balance import HumanoidBalance
+from mpcbox.controllers.ilqr.controller import ILQR
+from mpcbox.tasks.humanoid.balance import HumanoidBalance
 
 
 def main() -> None:

@@ -17,8 +17,8 @@ import time
 
 import numpy as np
 
-from mpcbox.lqr import dlqr
-from mpcbox.tasks.humanoid_balance import HumanoidBalance
+from mpcbox.controllers.lqr import dlqr
+from mpcbox.tasks.humanoid.balance import HumanoidBalance
 
 
 def best_of(fn, repeat: int) -> float:
@@ -47,7 +47,7 @@ def main() -> None:
     out: dict = {
         "host": platform.node(),
         "cores": cores,
-        "model": "scenes/humanoid.xml (nv=27, nu=21), one leg",
+        "model": "mpcbox/tasks/scenes/humanoid.xml (nv=27, nu=21), one leg",
         "knots": args.knots,
     }
     for centered in (False, True):

@@ -20,10 +20,10 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
 
-from mpcbox.disturbances import Push
-from mpcbox.qp_mpc import QPMPC, to_qpsolvers
-from mpcbox.simulation import simulate
-from mpcbox.tasks.humanoid_balance import HumanoidBalance
+from mpcbox.controllers.qp_mpc.controller import QPMPC, to_qpsolvers
+from mpcbox.sim.disturbances import Push
+from mpcbox.sim.simulation import simulate
+from mpcbox.tasks.humanoid.balance import HumanoidBalance
 
 
 def _run(problem, ticks: int, **options) -> tuple[QPMPC, list, list, list]:

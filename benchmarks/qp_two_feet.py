@@ -3,7 +3,7 @@
 Each trial is the README's push scenario on :class:`~mpcbox.tasks.HumanoidTwoFeet`: a 0.1 s
 push on the torso at t = 1 s, the robot must stay up 3 s after it (no noise, seed 0). Every
 (controller, direction, force) runs once, in parallel worker processes; each grid is then
-summarized by :func:`mpcbox.evaluation.summarize_push_grid` (largest force below the first
+summarized by :func:`mpcbox.comparison.push_limits.summarize_push_grid` (largest force below the first
 failure, and whether survival is monotone in the force) and the QP-MPC fallbacks are counted.
 
 The QP-MPC variants: the task's tuning (soft stance, 10 x 0.02 s, solved at 50 Hz), a 0.6 s
@@ -28,7 +28,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
 
-from mpcbox.tasks.humanoid_balance import HumanoidBalance
+from mpcbox.tasks.humanoid.balance import HumanoidBalance
 
 #: Controller name and keyword overrides on top of the task's ``controller_options``. The
 #: nonlinear reference, iLQR-MPC, takes the one-leg task's tuning (0.35 s horizon, 50 Hz).
@@ -57,7 +57,7 @@ def trial(variant: str, direction: str, force: float) -> dict:
     import warnings
 
     from mpcbox import Push, make_controller, simulate
-    from mpcbox.tasks.humanoid_two_feet import HumanoidTwoFeet
+    from mpcbox.tasks.humanoid.two_feet import HumanoidTwoFeet
 
     warnings.filterwarnings("ignore")  # Clarabel's per-solve warnings; failures are counted
     problem = HumanoidTwoFeet(threads=1)
@@ -99,7 +99,7 @@ def main() -> None:
 
     from tqdm import tqdm
 
-    from mpcbox.evaluation import summarize_push_grid
+    from mpcbox.comparison.push_limits import summarize_push_grid
 
     jobs = [(v, d, f) for v in variants for d in directions for f in FORCES[d]]
     t0 = time.perf_counter()

@@ -55,7 +55,7 @@ HUMANOID_PLANNING_KEYS = ("planning_integrator", "solver_iterations")
 
 def humanoid_planning() -> dict[str, Any]:
     """The planning model of ``HumanoidStand.controller_options["mppi"]``."""
-    from mpcbox.tasks.humanoid_stand import HumanoidStand
+    from mpcbox.tasks.humanoid.stand import HumanoidStand
 
     opts = HumanoidStand.controller_options["mppi"]
     return {k: opts[k] for k in HUMANOID_PLANNING_KEYS if k in opts}
@@ -63,7 +63,7 @@ def humanoid_planning() -> dict[str, Any]:
 
 def _problem(task: str):
     if task == "humanoid":
-        from mpcbox.tasks.humanoid_stand import HumanoidStand
+        from mpcbox.tasks.humanoid.stand import HumanoidStand
 
         return HumanoidStand()
     from mpcbox.tasks.swingup import CartpoleSwingup
@@ -79,7 +79,7 @@ def _start_state(problem, task: str) -> np.ndarray:
 
 
 def _controller(problem, n: int, backend: str = "warp", steps: int = HORIZON_STEPS, **kw):
-    from mpcbox.sampling import PredictiveSampling
+    from mpcbox.controllers.sampling import PredictiveSampling
 
     dt = kw.get("planning_timestep") or problem.dt
     return PredictiveSampling(
@@ -325,8 +325,8 @@ def agreement(out: dict) -> None:
 def closed_loop(out: dict, duration: float) -> None:
     """The tasks' tuned sampling controllers (``controller_options``) under the recipe."""
     import mpcbox
-    from mpcbox.tasks.humanoid_balance import HumanoidBalance
-    from mpcbox.tasks.humanoid_stand import HumanoidStand
+    from mpcbox.tasks.humanoid.balance import HumanoidBalance
+    from mpcbox.tasks.humanoid.stand import HumanoidStand
 
     runs = out.setdefault("closed_loop", [])
     stand = HumanoidStand()

@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from sampling import HORIZON_STEPS, raw_throughput
 
-from mpcbox.sampling.warp_backend import UNROLL_MAX_ITERATIONS
+from mpcbox.controllers.sampling.backends.warp import UNROLL_MAX_ITERATIONS
 
 #: name -> MjOption fields of the planning model.
 MODELS: dict[str, dict] = {
@@ -97,7 +97,7 @@ def main() -> None:
     args = ap.parse_args()
     import warp as wp
 
-    from mpcbox.tasks.humanoid_stand import HumanoidStand
+    from mpcbox.tasks.humanoid.stand import HumanoidStand
 
     wp.config.quiet = True
     wp.init()

@@ -165,8 +165,8 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
 
 
 def _scenarios(args: argparse.Namespace):
-    from mpcbox.comparison import Scenario
-    from mpcbox.disturbances import ModelMismatch, Push
+    from mpcbox.comparison.comparison import Scenario
+    from mpcbox.sim.disturbances import ModelMismatch, Push
 
     try:
         scales = [float(s) for s in str(args.noise).split(",") if s.strip()]
@@ -229,7 +229,7 @@ def run_comparison(
     Returns:
         The exit status (0).
     """
-    from mpcbox.comparison import PushTest, compare, resolve_controllers
+    from mpcbox.comparison.comparison import PushTest, compare, resolve_controllers
     from mpcbox.registry import task_class
 
     stream = stream or sys.stdout

@@ -17,6 +17,26 @@ class InvalidArgumentError(MpcboxError, ValueError):
     """An argument has the wrong value, type or range."""
 
 
+class InvalidTypeError(InvalidArgumentError, TypeError):
+    """An argument has the wrong type (also a :class:`TypeError`)."""
+
+
+class UnknownOptionError(InvalidArgumentError, TypeError):
+    """A keyword option that the receiver does not have; the message lists the valid ones.
+
+    Also a :class:`TypeError`, as Python raises for an unexpected keyword argument.
+    """
+
+    def __init__(self, owner: str, unknown: Iterable[str], valid: Iterable[str]) -> None:
+        self.owner = owner
+        self.unknown = sorted(unknown)
+        self.valid = sorted(valid)
+        super().__init__(
+            f"unknown option(s) {', '.join(map(repr, self.unknown))} for {owner}; "
+            f"valid options: {', '.join(self.valid) or '(none)'}"
+        )
+
+
 class ShapeError(InvalidArgumentError):
     """An array argument has the wrong shape."""
 
@@ -68,17 +88,3 @@ class BackendUnavailableError(MpcboxError, RuntimeError):
 
 class UnsupportedModelError(MpcboxError, NotImplementedError):
     """A backend does not implement a MuJoCo feature that the model uses."""
-
-
-def require_finite(name: str, value: object) -> None:
-    """Raise :class:`InvalidArgumentError` if ``value`` holds NaN or infinity.
-
-    Args:
-        name: Argument name used in the message.
-        value: Array-like to check.
-    """
-    import numpy as np
-
-    arr = np.asarray(value, dtype=float)
-    if not np.all(np.isfinite(arr)):
-        raise InvalidArgumentError(f"{name} must be finite, got non-finite entries: {arr!r}")

@@ -14,22 +14,22 @@ from mpcbox.errors import UnknownNameError
 #: Controller name -> class. Each class is built as ``cls(problem, **options)``, with options
 #: taken from the task's ``controller_options``.
 CONTROLLERS: dict[str, str] = {
-    "lqr": "mpcbox.lqr:LQR",
-    "ilqr": "mpcbox.ilqr:ILQR",
-    "ipopt": "mpcbox.ipopt_reference:IpoptController",
-    "qp": "mpcbox.qp_mpc:QPMPC",
-    "ps": "mpcbox.sampling:PredictiveSampling",
-    "mppi": "mpcbox.sampling:MPPI",
-    "cem": "mpcbox.sampling:CEM",
+    "lqr": "mpcbox.controllers.lqr:LQR",
+    "ilqr": "mpcbox.controllers.ilqr.controller:ILQR",
+    "ipopt": "mpcbox.controllers.ipopt:IpoptController",
+    "qp": "mpcbox.controllers.qp_mpc.controller:QPMPC",
+    "ps": "mpcbox.controllers.sampling:PredictiveSampling",
+    "mppi": "mpcbox.controllers.sampling:MPPI",
+    "cem": "mpcbox.controllers.sampling:CEM",
 }
 
 #: Task name -> Problem subclass with a no-argument constructor.
 TASKS: dict[str, str] = {
-    "humanoid_balance": "mpcbox.tasks.humanoid_balance:HumanoidBalance",
+    "humanoid_balance": "mpcbox.tasks.humanoid.balance:HumanoidBalance",
     "pendulum_swingup": "mpcbox.tasks.swingup:PendulumSwingup",
     "cartpole_swingup": "mpcbox.tasks.swingup:CartpoleSwingup",
-    "humanoid_stand": "mpcbox.tasks.humanoid_stand:HumanoidStand",
-    "humanoid_two_feet": "mpcbox.tasks.humanoid_two_feet:HumanoidTwoFeet",
+    "humanoid_stand": "mpcbox.tasks.humanoid.stand:HumanoidStand",
+    "humanoid_two_feet": "mpcbox.tasks.humanoid.two_feet:HumanoidTwoFeet",
 }
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mpcbox.boxqp import solve_box_qp
+from mpcbox.controllers.ilqr.boxqp import solve_box_qp
 from mpcbox.errors import InvalidArgumentError, MpcboxError, ShapeError
 
 

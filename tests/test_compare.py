@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from mpcbox.cli import main, run_task_script
-from mpcbox.comparison import Comparison, PushTest, Scenario, compare
-from mpcbox.disturbances import ModelMismatch, Push
+from mpcbox.comparison.comparison import Comparison, PushTest, Scenario, compare
+from mpcbox.controllers.lqr import LQR
 from mpcbox.errors import InvalidArgumentError, UnknownNameError
-from mpcbox.lqr import LQR
+from mpcbox.sim.disturbances import ModelMismatch, Push
 
 DETERMINISTIC = (
     "survived",
@@ -26,7 +26,7 @@ DETERMINISTIC = (
 
 @pytest.fixture(scope="module")
 def balance():
-    from mpcbox.tasks.humanoid_balance import HumanoidBalance
+    from mpcbox.tasks.humanoid.balance import HumanoidBalance
 
     return HumanoidBalance()
 

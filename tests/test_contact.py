@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from mpcbox.contact import (
+from mpcbox.core.contact import (
     cone_violation,
     contact_jacobian,
     contact_points,

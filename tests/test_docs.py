@@ -28,9 +28,9 @@ FENCE = re.compile(r"^```python[^\n]*\n(.*?)^```", re.MULTILINE | re.DOTALL)
 
 #: Modules a tutorial needs; it is skipped, naming the module, when one cannot be imported.
 REQUIRES: dict[str, tuple[str, ...]] = {
-    "02_ilqr_swingup.md": ("mpcbox.ilqr",),
-    "03_qp_mpc_push.md": ("mpcbox.qp_mpc",),
-    "04_sampling_mpc.md": ("mpcbox.sampling",),
+    "02_ilqr_swingup.md": ("mpcbox.controllers.ilqr.controller",),
+    "03_qp_mpc_push.md": ("mpcbox.controllers.qp_mpc.controller",),
+    "04_sampling_mpc.md": ("mpcbox.controllers.sampling",),
 }
 
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from mpcbox import LQR, InvalidArgumentError
-from mpcbox.evaluation import largest_push, push_grid, summarize_push_grid
-from mpcbox.tasks.humanoid_two_feet import HumanoidTwoFeet
+from mpcbox.comparison.push_limits import largest_push, push_grid, summarize_push_grid
+from mpcbox.tasks.humanoid.two_feet import HumanoidTwoFeet
 
 
 @pytest.mark.parametrize(

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import mpcbox
-from mpcbox.cost import ControlCost, Cost, StateCost
+from mpcbox.controllers.ilqr.controller import ILQR, interpolate_linearization
+from mpcbox.core.cost import ControlCost, Cost, StateCost
 from mpcbox.errors import InvalidArgumentError, MpcboxError, ShapeError
-from mpcbox.ilqr import ILQR, interpolate_linearization
 from mpcbox.registry import make_controller
 from mpcbox.tasks.swingup import CartpoleSwingup, PendulumSwingup
 
@@ -46,7 +46,7 @@ def point_mass(limited: bool = False, bound: float = 100.0) -> mpcbox.Problem:
 
 
 def riccati(problem: mpcbox.Problem):
-    """Time-varying Riccati recursion written out independently of mpcbox.ilqr."""
+    """Time-varying Riccati recursion written out independently of mpcbox.controllers.ilqr.controller."""
     A, B = problem.linearize(np.zeros(4), np.zeros(2))
     Q, R = np.diag(np.r_[WQ, WV]), np.diag(WU)
     P = np.diag(np.r_[WQ_T, WV_T])
@@ -161,7 +161,7 @@ def test_pendulum_offline_swingup_matches_ipopt():
     assert np.abs(res.ctrls).max() == pytest.approx(2.0)  # the torque limit is active
     assert np.all(np.diff(res.costs) < 0)
     pytest.importorskip("casadi")
-    from mpcbox.ipopt_reference import solve_ipopt
+    from mpcbox.controllers.ipopt import solve_ipopt
 
     ref = solve_ipopt(problem, problem.initial_state(), horizon, ctrls_init=u0, tolerance=1e-7)
     assert ref.defect < 1e-6
@@ -239,7 +239,7 @@ def test_lqr_terminal_value_on_the_humanoid_at_its_own_timestep():
     """The humanoid's Riccati solution at 0.005 s has a marginal mode whose eigenvalue comes
     out about -2e-6 of the largest; the terminal value projects it onto the PSD cone instead
     of rejecting it, and changes nothing else."""
-    from mpcbox.tasks.humanoid_balance import HumanoidBalance
+    from mpcbox.tasks.humanoid.balance import HumanoidBalance
 
     problem = HumanoidBalance(threads=1)
     P = mpcbox.LQR(problem).P

@@ -8,16 +8,16 @@ import numpy as np
 import pytest
 
 import mpcbox
-from mpcbox.cost import ControlCost, Cost, CostTerm, StateCost
+from mpcbox.controllers.ilqr.controller import ILQR
+from mpcbox.core.cost import ControlCost, Cost, CostTerm, StateCost
 from mpcbox.errors import BackendUnavailableError, InvalidArgumentError
-from mpcbox.ilqr import ILQR
 from mpcbox.registry import make_controller
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.swingup import PendulumSwingup
 
 casadi = pytest.importorskip("casadi")
 
-from mpcbox.ipopt_reference import IpoptController, solve_ipopt  # noqa: E402
+from mpcbox.controllers.ipopt import IpoptController, solve_ipopt  # noqa: E402
 
 SLIDER = """
 <mujoco>

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import mpcbox
-from mpcbox.lqr import dlqr
+from mpcbox.controllers.lqr import dlqr
 from mpcbox.tasks import scene_path
-from mpcbox.tasks.humanoid_balance import HumanoidBalance, classic_humanoid_path
+from mpcbox.tasks.humanoid.balance import HumanoidBalance, classic_humanoid_path
 
 
 def test_scalar_closed_form():

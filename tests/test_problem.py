@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import mpcbox
-from mpcbox.cost import (
+from mpcbox.core.cost import (
     ComOverSupport,
     ControlCost,
     Cost,
@@ -17,7 +17,7 @@ from mpcbox.cost import (
     Upright,
 )
 from mpcbox.tasks import scene_path
-from mpcbox.tasks.humanoid_balance import HumanoidBalance
+from mpcbox.tasks.humanoid.balance import HumanoidBalance
 
 HUMANOID = scene_path("humanoid.xml")
 
@@ -153,7 +153,7 @@ def test_rollout_sensordata_rows_match_forward(balance):
 def test_rollouts_that_mujoco_reset_after_diverging_are_marked_nan():
     """With one Newton iteration MuJoCo's CPU solver blows up on the humanoid: mj_step warns
     (mjWARN_BADQACC) and resets. Those rollouts must not be scored from the reset pose."""
-    from mpcbox.tasks.humanoid_stand import HumanoidStand
+    from mpcbox.tasks.humanoid.stand import HumanoidStand
 
     problem = HumanoidStand().with_planning_timestep(0.01)
     model = problem.planning_model

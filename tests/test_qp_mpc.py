@@ -8,14 +8,14 @@ import mujoco
 import numpy as np
 import pytest
 
-from mpcbox.contact import cone_violation
-from mpcbox.disturbances import Push
-from mpcbox.equilibrium import actuator_moment
+from mpcbox.controllers.qp_mpc.controller import QPMPC, load_qp, to_qpsolvers
+from mpcbox.core.contact import cone_violation
+from mpcbox.core.equilibrium import actuator_moment
 from mpcbox.errors import InvalidArgumentError, UnknownNameError
-from mpcbox.qp_mpc import QPMPC, load_qp, to_qpsolvers
-from mpcbox.simulation import simulate
-from mpcbox.tasks.humanoid_balance import HumanoidBalance
-from mpcbox.tasks.humanoid_two_feet import HumanoidTwoFeet
+from mpcbox.sim.disturbances import Push
+from mpcbox.sim.simulation import simulate
+from mpcbox.tasks.humanoid.balance import HumanoidBalance
+from mpcbox.tasks.humanoid.two_feet import HumanoidTwoFeet
 
 
 @pytest.fixture(scope="module")
@@ -156,8 +156,8 @@ def test_survives_a_moderate_push(one_leg, two_feet):
 
 
 def test_push_limit_at_least_lqr(one_leg):
-    from mpcbox.evaluation import largest_push
-    from mpcbox.lqr import LQR
+    from mpcbox.comparison.push_limits import largest_push
+    from mpcbox.controllers.lqr import LQR
 
     kw = dict(tolerance=4.0, max_force=96.0, settle=2.5)
     lqr = largest_push(one_leg, LQR(one_leg), **kw)
@@ -246,7 +246,7 @@ def test_terminal_matrices(two_feet, stance_model):
     """Every terminal choice builds for both stance models (two feet: 12 stance-twist rows, 24
     force rows). ``"cost"`` is the running ``Q``; the Riccati ones solve their DARE, so they
     dominate ``Q`` (``P - Q = A^T (P^{-1} + B R^{-1} B^T)^{-1} A >= 0``)."""
-    from mpcbox.qp_mpc import _compose
+    from mpcbox.controllers.qp_mpc.controller import _compose
 
     opts = dict(contacts=two_feet.contacts, stance_model=stance_model, horizon=3)
     for terminal in ("cost", "lqr", "stance"):

@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 import mpcbox
-from mpcbox.errors import BackendUnavailableError, InvalidArgumentError, MpcboxError
-from mpcbox.sampling import (
+from mpcbox.controllers.sampling import (
     CEM,
     MPPI,
     Evaluation,
@@ -20,6 +19,7 @@ from mpcbox.sampling import (
     aggregate_risk,
     mppi_weights,
 )
+from mpcbox.errors import BackendUnavailableError, InvalidArgumentError, MpcboxError
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.swingup import CartpoleSwingup
 
@@ -253,7 +253,7 @@ def test_replan_period_returns_the_spline_between_replans(cartpole):
 
 
 def test_planning_timestep_and_solver_options_use_a_private_planning_model(warp_device):
-    from mpcbox.tasks.humanoid_stand import HumanoidStand
+    from mpcbox.tasks.humanoid.stand import HumanoidStand
 
     problem = HumanoidStand()
     iterations = problem.planning_model.opt.iterations
@@ -300,7 +300,7 @@ def test_planning_timestep_and_solver_options_use_a_private_planning_model(warp_
 
 
 def test_humanoid_stand_balance_cost_terms():
-    from mpcbox.tasks.humanoid_stand import HumanoidStand
+    from mpcbox.tasks.humanoid.stand import HumanoidStand
 
     names = {t.name for t in HumanoidStand().cost.running}
     assert {"com_left", "com_right"} <= names
@@ -310,8 +310,8 @@ def test_humanoid_stand_balance_cost_terms():
 
 def test_collidable_pairs_detection():
     pytest.importorskip("mujoco_warp")
-    from mpcbox.sampling.warp_backend import has_collidable_pairs
-    from mpcbox.tasks.humanoid_stand import HumanoidStand
+    from mpcbox.controllers.sampling.backends.warp import has_collidable_pairs
+    from mpcbox.tasks.humanoid.stand import HumanoidStand
 
     assert not has_collidable_pairs(CartpoleSwingup().planning_model)
     assert has_collidable_pairs(HumanoidStand().planning_model)

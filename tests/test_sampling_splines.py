@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mpcbox.controllers.sampling import Spline
 from mpcbox.errors import InvalidArgumentError
-from mpcbox.sampling import Spline
 
 
 def test_zero_order_hold_takes_the_knot_at_or_before_t():

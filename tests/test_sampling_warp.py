@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import mpcbox
-from mpcbox.sampling import MPPI, PredictiveSampling, Randomization
+from mpcbox.controllers.sampling import MPPI, PredictiveSampling, Randomization
 
 pytest.importorskip("mujoco_warp")
 
@@ -39,7 +39,7 @@ def test_cartpole_costs_agree_with_the_cpu_backend(warp_device):
 
 def test_humanoid_costs_agree_with_the_cpu_backend(warp_device):
     """Quaternion state cost, sensor terms (height, upright), contacts, terminal forward."""
-    from mpcbox.tasks.humanoid_stand import HumanoidStand
+    from mpcbox.tasks.humanoid.stand import HumanoidStand
 
     a, b, warp = _agreement(HumanoidStand(), warp_device, horizon_steps=20)
     np.testing.assert_allclose(b, a, rtol=2e-4)
@@ -49,7 +49,7 @@ def test_humanoid_costs_agree_with_the_cpu_backend(warp_device):
 def test_capped_euler_planning_model_stays_close_to_the_full_model(warp_device):
     """The humanoid's fast planning model (2 solver iterations, unrolled in the graph, Euler)
     predicts costs within a few percent of the full model and ranks candidates alike."""
-    from mpcbox.tasks.humanoid_stand import HumanoidStand
+    from mpcbox.tasks.humanoid.stand import HumanoidStand
 
     problem = HumanoidStand()
     fast = dict(solver_iterations=2, planning_integrator="euler")
@@ -80,8 +80,8 @@ def test_broadphase_candidate_bound_covers_mjwarp(warp_device):
     import mujoco_warp as mjw
     import warp as wp
 
-    from mpcbox.sampling.warp_backend import broadphase_candidates
-    from mpcbox.tasks.humanoid_stand import HumanoidStand
+    from mpcbox.controllers.sampling.backends.warp import broadphase_candidates
+    from mpcbox.tasks.humanoid.stand import HumanoidStand
 
     problem = HumanoidStand()
     model = problem.planning_model
@@ -128,7 +128,7 @@ def test_gpu_closed_loop_cartpole_swingup():
 @pytest.mark.parametrize("name", ["mppi", "cem"])
 def test_gpu_humanoid_stands_10s_under_the_noise_recipe(name):
     """Issue #5 acceptance: the tuned controllers keep the humanoid standing on the GPU."""
-    from mpcbox.tasks.humanoid_stand import HumanoidStand
+    from mpcbox.tasks.humanoid.stand import HumanoidStand
 
     problem = HumanoidStand()
     ctrl = mpcbox.make_controller(name, problem, backend="warp")

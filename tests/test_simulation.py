@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import mpcbox
-from mpcbox.disturbances import ActuatorNoise, ModelMismatch, Push
+from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 
 FREE_BODY = """
 <mujoco>
@@ -41,7 +41,7 @@ def test_recipe_noise_uses_legacy_generator_and_unit_norm_kernel():
 
 
 def test_balance_recipe_assigns_low_noise_to_balance_joints():
-    from mpcbox.tasks.humanoid_balance import HumanoidBalance
+    from mpcbox.tasks.humanoid.balance import HumanoidBalance
 
     problem = HumanoidBalance()
     std = np.asarray(problem.noise().std)

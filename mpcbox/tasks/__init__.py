@@ -1,4 +1,4 @@
-"""Ready-made Problems (tasks) for the scenes in ``scenes/``; see :mod:`mpcbox.registry`."""
+"""Ready-made Problems (tasks) and the MJCF scenes they ship with; see :mod:`mpcbox.registry`."""
 
 from __future__ import annotations
 
@@ -6,15 +6,16 @@ from pathlib import Path
 
 from mpcbox.errors import ModelNotFoundError
 
-SCENES = Path(__file__).resolve().parents[2] / "scenes"
+#: Folder of the MJCF scenes installed with the package.
+SCENES = Path(__file__).resolve().parent / "scenes"
 
 
 def scene_path(name: str) -> Path:
-    """Path of a scene shipped in the repository's ``scenes/`` folder."""
+    """Path of a scene installed with mpcbox (``mpcbox/tasks/scenes/NAME``)."""
     path = SCENES / name
     if not path.is_file():
         raise ModelNotFoundError(
-            f"scene {name!r} not found in {SCENES}; mpcbox's tasks need a source checkout "
-            "(pip install -e .)"
+            f"scene {name!r} not found in {SCENES}; shipped scenes: "
+            + ", ".join(sorted(p.name for p in SCENES.glob("*.xml")))
         )
     return path

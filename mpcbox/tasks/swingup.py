@@ -12,9 +12,9 @@ from typing import Any, ClassVar
 import mujoco
 import numpy as np
 
-from mpcbox.cost import ControlCost, Cost, CostTerm, Features, Jacobian, StateCost
-from mpcbox.model import object_id
-from mpcbox.problem import Problem
+from mpcbox.core.cost import ControlCost, Cost, CostTerm, Features, Jacobian, StateCost
+from mpcbox.core.model import object_id
+from mpcbox.core.problem import Problem
 from mpcbox.tasks import scene_path
 
 
@@ -56,7 +56,7 @@ class WrappedAngle(CostTerm):
         return Jacobian(dq, np.zeros((1, model.nv)), np.zeros((1, model.nu)))
 
     def casadi_residual(self, qpos: Any, qvel: Any, ctrl: Any) -> Any:
-        """The residual as a CasADi expression (used by :mod:`mpcbox.ipopt_reference`)."""
+        """The residual as a CasADi expression (used by :mod:`mpcbox.controllers.ipopt`)."""
         import casadi
 
         return 2.0 * casadi.sin(0.5 * (qpos[self._qadr] - self.target))
@@ -146,7 +146,7 @@ class CartpoleSwingup(Problem):
             "tolerance": 1e-6,
             "ctrls_init": np.array([0.1]),
         },
-        # Sampling MPC (issue #5, mpcbox.sampling), tuned on the CPU backend; a 0.02 s
+        # Sampling MPC (issue #5, mpcbox.controllers.sampling), tuned on the CPU backend; a 0.02 s
         # planning model halves the steps per rollout (50 over the 1 s horizon).
         "ps": {
             "num_samples": 128,

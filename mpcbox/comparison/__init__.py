@@ -1,0 +1,1 @@
+"""Comparisons of controllers over scenarios and seeds: runner, tables, plots and push limits."""

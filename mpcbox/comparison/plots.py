@@ -1,0 +1,204 @@
+"""PNG plots of closed-loop runs and comparisons (matplotlib with the headless Agg backend).
+
+* :func:`plot_balance`: COM deviation and tilt of a few :class:`~mpcbox.SimulationResult`.
+* :func:`plot_comparison`: every figure of a :class:`~mpcbox.comparison.comparison.Comparison`:
+  :func:`plot_time_series` per scenario, :func:`plot_survival` against the noise scale and
+  :func:`plot_compute_times`.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from mpcbox.sim.simulation import SimulationResult
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mpcbox.comparison.comparison import Comparison, Trace
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: str | Path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    _pyplot().close(fig)
+    return path
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9.]+", "_", text).strip("_") or "scenario"
+
+
+def _control_series(ctrls: np.ndarray, ctrl_ref: np.ndarray) -> tuple[np.ndarray, str]:
+    """Per-step RMS over actuators of ``ctrls - ctrl_ref``, or the control itself if nu == 1."""
+    if ctrls.shape[1] == 1:
+        return ctrls[:, 0], "control"
+    return np.sqrt(np.mean((ctrls - ctrl_ref) ** 2, axis=1)), "RMS control - reference"
+
+
+def plot_balance(results: Sequence[SimulationResult], path: str | Path, title: str = "") -> Path:
+    """COM deviation and torso tilt over time, one line per controller.
+
+    Args:
+        results: Runs to plot (typically one per controller on the same scenario).
+        path: Output PNG path (folders are created).
+        title: Figure title.
+
+    Returns:
+        The written path.
+    """
+    plt = _pyplot()
+    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    for res in results:
+        label = res.controller + ("" if res.survived else f" (fell at {res.time[-1]:.2f} s)")
+        axes[0].plot(res.time, res.com_deviation * 100.0, label=label)
+        axes[1].plot(res.time, res.tilt_deg, label=label)
+    axes[0].set_ylabel("COM deviation from support (cm)")
+    axes[1].set_ylabel("tilt (deg)")
+    axes[1].set_xlabel("time (s)")
+    axes[0].legend(loc="upper right")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title)
+    return _save(fig, path)
+
+
+def plot_time_series(
+    traces: dict[str, Trace], path: str | Path, title: str = "", failures: dict | None = None
+) -> Path:
+    """COM deviation, tilt and control activity over time, one line per controller.
+
+    Args:
+        traces: ``{controller label: Trace}`` of runs on the same scenario and seed.
+        path: Output PNG path.
+        title: Figure title.
+        failures: ``{controller label: failure reason or None}`` for the legend.
+
+    Returns:
+        The written path.
+    """
+    plt = _pyplot()
+    fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
+    ylabel = "control"
+    for name, tr in traces.items():
+        fell = (failures or {}).get(name)
+        label = name + (f" (fell at {tr.time[-1]:.2f} s)" if fell else "")
+        axes[0].plot(tr.time, tr.com_deviation * 100.0, label=label)
+        axes[1].plot(tr.time, tr.tilt_deg, label=label)
+        series, ylabel = _control_series(tr.ctrls, tr.ctrl_ref)
+        # The last row of a run holds no applied control.
+        axes[2].plot(tr.time[:-1], series[:-1], label=label)
+    axes[0].set_ylabel("COM deviation (cm)")
+    axes[1].set_ylabel("tilt (deg)")
+    axes[2].set_ylabel(ylabel)
+    axes[2].set_xlabel("time (s)")
+    axes[0].legend(loc="upper right")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title)
+    return _save(fig, path)
+
+
+def plot_survival(comparison: Comparison, path: str | Path) -> Path:
+    """Success rate against the scenarios' noise scale, one line per controller.
+
+    Only scenarios without pushes and model mismatch are used when there are any (all
+    scenarios otherwise); rates are averaged when several of them share a noise scale.
+
+    Returns:
+        The written path.
+    """
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    plain = [s for s in comparison.scenarios if not s.pushes and s.mismatch is None]
+    used = plain or list(comparison.scenarios)
+    scales = sorted({s.noise_scale for s in used})
+    for name in comparison.controllers:
+        rates = []
+        for scale in scales:
+            runs = [
+                r
+                for i, s in enumerate(comparison.scenarios)
+                if s.noise_scale == scale and any(s is u for u in used)
+                for r in comparison.runs_of(name, i)
+            ]
+            rates.append(100.0 * np.mean([r.metrics.survived for r in runs]) if runs else np.nan)
+        ax.plot(scales, rates, marker="o", label=name)
+    ax.set_xlabel("noise scale (x recipe)")
+    ax.set_ylabel(f"success rate over {len(comparison.seeds)} seeds (%)")
+    ax.set_ylim(-5, 105)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    ax.set_title(f"{comparison.problem}: survival against noise")
+    return _save(fig, path)
+
+
+def plot_compute_times(comparison: Comparison, path: str | Path) -> Path:
+    """Distribution of the controller time per call (log scale), one box per controller.
+
+    Returns:
+        The written path.
+    """
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    data, names = [], []
+    for name in comparison.controllers:
+        ticks = [r.compute_times for r in comparison.runs if r.controller == name]
+        ticks = np.concatenate(ticks) * 1e3 if ticks else np.zeros(0)
+        if ticks.size:
+            data.append(np.maximum(ticks, 1e-4))
+            names.append(name)
+    if data:
+        ax.boxplot(data, whis=(1, 99), showfliers=False)
+        ax.set_xticks(range(1, len(names) + 1), names)
+        ax.set_yscale("log")
+    ax.set_ylabel("compute time per call (ms)")
+    ax.grid(alpha=0.3, axis="y")
+    ax.set_title(f"{comparison.problem}: compute per tick (whiskers: 1st-99th percentile)")
+    return _save(fig, path)
+
+
+def plot_comparison(comparison: Comparison, folder: str | Path) -> list[Path]:
+    """Write every figure of a comparison into ``folder``.
+
+    Files: ``timeseries_<scenario>.png`` (first seed of each scenario),
+    ``survival_vs_noise.png`` and ``compute_time.png``.
+
+    Returns:
+        The written paths.
+    """
+    folder = Path(folder)
+    paths = []
+    slugs = [_slug(s.label) for s in comparison.scenarios]
+    for i, scenario in enumerate(comparison.scenarios):
+        slug = slugs[i] if slugs.count(slugs[i]) == 1 else f"{i}_{slugs[i]}"
+        traces, failures = {}, {}
+        for name in comparison.controllers:
+            for run in comparison.runs_of(name, i):
+                if run.trace is not None:
+                    traces[name], failures[name] = run.trace, run.failure
+                    break
+        if traces:
+            title = f"{comparison.problem}, {scenario.label}, seed {comparison.seeds[0]}"
+            paths.append(
+                plot_time_series(traces, folder / f"timeseries_{slug}.png", title, failures)
+            )
+    paths.append(plot_survival(comparison, folder / "survival_vs_noise.png"))
+    paths.append(plot_compute_times(comparison, folder / "compute_time.png"))
+    return paths

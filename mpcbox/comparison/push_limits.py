@@ -1,0 +1,285 @@
+"""Robustness measures of a controller: survival over seeds, the largest survived push, and
+survival over a grid of push forces (which shows whether survival is monotone in the force)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import NamedTuple
+
+import numpy as np
+
+from mpcbox.controllers.base import Controller
+from mpcbox.core.problem import Problem
+from mpcbox.errors import InvalidArgumentError
+from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
+from mpcbox.sim.simulation import SimulationResult, simulate
+from mpcbox.validation import as_array, positive
+
+
+class SurvivalSummary(NamedTuple):
+    """Survival over seeds.
+
+    Attributes:
+        seeds: The seeds ``(n,)``.
+        survived: Whether each run survived ``(n,)``.
+        time_to_fall: Failure time, or the duration, per run ``(n,)`` (s).
+        rate: Fraction of runs that survived.
+        mean_time: Mean of ``time_to_fall`` (s).
+    """
+
+    seeds: np.ndarray
+    survived: np.ndarray
+    time_to_fall: np.ndarray
+    rate: float
+    mean_time: float
+
+
+class PushGrid(NamedTuple):
+    """Survival of one push at each force of a grid.
+
+    Attributes:
+        forces: The force magnitudes, increasing ``(n,)`` (N).
+        survived: Whether each push was survived ``(n,)``.
+        time_to_fall: Failure time, or the trial's duration, per force ``(n,)`` (s).
+        limit: Largest grid force below which every grid force is survived (N): the last
+            force before the first failure, ``0`` when the smallest force already fails.
+        largest_survived: Largest grid force survived (N), ``0`` when none is.
+        monotone: No force is survived above a failed one (the bisection of
+            :func:`largest_push` is only meaningful when this holds).
+    """
+
+    forces: np.ndarray
+    survived: np.ndarray
+    time_to_fall: np.ndarray
+    limit: float
+    largest_survived: float
+    monotone: bool
+
+
+class PushLimit(NamedTuple):
+    """Largest survived push found by bisection.
+
+    Attributes:
+        force: Largest force magnitude that was survived (N).
+        impulse: ``force * duration`` (N s).
+        smallest_failed: Smallest force that was not survived (N), ``inf`` if none failed.
+        simulations: Number of simulations run.
+    """
+
+    force: float
+    impulse: float
+    smallest_failed: float
+    simulations: int
+
+
+def survival(
+    problem: Problem,
+    controller: Controller,
+    *,
+    seeds: Sequence[int],
+    duration: float,
+    noise: ActuatorNoise | None = None,
+    pushes: Sequence[Push] = (),
+    mismatch: ModelMismatch | None = None,
+    progress: bool = False,
+) -> SurvivalSummary:
+    """Run one simulation per seed and summarize survival.
+
+    Args:
+        problem: The Problem.
+        controller: The controller (reset before each run).
+        seeds: Noise seeds.
+        duration: Simulated time per run (s).
+        noise: Actuator noise (seeded per run).
+        pushes: Pushes applied in every run.
+        mismatch: Model mismatch applied in every run.
+        progress: Show a progress bar.
+    """
+    seeds = np.asarray(list(seeds), dtype=int)
+    if seeds.size == 0:
+        raise InvalidArgumentError("seeds must hold at least one seed")
+    iterator = seeds
+    if progress:
+        from tqdm import tqdm
+
+        iterator = tqdm(seeds, desc=f"{getattr(controller, 'name', 'controller')} survival")
+    survived, times = [], []
+    for seed in iterator:
+        res = simulate(
+            problem,
+            controller,
+            duration,
+            noise=noise,
+            pushes=pushes,
+            mismatch=mismatch,
+            seed=int(seed),
+        )
+        survived.append(res.metrics.survived)
+        times.append(res.metrics.time_to_fall)
+    surv, t = np.array(survived), np.array(times)
+    return SurvivalSummary(seeds, surv, t, float(surv.mean()), float(t.mean()))
+
+
+def _push_trial(
+    problem: Problem,
+    controller: Controller,
+    direction: Sequence[float],
+    push_duration: float,
+    start: float,
+    settle: float,
+    body: str,
+    noise: ActuatorNoise | None,
+    seed: int,
+) -> Callable[[float], SimulationResult]:
+    """``trial(force) -> SimulationResult`` for one push along ``direction`` (checked)."""
+    direction = as_array("direction", direction, (3,))
+    norm = np.linalg.norm(direction)
+    if norm == 0:
+        raise InvalidArgumentError("direction must be a non-zero vector")
+    direction = direction / norm
+    total = start + positive("push_duration", push_duration) + positive("settle", settle)
+
+    def trial(force: float) -> SimulationResult:
+        push = Push(force=force * direction, start=start, duration=push_duration, body=body)
+        return simulate(problem, controller, total, noise=noise, pushes=[push], seed=seed)
+
+    return trial
+
+
+def push_grid(
+    problem: Problem,
+    controller: Controller,
+    forces: Sequence[float],
+    *,
+    direction: Sequence[float] = (1.0, 0.0, 0.0),
+    push_duration: float = 0.1,
+    start: float = 1.0,
+    settle: float = 4.0,
+    body: str = "torso",
+    noise: ActuatorNoise | None = None,
+    seed: int = 0,
+    progress: bool = False,
+) -> PushGrid:
+    """Survival of the same push scenario as :func:`largest_push` at every force of a grid.
+
+    Unlike the bisection, the grid shows when survival is not monotone in the force (a
+    controller that falls at 60 N and survives 100 N); :attr:`PushGrid.limit` is then the
+    honest figure, the largest force below which nothing failed.
+
+    Args:
+        problem: The Problem.
+        controller: The controller (reset by each simulation).
+        forces: Force magnitudes, at least one, non-negative (N); sorted here.
+        direction: Push direction (normalized here); ``(1, 0, 0)`` is sagittal (forward).
+        push_duration: How long the force acts (s).
+        start: When the push starts (s).
+        settle: How long after the push the robot must stay up (s).
+        body: Pushed body.
+        noise: Optional actuator noise during the trials.
+        seed: Noise seed.
+        progress: Show a progress bar.
+    """
+    grid = np.sort(np.asarray(list(forces), dtype=float).ravel())
+    if grid.size == 0 or not np.all(np.isfinite(grid)) or np.any(grid < 0):
+        raise InvalidArgumentError(
+            f"forces must hold at least one finite non-negative force, got {list(forces)!r}"
+        )
+    args = (direction, push_duration, start, settle, body, noise, seed)
+    trial = _push_trial(problem, controller, *args)
+    iterator = grid
+    if progress:
+        from tqdm import tqdm
+
+        iterator = tqdm(grid, desc=f"{getattr(controller, 'name', 'controller')} push grid")
+    results = [trial(float(f)) for f in iterator]
+    survived = np.array([r.survived for r in results], dtype=bool)
+    times = np.array([r.metrics.time_to_fall for r in results])
+    return summarize_push_grid(grid, survived, times)
+
+
+def summarize_push_grid(
+    forces: np.ndarray, survived: np.ndarray, time_to_fall: np.ndarray | None = None
+) -> PushGrid:
+    """:class:`PushGrid` of survival outcomes at increasing ``forces`` ``(n,)``.
+
+    Args:
+        forces: Increasing force magnitudes ``(n,)`` (N).
+        survived: Outcome per force ``(n,)``.
+        time_to_fall: Failure time per force ``(n,)`` (s); NaN when not given.
+    """
+    forces = np.asarray(forces, dtype=float)
+    survived = np.asarray(survived, dtype=bool)
+    if forces.ndim != 1 or survived.shape != forces.shape:
+        raise InvalidArgumentError(
+            f"forces and survived must be 1-D of one length, got {forces.shape} and "
+            f"{survived.shape}"
+        )
+    if np.any(np.diff(forces) <= 0):
+        raise InvalidArgumentError("forces must be strictly increasing")
+    times = (
+        np.full(forces.shape, np.nan) if time_to_fall is None else np.asarray(time_to_fall, float)
+    )
+    failed = np.flatnonzero(~survived)
+    first_fail = failed[0] if failed.size else forces.size
+    limit = float(forces[first_fail - 1]) if first_fail > 0 else 0.0
+    largest = float(forces[survived].max()) if survived.any() else 0.0
+    monotone = not bool(survived[first_fail:].any())
+    return PushGrid(forces, survived, times, limit, largest, monotone)
+
+
+def largest_push(
+    problem: Problem,
+    controller: Controller,
+    *,
+    direction: Sequence[float] = (1.0, 0.0, 0.0),
+    push_duration: float = 0.1,
+    start: float = 1.0,
+    settle: float = 4.0,
+    body: str = "torso",
+    max_force: float = 2000.0,
+    tolerance: float = 1.0,
+    noise: ActuatorNoise | None = None,
+    seed: int = 0,
+) -> PushLimit:
+    """Largest force magnitude along ``direction`` over ``push_duration`` that is survived.
+
+    Bisection on the magnitude, assuming that surviving a force means surviving every
+    smaller one; :func:`push_grid` checks that assumption. Each trial simulates until
+    ``start + push_duration + settle``.
+
+    Args:
+        problem: The Problem.
+        controller: The controller.
+        direction: Push direction (normalized here); ``(1, 0, 0)`` is sagittal (forward).
+        push_duration: How long the force acts (s).
+        start: When the push starts (s).
+        settle: How long after the push the robot must stay up (s).
+        body: Pushed body.
+        max_force: Upper end of the search (N).
+        tolerance: Stop when the bracket is this narrow (N).
+        noise: Optional actuator noise during the trials.
+        seed: Noise seed.
+    """
+    positive("max_force", max_force)
+    positive("tolerance", tolerance)
+    args = (direction, push_duration, start, settle, body, noise, seed)
+    trial = _push_trial(problem, controller, *args)
+    count = 0
+
+    def survives(force: float) -> bool:
+        nonlocal count
+        count += 1
+        return trial(force).survived
+
+    if not survives(0.0):
+        return PushLimit(0.0, 0.0, 0.0, count)
+    if survives(max_force):
+        return PushLimit(max_force, max_force * push_duration, float("inf"), count)
+    lo, hi = 0.0, max_force
+    while hi - lo > tolerance:
+        mid = 0.5 * (lo + hi)
+        if survives(mid):
+            lo = mid
+        else:
+            hi = mid
+    return PushLimit(lo, lo * push_duration, hi, count)

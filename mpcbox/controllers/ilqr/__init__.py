@@ -1,0 +1,1 @@
+"""Control-limited iLQR (offline and receding-horizon)."""

@@ -1,0 +1,475 @@
+r"""Reference trajectory optimizer: direct multiple shooting with CasADi and IPOPT.
+
+The transcription uses exactly the discretization of :class:`~mpcbox.ILQR`: knots
+``x_0 .. x_T`` and controls ``u_0 .. u_{T-1}`` on the Problem's planning model, with
+
+.. math::
+
+    \min_{x, u}\ \sum_{t=0}^{T-1} \ell(x_t, u_t) + \ell_T(x_T) \quad \text{s.t.}\quad
+    x_0 = \hat x_0,\ \ x_{t+1} = f(x_t, u_t),\ \ u_{lo} \le u_t \le u_{hi}.
+
+``f`` is one MuJoCo step wrapped as a :class:`casadi.Callback` whose Jacobian comes from
+:meth:`mpcbox.Problem.linearize` (finite differences). ``StateCost`` and ``ControlCost`` terms
+become analytic CasADi expressions; other terms (or a whole cost with them) are evaluated by
+the Problem through a Callback with the Gauss-Newton gradient of
+:meth:`~mpcbox.Problem.quadratize`. Second derivatives of ``f`` are not available, so IPOPT
+runs with a limited-memory (L-BFGS) Hessian.
+
+It serves as an oracle for the iLQR tests and as the ``"ipopt"`` controller of comparison
+tables on small problems (:class:`IpoptController`: an offline plan tracked with time-varying
+LQR feedback). Only models without free or ball joints (``nq == nv``) are supported.
+
+CasADi is optional: it is imported on first use and a missing install raises
+:class:`~mpcbox.errors.BackendUnavailableError`.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from typing import Any, NamedTuple
+
+import numpy as np
+import scipy.linalg
+
+from mpcbox.controllers.base import Controller
+from mpcbox.controllers.ilqr.controller import backward_pass
+from mpcbox.core.cost import ControlCost, StateCost
+from mpcbox.core.problem import Problem
+from mpcbox.errors import BackendUnavailableError, InvalidArgumentError, SolverError
+from mpcbox.validation import as_array, positive, positive_int
+
+
+def _casadi() -> Any:
+    try:
+        import casadi
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise BackendUnavailableError(
+            "the IPOPT reference needs CasADi: pip install 'mpcbox[casadi]' (or pip install casadi)"
+        ) from exc
+    return casadi
+
+
+class IpoptSolution(NamedTuple):
+    """Result of :func:`solve_ipopt`.
+
+    Attributes:
+        states: Optimal states ``(T + 1, nstate)``.
+        ctrls: Optimal controls ``(T, nu)``.
+        cost: Objective value (same definition as :attr:`mpcbox.controllers.ilqr.controller.ILQRResult.cost`).
+        iterations: IPOPT iterations.
+        success: IPOPT reported success.
+        status: IPOPT's return status.
+        defect: Largest dynamics violation ``|f(x_t, u_t) - x_{t+1}|`` at the solution.
+        solve_time: Wall-clock seconds.
+    """
+
+    states: np.ndarray
+    ctrls: np.ndarray
+    cost: float
+    iterations: int
+    success: bool
+    status: str
+    defect: float
+    solve_time: float
+
+
+def _make_callbacks(problem: Problem) -> tuple[Any, list[Any]]:
+    """The step ``f(x, u)`` as a CasADi Callback (and objects that must stay alive)."""
+    ca = _casadi()
+    ns, nu = problem.nstate, problem.nu
+
+    class _StepJacobian(ca.Callback):
+        def __init__(self, name: str, opts: dict) -> None:
+            ca.Callback.__init__(self)
+            self.construct(name, opts)
+
+        def get_n_in(self) -> int:
+            return 3
+
+        def get_n_out(self) -> int:
+            return 2
+
+        def get_sparsity_in(self, i: int) -> Any:
+            return ca.Sparsity.dense(nu if i == 1 else ns, 1)
+
+        def get_sparsity_out(self, i: int) -> Any:
+            return ca.Sparsity.dense(ns, ns if i == 0 else nu)
+
+        def eval(self, arg: list) -> list:
+            x = np.asarray(arg[0]).ravel()
+            u = np.asarray(arg[1]).ravel()
+            lin = problem.linearize(x, problem.clip_ctrl(u))
+            return [ca.DM(lin.A), ca.DM(lin.B)]
+
+    class _Step(ca.Callback):
+        def __init__(self, name: str, opts: dict) -> None:
+            ca.Callback.__init__(self)
+            self._jac: Any = None
+            self.construct(name, opts)
+
+        def get_n_in(self) -> int:
+            return 2
+
+        def get_n_out(self) -> int:
+            return 1
+
+        def get_sparsity_in(self, i: int) -> Any:
+            return ca.Sparsity.dense(ns if i == 0 else nu, 1)
+
+        def get_sparsity_out(self, i: int) -> Any:
+            return ca.Sparsity.dense(ns, 1)
+
+        def eval(self, arg: list) -> list:
+            x = np.asarray(arg[0]).ravel()
+            u = np.asarray(arg[1]).ravel()
+            return [ca.DM(problem.step(x, problem.clip_ctrl(u)))]
+
+        def has_jacobian(self) -> bool:
+            return True
+
+        def get_jacobian(self, name: str, inames: list, onames: list, opts: dict) -> Any:
+            self._jac = _StepJacobian(name, opts)
+            return self._jac
+
+    step = _Step("mujoco_step", {"enable_fd": False})
+    return step, [step]
+
+
+def _cost_callback(problem: Problem, terminal: bool) -> Any:
+    """Running (or terminal) cost evaluated by the Problem, with its Gauss-Newton gradient."""
+    ca = _casadi()
+    ns, nu = problem.nstate, problem.nu
+
+    class _Gradient(ca.Callback):
+        def __init__(self, name: str, opts: dict) -> None:
+            ca.Callback.__init__(self)
+            self.construct(name, opts)
+
+        def get_n_in(self) -> int:
+            return 3
+
+        def get_n_out(self) -> int:
+            return 2
+
+        def get_sparsity_in(self, i: int) -> Any:
+            return ca.Sparsity.dense((ns, nu, 1)[i], 1)
+
+        def get_sparsity_out(self, i: int) -> Any:
+            return ca.Sparsity.dense(1, ns if i == 0 else nu)
+
+        def eval(self, arg: list) -> list:
+            x = np.asarray(arg[0]).ravel()
+            u = np.asarray(arg[1]).ravel()
+            q = problem.quadratize(x, u, terminal=terminal)
+            lu = np.zeros(nu) if terminal else q.lu
+            return [ca.DM(q.lx[None]), ca.DM(lu[None])]
+
+    class _Cost(ca.Callback):
+        def __init__(self, name: str, opts: dict) -> None:
+            ca.Callback.__init__(self)
+            self._jac: Any = None
+            self.construct(name, opts)
+
+        def get_n_in(self) -> int:
+            return 2
+
+        def get_n_out(self) -> int:
+            return 1
+
+        def get_sparsity_in(self, i: int) -> Any:
+            return ca.Sparsity.dense(ns if i == 0 else nu, 1)
+
+        def get_sparsity_out(self, i: int) -> Any:
+            return ca.Sparsity.dense(1, 1)
+
+        def eval(self, arg: list) -> list:
+            x = np.asarray(arg[0]).ravel()
+            u = np.asarray(arg[1]).ravel()
+            if terminal:
+                return [ca.DM(problem.terminal_cost(x))]
+            return [ca.DM(problem.running_cost(x, u))]
+
+        def has_jacobian(self) -> bool:
+            return True
+
+        def get_jacobian(self, name: str, inames: list, onames: list, opts: dict) -> Any:
+            self._jac = _Gradient(name, opts)
+            return self._jac
+
+    return _Cost("terminal_cost" if terminal else "running_cost", {"enable_fd": False})
+
+
+def _symbolic_terms(problem: Problem, terms: list, x: Any, u: Any) -> Any | None:
+    """``sum 0.5 w r^2`` as a CasADi expression, or ``None`` if a term has no symbolic form."""
+    nq, nv = problem.nq, problem.nv
+    total = 0
+    for term in terms:
+        if isinstance(term, StateCost):
+            r = [x[:nq] - term.qpos_ref, x[nq : nq + nv] - term.qvel_ref]
+            r = _casadi().vertcat(*r)
+        elif isinstance(term, ControlCost):
+            r = u - term.ctrl_ref
+        elif hasattr(term, "casadi_residual"):
+            r = term.casadi_residual(x[:nq], x[nq : nq + nv], u)
+        else:
+            return None
+        total = total + 0.5 * _casadi().sumsqr(_casadi().sqrt(term.weight) * r)
+    return total
+
+
+def solve_ipopt(
+    problem: Problem,
+    x0: np.ndarray,
+    horizon: int,
+    *,
+    ctrls_init: np.ndarray | None = None,
+    states_init: np.ndarray | None = None,
+    max_iterations: int = 3000,
+    tolerance: float = 1e-9,
+    lbfgs_history: int = 20,
+    print_level: int = 0,
+    options: dict[str, Any] | None = None,
+) -> IpoptSolution:
+    """Solve the trajectory optimization problem with IPOPT (direct multiple shooting).
+
+    Args:
+        problem: The Problem (``nq == nv``: no free or ball joints).
+        x0: Start state ``(nstate,)``.
+        horizon: Number of knots ``T``.
+        ctrls_init: Initial controls ``(T, nu)`` or ``(nu,)`` (default ``ctrl_ref``).
+        states_init: Initial states ``(T + 1, nstate)`` (default: rollout of ``ctrls_init``).
+        max_iterations: IPOPT iteration cap.
+        tolerance: IPOPT's ``tol``.
+        lbfgs_history: Pairs kept by the limited-memory Hessian.
+        print_level: IPOPT verbosity (0 silent, 5 verbose).
+        options: Extra ``nlpsol`` options (e.g. ``{"ipopt.acceptable_tol": 1e-6}``).
+
+    Returns:
+        An :class:`IpoptSolution`.
+
+    Raises:
+        BackendUnavailableError: If CasADi is not installed.
+        InvalidArgumentError: If the model has quaternion joints or an argument is invalid.
+    """
+    ca = _casadi()
+    if problem.nq != problem.nv:
+        raise InvalidArgumentError(
+            "problem: the IPOPT reference supports models without free or ball joints "
+            f"(nq == nv), got nq={problem.nq}, nv={problem.nv}"
+        )
+    horizon = positive_int("horizon", horizon)
+    max_iterations = positive_int("max_iterations", max_iterations)
+    tolerance = positive("tolerance", tolerance)
+    ns, nu = problem.nstate, problem.nu
+    x0 = as_array("x0", x0, (ns,))
+    if not np.all(np.isfinite(x0)):
+        raise InvalidArgumentError("x0 must be finite")
+    if ctrls_init is None:
+        ctrls_init = problem.ctrl_ref
+    ctrls_init = np.asarray(ctrls_init, dtype=np.float64)
+    if ctrls_init.ndim == 1:
+        ctrls_init = np.tile(as_array("ctrls_init", ctrls_init, (nu,)), (horizon, 1))
+    ctrls_init = problem.clip_ctrl(as_array("ctrls_init", ctrls_init, (horizon, nu)))
+    if states_init is None:
+        states_init = problem.rollout(x0, ctrls_init).states[0]
+    states_init = as_array("states_init", states_init, (horizon + 1, ns))
+    if not (np.all(np.isfinite(states_init)) and np.all(np.isfinite(ctrls_init))):
+        raise InvalidArgumentError("states_init and ctrls_init must be finite")
+
+    step, keep_alive = _make_callbacks(problem)
+    X = ca.MX.sym("X", ns, horizon + 1)
+    U = ca.MX.sym("U", nu, horizon)
+    xs, us = ca.MX.sym("x", ns), ca.MX.sym("u", nu)
+    running = _symbolic_terms(problem, problem.cost.running, xs, us)
+    if running is None:
+        cb = _cost_callback(problem, terminal=False)
+        keep_alive.append(cb)
+        running = cb(xs, us)
+    terminal = _symbolic_terms(problem, problem.cost.terminal, xs, us)
+    if terminal is None:
+        cb = _cost_callback(problem, terminal=True)
+        keep_alive.append(cb)
+        terminal = cb(xs, us)
+    running_fn = ca.Function("running", [xs, us], [running])
+    terminal_fn = ca.Function("terminal", [xs, us], [terminal])
+
+    objective = ca.sum2(running_fn.map(horizon)(X[:, :horizon], U))
+    objective = objective + terminal_fn(X[:, horizon], U[:, horizon - 1])
+    gaps = [X[:, 0] - x0]
+    for t in range(horizon):
+        gaps.append(step(X[:, t], U[:, t]) - X[:, t + 1])
+    g = ca.vertcat(*gaps)
+    z = ca.vertcat(ca.vec(X), ca.vec(U))
+    lbz = np.r_[np.full(ns * (horizon + 1), -np.inf), np.tile(problem.ctrl_low, horizon)]
+    ubz = np.r_[np.full(ns * (horizon + 1), np.inf), np.tile(problem.ctrl_high, horizon)]
+    opts: dict[str, Any] = {
+        "ipopt.hessian_approximation": "limited-memory",
+        "ipopt.limited_memory_max_history": int(lbfgs_history),
+        "ipopt.max_iter": max_iterations,
+        "ipopt.tol": tolerance,
+        "ipopt.print_level": int(print_level),
+        "print_time": False,
+    }
+    opts.update(options or {})
+    solver = ca.nlpsol("mpcbox_ipopt", "ipopt", {"x": z, "f": objective, "g": g}, opts)
+    z0 = np.r_[states_init.T.ravel(order="F"), ctrls_init.T.ravel(order="F")]
+    t0 = _time.perf_counter()
+    sol = solver(x0=z0, lbx=lbz, ubx=ubz, lbg=0.0, ubg=0.0)
+    elapsed = _time.perf_counter() - t0
+    stats = solver.stats()
+    zopt = np.asarray(sol["x"]).ravel()
+    states = zopt[: ns * (horizon + 1)].reshape(horizon + 1, ns)
+    ctrls = problem.clip_ctrl(zopt[ns * (horizon + 1) :].reshape(horizon, nu))
+    defect = float(np.max(np.abs(np.asarray(sol["g"]).ravel())))
+    del keep_alive
+    return IpoptSolution(
+        states=states,
+        ctrls=ctrls,
+        cost=float(sol["f"]),
+        iterations=int(stats.get("iter_count", -1)),
+        success=bool(stats.get("success", False)),
+        status=str(stats.get("return_status", "")),
+        defect=defect,
+        solve_time=elapsed,
+    )
+
+
+class IpoptController(Controller):
+    """Offline IPOPT plan from the first measured state, tracked with time-varying LQR.
+
+    On the first call (after :meth:`reset`) it solves :func:`solve_ipopt` over ``horizon``
+    knots, then computes feedback gains along the plan with the iLQR backward pass
+    (:func:`mpcbox.controllers.ilqr.controller.backward_pass`) and applies :math:`u_i + K_i (x \\ominus \\bar x_i)`
+    at every call. After the plan ends it regulates about the reference state and control
+    (``problem.reference_state()``, ``ctrl_ref``) with the infinite-horizon LQR gain there
+    (``scipy.linalg.solve_discrete_are``).
+
+    Args:
+        problem: The Problem (``nq == nv``).
+        horizon: Plan length in knots of the planning model.
+        warm_start_ilqr: Initialize IPOPT with an iLQR solution (more robust on swing-ups,
+            whose costs have several local minima).
+        ilqr_options: Keyword arguments of the :class:`~mpcbox.ILQR` used for the warm start.
+        regularization: Added to ``Q_uu`` when computing the tracking gains.
+        planning_timestep: Plan on a copy of the Problem with this planning timestep
+            (:meth:`~mpcbox.Problem.with_planning_timestep`).
+        **ipopt_options: Passed to :func:`solve_ipopt`.
+    """
+
+    name = "ipopt"
+    period = None
+
+    def __init__(
+        self,
+        problem: Problem,
+        horizon: int,
+        *,
+        warm_start_ilqr: bool = False,
+        ilqr_options: dict[str, Any] | None = None,
+        regularization: float = 1e-6,
+        planning_timestep: float | None = None,
+        **ipopt_options: Any,
+    ) -> None:
+        _casadi()
+        if planning_timestep is not None:
+            dt = positive("planning_timestep", planning_timestep)
+            if abs(dt - problem.dt) > 1e-12:
+                problem = problem.with_planning_timestep(dt)
+        if problem.nq != problem.nv:
+            raise InvalidArgumentError(
+                "problem: IpoptController needs a model without free or ball joints (nq == nv)"
+            )
+        self.problem = problem
+        self.horizon = positive_int("horizon", horizon)
+        self.warm_start_ilqr = bool(warm_start_ilqr)
+        self.ilqr_options = dict(ilqr_options or {})
+        self.regularization = positive("regularization", regularization)
+        self.ipopt_options = ipopt_options
+        self.solution: IpoptSolution | None = None
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the plan; the next call solves again."""
+        self._plan_time = 0.0
+        self._K: np.ndarray | None = None
+        self._failures = 0
+        self.solution = None
+
+    @property
+    def stats(self) -> dict[str, float]:
+        """IPOPT iterations and solve time of the current plan, and failed solves."""
+        out = {"fallbacks": float(self._failures)}
+        if self.solution is not None:
+            out["ipopt_iterations"] = float(self.solution.iterations)
+            out["ipopt_solve_time"] = float(self.solution.solve_time)
+        return out
+
+    def plan(self, state: np.ndarray) -> IpoptSolution:
+        """Solve from ``state`` and compute the tracking gains."""
+        p = self.problem
+        options = dict(self.ipopt_options)
+        if self.warm_start_ilqr:
+            from mpcbox.controllers.ilqr.controller import ILQR
+
+            ilqr_options = {"max_iterations": 300, **self.ilqr_options}
+            if "ctrls_init" in options:
+                ilqr_options.setdefault("ctrls_init", options["ctrls_init"])
+            res = ILQR(p, self.horizon, **ilqr_options).solve(state)
+            options.update(ctrls_init=res.ctrls, states_init=res.states)
+        sol = solve_ipopt(p, state, self.horizon, **options)
+        # Track the dynamically consistent rollout of the plan's controls.
+        states = p.rollout(state, sol.ctrls).states[0]
+        lin = p.linearize_trajectory(states[:-1], sol.ctrls)
+        quad = p.quadratize_trajectory(states, sol.ctrls)
+        mu = self.regularization
+        for _ in range(30):
+            try:
+                bp = backward_pass(lin, quad, sol.ctrls, p.ctrl_low, p.ctrl_high, mu)
+                break
+            except SolverError:
+                mu *= 10.0
+        else:
+            raise SolverError("IpoptController: could not compute tracking gains")
+        self._states, self._ctrls, self._K = states, sol.ctrls, bp.K
+        self._tail = (p.reference_state(), p.clip_ctrl(p.ctrl_ref))
+        self._K_tail = self._tail_gain(*self._tail, bp.K[-1])
+        self.solution = sol
+        return sol
+
+    def _tail_gain(self, state: np.ndarray, ctrl: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+        """Infinite-horizon LQR gain about ``(state, ctrl)`` (used after the plan ends)."""
+        p = self.problem
+        A, B = p.linearize(state, ctrl)
+        q = p.quadratize(state, ctrl)
+        Q = q.lxx + 1e-9 * np.eye(p.nx)
+        R = q.luu + self.regularization * np.eye(p.nu)
+        try:
+            P = scipy.linalg.solve_discrete_are(A, B, Q, R, s=q.lux.T)
+            return -np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A + q.lux)
+        except (np.linalg.LinAlgError, ValueError):
+            return fallback
+
+    def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
+        p = self.problem
+        state = as_array("state", state, (p.nstate,))
+        if self._K is None or time < self._plan_time - 1e-9:
+            try:
+                self.plan(state)
+            except (SolverError, InvalidArgumentError, RuntimeError):
+                self._failures += 1
+                return p.clip_ctrl(p.ctrl_ref)
+            self._plan_time = float(time)
+        assert self._K is not None
+        s = (time - self._plan_time) / p.dt + 1e-9
+        if s >= self.horizon:
+            (nominal, ctrl), gain = self._tail, self._K_tail
+        else:
+            i = max(int(s), 0)
+            nominal, ctrl, gain = self._states[i], self._ctrls[i], self._K[i]
+        u = ctrl + gain @ p.state_difference(state, nominal)
+        if not np.all(np.isfinite(u)):
+            return p.clip_ctrl(ctrl)
+        return p.clip_ctrl(u)
+
+
+__all__ = ["IpoptController", "IpoptSolution", "solve_ipopt"]

@@ -1,0 +1,199 @@
+r"""Infinite-horizon discrete LQR about an operating point.
+
+With the finite-difference model :math:`dx_{t+1} = A\,dx_t + B\,du_t` and the cost
+:math:`\sum_t dx_t^T Q\,dx_t + du_t^T R\,du_t + 2\,dx_t^T N du_t`, the gain is
+:math:`K = (R + B^T P B)^{-1}(B^T P A + N^T)` with :math:`P` the stabilizing solution of the
+discrete algebraic Riccati equation (:func:`scipy.linalg.solve_discrete_are`), and the
+controller applies :math:`u = u_0 - K\,(x \ominus x_0)`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+
+from mpcbox.controllers.base import Controller
+from mpcbox.core.problem import Problem
+from mpcbox.errors import CostDefinitionError, NotStabilizableError, ShapeError, SolverError
+from mpcbox.validation import as_array
+
+
+def check_symmetric(name: str, mat: np.ndarray, rtol: float = 1e-9) -> None:
+    """Raise :class:`CostDefinitionError` unless ``mat`` is symmetric to a scale-aware tolerance."""
+    if not np.all(np.isfinite(mat)):
+        raise CostDefinitionError(f"{name} must be finite")
+    scale = max(1.0, float(np.max(np.abs(mat))))
+    if np.max(np.abs(mat - mat.T)) > rtol * scale:
+        raise CostDefinitionError(
+            f"{name} must be symmetric: max |{name} - {name}^T| = {np.max(np.abs(mat - mat.T)):.3g}"
+        )
+
+
+def check_weights(Q: np.ndarray, R: np.ndarray, rtol: float = 1e-9) -> None:
+    """Symmetry of Q and R, R positive definite, Q positive semidefinite."""
+    check_symmetric("Q", Q, rtol)
+    check_symmetric("R", R, rtol)
+    try:
+        np.linalg.cholesky(0.5 * (R + R.T))
+    except np.linalg.LinAlgError:
+        raise CostDefinitionError(
+            f"R must be positive definite; smallest eigenvalue {np.linalg.eigvalsh(R).min():.3g}"
+        ) from None
+    qmin = np.linalg.eigvalsh(0.5 * (Q + Q.T)).min() if Q.size else 0.0
+    if qmin < -rtol * max(1.0, float(np.max(np.abs(Q)))) * len(Q):
+        raise CostDefinitionError(
+            f"Q must be positive semidefinite; smallest eigenvalue {qmin:.3g}"
+        )
+
+
+def check_stabilizable(
+    A: np.ndarray, B: np.ndarray, tol: float = 1e-8, margin: float = 1e-6
+) -> int:
+    r"""PBH test: every eigenvalue :math:`|\lambda| \ge 1` of A must satisfy
+    :math:`\operatorname{rank}[A - \lambda I,\ B] = n`.
+
+    Modes on the unit circle to within ``margin`` that are uncontrollable are tolerated and
+    counted: a floating base on a flat floor has them (moving the whole body sideways or
+    turning it about the vertical is again an equilibrium), the cost does not act on them,
+    and the Riccati solution leaves them alone. Strictly unstable ones raise.
+
+    Returns:
+        The number of uncontrollable marginal modes.
+
+    Raises:
+        NotStabilizableError: Naming the uncontrollable unstable eigenvalue.
+    """
+    n = A.shape[0]
+    eigvals = np.linalg.eigvals(A)
+    scale = max(1.0, float(np.linalg.norm(A, 2)), float(np.linalg.norm(B, 2)))
+    marginal = 0
+    for lam in eigvals:
+        if abs(lam) < 1.0 - margin:
+            continue
+        pbh = np.hstack([A - lam * np.eye(n), B])
+        sv = np.linalg.svd(pbh, compute_uv=False)
+        if sv[-1] <= tol * scale:
+            if abs(lam) <= 1.0 + margin:
+                marginal += 1
+                continue
+            raise NotStabilizableError(
+                f"(A, B) is not stabilizable: eigenvalue {lam:.6g} (|λ| = {abs(lam):.6g} > 1) is "
+                f"uncontrollable (PBH smallest singular value {sv[-1]:.3g})"
+            )
+    return marginal
+
+
+def nearest_psd(P: np.ndarray) -> np.ndarray:
+    """Nearest positive semidefinite matrix to the symmetric part of ``P`` ``(n, n)``.
+
+    A Riccati solution with marginal modes (the humanoid's free heading, say) carries
+    negative eigenvalues of order 1e-6 of its largest from the solver's rounding; quadratic
+    forms that must be convex (a QP's Hessian, a terminal value) use this projection.
+    """
+    w, V = np.linalg.eigh(0.5 * (P + P.T))
+    return (V * np.maximum(w, 0.0)) @ V.T
+
+
+def dlqr(
+    A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, N: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Checked discrete LQR: the gain ``K`` ``(nu, nx)`` and Riccati solution ``P`` ``(nx, nx)``.
+
+    Raises:
+        ShapeError, CostDefinitionError, NotStabilizableError, SolverError.
+    """
+    n = A.shape[0] if A.ndim == 2 else -1
+    A = as_array("A", A, (n, n))
+    B = as_array("B", B, (n, None))
+    m = B.shape[1]
+    Q = as_array("Q", Q, (n, n))
+    R = as_array("R", R, (m, m))
+    if N is not None:
+        N = as_array("N", N, (n, m))
+    if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
+        raise ShapeError("A and B must be finite")
+    check_weights(Q, R)
+    check_stabilizable(A, B)
+    Q, R = 0.5 * (Q + Q.T), 0.5 * (R + R.T)
+    try:
+        P = scipy.linalg.solve_discrete_are(A, B, Q, R, s=N)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise SolverError(
+            f"the discrete Riccati equation has no stabilizing solution ({exc}); "
+            "check that every unstable mode is penalized by Q (detectability)"
+        ) from exc
+    cross = B.T @ P @ A if N is None else B.T @ P @ A + N.T
+    K = np.linalg.solve(R + B.T @ P @ B, cross)
+    return K, P
+
+
+class LQR(Controller):
+    """Infinite-horizon LQR about an operating point of a Problem.
+
+    The linearization is that of the Problem's planning model, so the controller runs at the
+    planning timestep (``period``).
+
+    Args:
+        problem: The Problem.
+        Q: State weight ``(nx, nx)``; by default the Gauss-Newton Hessian of the Problem's
+            running cost at the operating point.
+        R: Control weight ``(nu, nu)``; likewise by default.
+        state: Operating state ``(nstate,)`` (default: the Problem's reference state).
+        ctrl: Operating control ``(nu,)`` (default: the Problem's ``ctrl_ref``).
+        eps: Finite-difference step for the linearization.
+        centered: Centered finite differences.
+
+    Attributes:
+        A, B: The linearization.
+        K: Gain ``(nu, nx)``.
+        P: Riccati solution ``(nx, nx)``.
+    """
+
+    name = "lqr"
+
+    def __init__(
+        self,
+        problem: Problem,
+        *,
+        Q: np.ndarray | None = None,
+        R: np.ndarray | None = None,
+        state: np.ndarray | None = None,
+        ctrl: np.ndarray | None = None,
+        eps: float | None = None,
+        centered: bool | None = None,
+    ) -> None:
+        self.problem = problem
+        self.state0 = (
+            problem.reference_state()
+            if state is None
+            else as_array("state", state, (problem.nstate,))
+        )
+        self.ctrl0 = (
+            problem.ctrl_ref.copy() if ctrl is None else as_array("ctrl", ctrl, (problem.nu,))
+        )
+        self.A, self.B = problem.linearize(self.state0, self.ctrl0, eps=eps, centered=centered)
+        N = None
+        if Q is None or R is None:
+            quad = problem.quadratize(self.state0, self.ctrl0)
+            Q = quad.lxx if Q is None else Q
+            R = quad.luu if R is None else R
+            if np.any(quad.lux):
+                N = quad.lux.T
+        self.Q = as_array("Q", Q, (problem.nx, problem.nx))
+        self.R = as_array("R", R, (problem.nu, problem.nu))
+        self.K, self.P = dlqr(self.A, self.B, self.Q, self.R, N)
+        self.period = problem.dt
+
+    @property
+    def closed_loop_eigenvalues(self) -> np.ndarray:
+        """Eigenvalues of ``A - B K``."""
+        return np.linalg.eigvals(self.A - self.B @ self.K)
+
+    @property
+    def spectral_radius(self) -> float:
+        """Largest closed-loop eigenvalue magnitude (< 1 means locally stable)."""
+        return float(np.max(np.abs(self.closed_loop_eigenvalues)))
+
+    def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
+        dx = self.problem.state_difference(state, self.state0)
+        return self.problem.clip_ctrl(self.ctrl0 - self.K @ dx)

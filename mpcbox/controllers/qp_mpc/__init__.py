@@ -1,0 +1,1 @@
+"""Linear MPC with explicit contact forces in friction cones, solved as a sparse QP."""

@@ -1,0 +1,68 @@
+"""The cross-entropy method (CEM) over spline knots."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mpcbox.controllers.sampling.base import SamplingController
+from mpcbox.controllers.sampling.config import CEMConfig
+from mpcbox.errors import InvalidArgumentError
+
+
+class CEM(SamplingController):
+    r"""Refit a diagonal Gaussian over knots to the lowest-cost candidates.
+
+    Candidates are :math:`U^n = \mu + \sigma \odot \varepsilon^n` (candidate 0 is
+    :math:`\mu` itself). With the ``num_elites`` lowest-cost candidates :math:`E` and the
+    smoothing weight :math:`\beta`,
+
+    .. math::
+        \mu \leftarrow \beta \mu + (1 - \beta) \operatorname{mean}_{n \in E} U^n, \qquad
+        \sigma \leftarrow \operatorname{clip}\big(\beta \sigma + (1 - \beta)
+        \operatorname{std}_{n \in E} U^n, \sigma_{\min}, \sigma_0\big),
+
+    with :math:`\sigma_0` = ``noise_scale``. The nominal :attr:`knots` is :math:`\mu`; the
+    warm start shifts :math:`\mu` and keeps :math:`\sigma`.
+
+    Args:
+        problem: The Problem.
+        config: A :class:`~mpcbox.controllers.sampling.CEMConfig`.
+        **options: Config fields to override.
+    """
+
+    name = "cem"
+    config_class = CEMConfig
+
+    def check_config(self) -> None:
+        cfg = self.config
+        if not 1 <= cfg.num_elites <= self.num_samples:
+            raise InvalidArgumentError(
+                f"num_elites must be in [1, num_samples={self.num_samples}], got {cfg.num_elites}"
+            )
+        if cfg.std_min < 0:
+            raise InvalidArgumentError(f"std_min must be non-negative, got {cfg.std_min}")
+        if not 0.0 <= cfg.smoothing < 1.0:
+            raise InvalidArgumentError(f"smoothing must be in [0, 1), got {cfg.smoothing}")
+
+    def reset_algorithm(self) -> None:
+        shape = (self.spline.num_knots, self.problem.nu)
+        self.std = np.broadcast_to(self.noise_scale, shape).copy()
+
+    def sample(self) -> np.ndarray:
+        assert self.knots is not None
+        eps = self.standard_normal(self.num_samples - 1)
+        cand = np.empty((self.num_samples, *self.knots.shape))
+        cand[0] = self.knots
+        cand[1:] = self.knots + self.std * eps
+        return cand
+
+    def update(self, candidates: np.ndarray, costs: np.ndarray) -> None:
+        cfg = self.config
+        finite = np.flatnonzero(np.isfinite(costs))
+        order = finite[np.argsort(costs[finite], kind="stable")]
+        elites = candidates[order[: cfg.num_elites]]
+        beta = cfg.smoothing
+        self.knots = beta * self.knots + (1 - beta) * elites.mean(axis=0)
+        std = elites.std(axis=0) if len(elites) > 1 else self.std
+        upper = np.broadcast_to(self.noise_scale, self.std.shape)
+        self.std = np.clip(beta * self.std + (1 - beta) * std, cfg.std_min, upper)

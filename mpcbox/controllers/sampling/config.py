@@ -1,0 +1,149 @@
+"""Keyword-only configuration of the sampling controllers and of domain randomization."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+from mpcbox.controllers.sampling.splines import Interpolation
+
+Backend = Literal["cpu", "warp"]
+Risk = Literal["mean", "worst", "cvar"]
+Integrator = Literal["euler", "implicitfast", "implicit", "rk4"]
+BACKENDS: tuple[str, ...] = ("cpu", "warp")
+RISKS: tuple[str, ...] = ("mean", "worst", "cvar")
+#: MuJoCo integrator names (``mjtIntegrator``) accepted by ``planning_integrator``.
+INTEGRATORS: dict[str, int] = {"euler": 0, "rk4": 1, "implicit": 2, "implicitfast": 3}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Randomization:
+    """Per-world model perturbations for robust planning.
+
+    Every candidate is rolled out on ``num_models`` planning models whose body masses (and
+    inertias, scaled alike) and geom friction coefficients are scaled by factors drawn
+    uniformly from the given ranges; the first model is always the nominal one. The costs
+    of one candidate across the models are aggregated with the controller's ``risk``.
+
+    Attributes:
+        num_models: Number of models ``M`` (>= 1), including the nominal one.
+        mass_scale: Range ``(low, high)`` of the per-body mass factors.
+        friction_scale: Range ``(low, high)`` of the per-geom friction factors.
+        seed: Seed of the draw.
+    """
+
+    num_models: int = 4
+    mass_scale: tuple[float, float] = (0.9, 1.1)
+    friction_scale: tuple[float, float] = (0.7, 1.3)
+    seed: int = 0
+
+
+@dataclass(frozen=True, kw_only=True)
+class SamplingConfig:
+    """Options shared by all sampling controllers.
+
+    Attributes:
+        num_samples: Candidates ``N`` per iteration (>= 1).
+        horizon: Planning horizon ``H`` in seconds (at least one planning timestep).
+        num_knots: Spline knots ``K`` over the horizon.
+        interpolation: ``"zero"``, ``"linear"`` or ``"cubic"`` (see :mod:`.splines`).
+        noise_scale: Standard deviation of the knot noise, in control units; a scalar or one
+            value per actuator ``(nu,)``.
+        iterations: Sample/update rounds per control tick.
+        planning_timestep: Plan on a copy of the Problem whose planning model takes steps of
+            this many seconds (:meth:`~mpcbox.Problem.with_planning_timestep`); default: the
+            Problem's planning timestep. A coarser step buys a longer horizon per rollout.
+        planning_integrator: The planning model's integrator (``"euler"``,
+            ``"implicitfast"``, ``"implicit"`` or ``"rk4"``; default: the model's). With
+            joint damping and plain motors Euler (implicit in the damping) predicts like
+            implicitfast and skips its velocity derivatives, a cheaper step.
+        planning_disable: MuJoCo features the planning model switches off, by the names of
+            ``mjtDisableBit`` without the prefix (``"constraint"``, ``"eulerdamp"``,
+            ``"limit"``, ``"contact"``, ...): for example a cart-pole planned without its
+            rail limits and Euler damping: 5% faster per tick on MJWarp.
+        solver_iterations: Warp backend: cap on the constraint solver's iterations in the
+            planning model (``opt.iterations``; default: the model's). Every world waits for
+            the slowest one to converge, so a low cap (1-3 for Newton) makes contact-rich
+            rollouts markedly faster at a small cost in accuracy: on the humanoid with one
+            iteration and Euler, rollout costs 1.2% (median) and 4.3% (max) from the full
+            model's. The CPU backend ignores it: each CPU rollout
+            stops when it converges anyway, and MuJoCo's CPU Newton solver diverges with
+            one iteration where MJWarp's does not (16 of 20 humanoid rollouts,
+            ``tests/test_problem.py``).
+        solver_tolerance: The planning model's solver tolerance (``opt.tolerance``; MJWarp
+            uses at least 1e-6).
+        period: Seconds between controller calls (``None``: every simulation step); without
+            ``replan_period`` every call replans and the control is held in between.
+        replan_period: Seconds between replans when the controller is called more often
+            (typically with ``period=None``): calls in between return the nominal spline at
+            the time elapsed since the last replan instead of holding its first value.
+        backend: ``"cpu"`` (:func:`mujoco.rollout`) or ``"warp"`` (MuJoCo Warp).
+        device: Warp device (``"cuda"``, ``"cuda:0"``, ``"cpu"``); default: CUDA if present.
+        seed: Seed of the numpy Generator that draws the noise.
+        randomization: Optional domain randomization of the planning model.
+        risk: How costs over randomized models are combined: ``"mean"``, ``"worst"``
+            (maximum) or ``"cvar"`` (mean of the worst ``cvar_alpha`` fraction).
+        cvar_alpha: Tail fraction for ``risk="cvar"``, in ``(0, 1]``.
+        headroom: Warp backend: contact and constraint capacity as a multiple of the largest
+            counts seen in the calibration rollouts.
+        use_graph: Warp backend: capture each tick as one CUDA graph (CUDA only).
+    """
+
+    num_samples: int = 128
+    horizon: float = 1.0
+    num_knots: int = 4
+    interpolation: Interpolation = "cubic"
+    noise_scale: float | Sequence[float] = 0.3
+    iterations: int = 1
+    planning_timestep: float | None = None
+    planning_integrator: Integrator | None = None
+    planning_disable: Sequence[str] = ()
+    solver_iterations: int | None = None
+    solver_tolerance: float | None = None
+    period: float | None = None
+    replan_period: float | None = None
+    backend: Backend = "cpu"
+    device: str | None = None
+    seed: int = 0
+    randomization: Randomization | None = None
+    risk: Risk = "mean"
+    cvar_alpha: float = 0.25
+    headroom: float = 2.0
+    use_graph: bool = True
+
+
+@dataclass(frozen=True, kw_only=True)
+class PredictiveSamplingConfig(SamplingConfig):
+    """Predictive sampling: keep the best of the nominal and ``N - 1`` perturbations."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class MPPIConfig(SamplingConfig):
+    """MPPI options.
+
+    Attributes:
+        temperature: Softmax temperature in units of the standard deviation of the valid
+            costs of one iteration (scale-free, so one value suits many tasks).
+    """
+
+    temperature: float = 0.1
+
+
+@dataclass(frozen=True, kw_only=True)
+class CEMConfig(SamplingConfig):
+    """Cross-entropy method options.
+
+    The sampling distribution is a diagonal Gaussian over knots whose mean and standard
+    deviation are refitted to the elites; ``noise_scale`` is the initial (and largest)
+    standard deviation.
+
+    Attributes:
+        num_elites: Number of lowest-cost candidates the distribution is refitted to.
+        std_min: Floor of the standard deviation (keeps exploring).
+        smoothing: Weight of the old distribution in the refit, in ``[0, 1)``.
+    """
+
+    num_elites: int = 16
+    std_min: float = 0.05
+    smoothing: float = 0.0

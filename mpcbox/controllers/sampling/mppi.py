@@ -1,0 +1,62 @@
+"""Model-predictive path integral control (MPPI)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mpcbox.controllers.sampling.base import SamplingController
+from mpcbox.controllers.sampling.config import MPPIConfig
+from mpcbox.errors import InvalidArgumentError
+
+
+class MPPI(SamplingController):
+    r"""Cost-weighted average of Gaussian perturbations of the nominal spline.
+
+    Candidates are drawn as in predictive sampling (candidate 0 is the nominal). With the
+    valid costs :math:`J_n`, their minimum :math:`J^*` and standard deviation :math:`s_J`,
+
+    .. math::
+        w_n = \frac{\exp(-(J_n - J^*) / (\lambda s_J))}{\sum_m \exp(-(J_m - J^*) / (\lambda s_J))},
+        \qquad \bar U \leftarrow \sum_n w_n U^n ,
+
+    where :math:`\lambda` is ``temperature``; excluded candidates (:math:`J_n = \infty`) get
+    zero weight. Normalizing by :math:`s_J` makes :math:`\lambda` independent of the cost's
+    scale: small values approach predictive sampling, large values a plain average.
+
+    Args:
+        problem: The Problem.
+        config: An :class:`~mpcbox.controllers.sampling.MPPIConfig`.
+        **options: Config fields to override.
+    """
+
+    name = "mppi"
+    config_class = MPPIConfig
+
+    def check_config(self) -> None:
+        if not self.config.temperature > 0:
+            raise InvalidArgumentError(
+                f"temperature must be positive, got {self.config.temperature!r}"
+            )
+
+    def sample(self) -> np.ndarray:
+        assert self.knots is not None
+        cand = np.empty((self.num_samples, *self.knots.shape))
+        cand[0] = self.knots
+        cand[1:] = self.knots + self.noise(self.num_samples - 1)
+        return cand
+
+    def update(self, candidates: np.ndarray, costs: np.ndarray) -> None:
+        weights = mppi_weights(costs, self.config.temperature)
+        self.knots = np.einsum("n,nkj->kj", weights, candidates)
+
+
+def mppi_weights(costs: np.ndarray, temperature: float) -> np.ndarray:
+    """Normalized MPPI weights ``(N,)`` of costs ``(N,)`` (``inf`` gets weight zero)."""
+    finite = np.isfinite(costs)
+    valid = costs[finite]
+    spread = float(valid.std()) if valid.size > 1 else 0.0
+    if spread <= 0.0:
+        spread = 1.0
+    w = np.zeros_like(costs, dtype=np.float64)
+    w[finite] = np.exp(-(valid - valid.min()) / (temperature * spread))
+    return w / w.sum()

@@ -1,0 +1,245 @@
+r"""Contact points, their Jacobians, and linearized friction cones.
+
+A contact point is a point fixed in a body, where the ground may push with a force
+:math:`f = (f_x, f_y, f_n) \in \mathbb R^3` in the world frame (the ground normal is the world
+``z`` axis). Its generalized force is :math:`J^T f` with the translational Jacobian
+:math:`J` ``(3, nv)`` of the point.
+
+The Coulomb cone :math:`\|f_t\| \le \mu f_n` is replaced by a pyramid with ``F`` facets of
+outward normals :math:`n_i = (\cos\theta_i, \sin\theta_i)`, :math:`\theta_i = 2\pi i / F`:
+
+.. math:: n_i^T f_t - \mu f_n \le 0, \qquad 0 \le f_n \le f_{\max} .
+
+With ``F = 4`` this is the usual :math:`|f_x| \le \mu f_n,\ |f_y| \le \mu f_n`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import mujoco
+import numpy as np
+
+from mpcbox.core.model import names
+from mpcbox.errors import InvalidArgumentError, UnknownNameError
+from mpcbox.validation import positive, positive_int
+
+_CAPSULE = int(mujoco.mjtGeom.mjGEOM_CAPSULE)
+_SPHERE = int(mujoco.mjtGeom.mjGEOM_SPHERE)
+_BOX = int(mujoco.mjtGeom.mjGEOM_BOX)
+
+
+class ContactPoints(NamedTuple):
+    """Points fixed in bodies where the ground may push.
+
+    Attributes:
+        body: Body id of each point, ``(k,)``.
+        local: Position of each point in its body's frame, ``(k, 3)``.
+        label: Name of the object each point was derived from, ``(k,)`` (a geom, site or body).
+    """
+
+    body: np.ndarray
+    local: np.ndarray
+    label: tuple[str, ...]
+
+    @property
+    def count(self) -> int:
+        """Number of points ``k``."""
+        return len(self.body)
+
+    def world(self, data: mujoco.MjData) -> np.ndarray:
+        """World positions ``(k, 3)`` of the points (needs kinematics in ``data``)."""
+        rot = data.xmat[self.body].reshape(-1, 3, 3)
+        return data.xpos[self.body] + np.einsum("kij,kj->ki", rot, self.local)
+
+    def groups(self) -> list[np.ndarray]:
+        """Indices of the points grouped by body, in order of first appearance."""
+        out: dict[int, list[int]] = {}
+        for i, b in enumerate(self.body):
+            out.setdefault(int(b), []).append(i)
+        return [np.array(v, dtype=int) for v in out.values()]
+
+
+def _geom_points(model: mujoco.MjModel, data: mujoco.MjData, gid: int) -> list[np.ndarray]:
+    """World points at the bottom of a geom: capsule and box ends, sphere bottom."""
+    down = np.array([0.0, 0.0, -1.0])
+    pos = data.geom_xpos[gid]
+    rot = data.geom_xmat[gid].reshape(3, 3)
+    size = model.geom_size[gid]
+    gtype = model.geom_type[gid]
+    if gtype == _CAPSULE:
+        axis = rot[:, 2] * size[1]
+        return [pos + axis + size[0] * down, pos - axis + size[0] * down]
+    if gtype == _SPHERE:
+        return [pos + size[0] * down]
+    if gtype == _BOX:
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        world = pos + (corners * size) @ rot.T
+        lowest = np.argsort(world[:, 2])[:4]
+        return list(world[lowest])
+    raise InvalidArgumentError(
+        f"contacts: geom {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, gid)!r} has a type "
+        "without contact points (use a capsule, sphere or box geom, or a site)"
+    )
+
+
+def contact_points(
+    model: mujoco.MjModel, contacts: Sequence[str] | str, qpos: np.ndarray | None = None
+) -> ContactPoints:
+    """Contact points from geom, site or body names.
+
+    Names are looked up as a geom, then a body, then a site; a prefix ``"geom:"``,
+    ``"body:"`` or ``"site:"`` restricts the lookup to one kind.
+
+    * a **geom** gives the bottom of each end of a capsule, the bottom of a sphere, or the four
+      lowest corners of a box, at posture ``qpos``;
+    * a **site** gives its own position;
+    * a **body** gives the points of each of its collision geoms (``contype`` or
+      ``conaffinity`` non-zero) that is a capsule, sphere or box.
+
+    Args:
+        model: The model.
+        contacts: Names (or one name).
+        qpos: Posture ``(nq,)`` where "bottom" is evaluated (default ``qpos0``).
+
+    Returns:
+        The :class:`ContactPoints`, in body-local coordinates.
+
+    Raises:
+        UnknownNameError: If a name is none of a geom, site or body (lists the valid names).
+        InvalidArgumentError: If no name is given or a body has no usable geom.
+    """
+    if isinstance(contacts, str):
+        contacts = [contacts]
+    contacts = list(contacts)
+    if not contacts:
+        raise InvalidArgumentError("contacts must name at least one geom, site or body")
+    data = mujoco.MjData(model)
+    if qpos is not None:
+        data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    bodies: list[int] = []
+    points: list[np.ndarray] = []
+    labels: list[str] = []
+
+    def add(body: int, world: np.ndarray, label: str) -> None:
+        rot = data.xmat[body].reshape(3, 3)
+        bodies.append(body)
+        points.append(rot.T @ (world - data.xpos[body]))
+        labels.append(label)
+
+    for entry in contacts:
+        if not isinstance(entry, str):
+            raise InvalidArgumentError(f"contacts must hold names (str), got {entry!r}")
+        kind, _, name = entry.rpartition(":")
+        if kind not in ("", "geom", "body", "site"):
+            kind, name = "", entry
+        found = {
+            k: mujoco.mj_name2id(model, obj, name)
+            for k, obj in (
+                ("geom", mujoco.mjtObj.mjOBJ_GEOM),
+                ("body", mujoco.mjtObj.mjOBJ_BODY),
+                ("site", mujoco.mjtObj.mjOBJ_SITE),
+            )
+            if kind in ("", k)
+        }
+        hit = next((k for k, i in found.items() if i >= 0), None)
+        if hit == "geom":
+            gid = found["geom"]
+            for p in _geom_points(model, data, gid):
+                add(int(model.geom_bodyid[gid]), p, name)
+        elif hit == "body":
+            bid = found["body"]
+            geoms = [
+                g
+                for g in range(model.ngeom)
+                if model.geom_bodyid[g] == bid
+                and (model.geom_contype[g] or model.geom_conaffinity[g])
+                and model.geom_type[g] in (_CAPSULE, _SPHERE, _BOX)
+            ]
+            if not geoms:
+                raise InvalidArgumentError(
+                    f"contacts: body {name!r} has no capsule, sphere or box collision geom"
+                )
+            for g in geoms:
+                for p in _geom_points(model, data, g):
+                    add(bid, p, name)
+        elif hit == "site":
+            sid = found["site"]
+            add(int(model.site_bodyid[sid]), data.site_xpos[sid].copy(), name)
+        else:
+            kinds = list(found)
+            valid = [n for k in kinds for n in names(model, k)]
+            raise UnknownNameError("contact " + " or ".join(kinds), name, valid)
+    return ContactPoints(np.array(bodies, dtype=int), np.array(points), tuple(labels))
+
+
+def contact_jacobian(
+    model: mujoco.MjModel, data: mujoco.MjData, points: ContactPoints
+) -> np.ndarray:
+    """Stacked translational Jacobians of the points, shape ``(3 k, nv)``.
+
+    Rows ``3 i : 3 i + 3`` map ``qvel`` to the world velocity of point ``i``. ``data`` needs
+    kinematics and ``cdof`` (``mj_forward`` or ``mj_kinematics`` + ``mj_comPos``).
+    """
+    world = points.world(data)
+    jac = np.zeros((3 * points.count, model.nv))
+    for i, (body, p) in enumerate(zip(points.body, world)):
+        mujoco.mj_jac(model, data, jac[3 * i : 3 * i + 3], None, p, int(body))
+    return jac
+
+
+def body_twist_jacobian(
+    model: mujoco.MjModel, data: mujoco.MjData, body: int, point: np.ndarray
+) -> np.ndarray:
+    """Jacobian ``(6, nv)`` of a body's twist: velocity of ``point`` (3 rows), then angular."""
+    jac = np.zeros((6, model.nv))
+    mujoco.mj_jac(model, data, jac[:3], jac[3:], point, int(body))
+    return jac
+
+
+def friction_pyramid(mu: float, facets: int = 4) -> np.ndarray:
+    r"""Rows ``G`` ``(facets, 3)`` with :math:`G f \le 0` the linearized friction cone.
+
+    Row ``i`` is :math:`(\cos\theta_i, \sin\theta_i, -\mu)`, :math:`\theta_i = 2\pi i / F`.
+
+    Args:
+        mu: Friction coefficient (> 0).
+        facets: Number of facets, ``4`` or ``8`` (any even number >= 4 works).
+
+    Raises:
+        InvalidArgumentError: If ``mu <= 0`` or ``facets`` is not an even integer >= 4.
+    """
+    mu = positive("mu", mu)
+    facets = positive_int("facets", facets)
+    if facets < 4 or facets % 2:
+        raise InvalidArgumentError(f"facets must be an even integer >= 4, got {facets}")
+    theta = 2.0 * np.pi * np.arange(facets) / facets
+    return np.column_stack([np.cos(theta), np.sin(theta), np.full(facets, -mu)])
+
+
+def cone_violation(forces: np.ndarray, mu: float, facets: int, f_max: float) -> float:
+    """Largest violation of the pyramid and ``0 <= f_n <= f_max`` over forces ``(..., 3)``."""
+    forces = np.asarray(forces, dtype=np.float64).reshape(-1, 3)
+    if forces.size == 0:
+        return 0.0
+    g = forces @ friction_pyramid(mu, facets).T
+    fn = forces[:, 2]
+    return float(max(np.max(g), np.max(-fn), np.max(fn - f_max), 0.0))
+
+
+def project_to_pyramid(forces: np.ndarray, mu: float, facets: int, f_max: float) -> np.ndarray:
+    """Nearby forces ``(..., 3)`` inside the pyramid: clamp ``f_n``, then shrink ``f_t``.
+
+    Used to remove the solver's tolerance-level violations from a plan; it moves a force by
+    no more than that violation (times a factor depending on ``mu`` and ``facets``).
+    """
+    out = np.array(forces, dtype=np.float64, copy=True).reshape(-1, 3)
+    out[:, 2] = np.clip(out[:, 2], 0.0, f_max)
+    normals = friction_pyramid(mu, facets)[:, :2]
+    support = np.max(out[:, :2] @ normals.T, axis=1)
+    limit = mu * out[:, 2]
+    scale = np.where(support > limit, limit / np.maximum(support, 1e-300), 1.0)
+    out[:, :2] *= scale[:, None]
+    return out.reshape(np.shape(forces))

@@ -1,0 +1,156 @@
+"""Disturbances for closed-loop simulation: actuator noise, pushes and model mismatch."""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from mpcbox.core.model import object_id
+from mpcbox.errors import InvalidArgumentError
+from mpcbox.validation import as_array, positive
+
+
+@dataclass(frozen=True, kw_only=True)
+class ActuatorNoise:
+    r"""Smooth actuator noise added to the control at every simulation step.
+
+    White noise :math:`w \sim \mathcal N(0, I)` of shape ``(steps, nu)`` from numpy's legacy
+    generator (``RandomState(seed).randn``) is convolved per actuator (``mode="same"``) with
+    the unit-norm Gaussian kernel :math:`k_i \propto \exp(-s_i^2 / 2)`,
+    :math:`s \in [-3, 3]` spanning ``width`` seconds, then scaled per actuator by ``std``
+    times ``scale``. The unit-norm kernel keeps the per-step standard deviation at ``std``.
+
+    Attributes:
+        std: Standard deviation per actuator ``(nu,)`` or one for all.
+        width: Time span of the smoothing kernel (s).
+        scale: Multiplier on ``std`` (noise level in sweeps).
+    """
+
+    std: float | Sequence[float] | np.ndarray
+    width: float = 0.8
+    scale: float = 1.0
+
+    def sample(self, steps: int, nu: int, dt: float, seed: int) -> np.ndarray:
+        """Noise ``(steps, nu)`` for a simulation with timestep ``dt``."""
+        std = np.asarray(self.std, dtype=np.float64)
+        std = np.full(nu, float(std)) if std.ndim == 0 else as_array("std", std, (nu,))
+        if np.any(std < 0) or not np.all(np.isfinite(std)):
+            raise InvalidArgumentError(f"std must be finite and non-negative, got {std}")
+        if self.scale < 0:
+            raise InvalidArgumentError(f"scale must be >= 0, got {self.scale}")
+        white = np.random.RandomState(seed).randn(steps, nu)
+        width = max(1, int(positive("width", self.width) / dt))
+        kernel = np.exp(-0.5 * np.linspace(-3.0, 3.0, width) ** 2)
+        kernel /= np.linalg.norm(kernel)
+        smooth = np.empty_like(white)
+        start = (width - 1) // 2  # the centred slice of "full" that mode="same" returns
+        for i in range(nu):
+            # Slicing "full" keeps runs shorter than the kernel working.
+            full = np.convolve(white[:, i], kernel, mode="full")
+            smooth[:, i] = full[start : start + steps]
+        return smooth * std * self.scale
+
+    @classmethod
+    def balance_recipe(
+        cls,
+        model: mujoco.MjModel,
+        *,
+        stance: str = "left",
+        scale: float = 1.0,
+        low: float = 0.01,
+        high: float = 0.08,
+    ) -> ActuatorNoise:
+        """The published one-leg balance recipe's per-actuator noise.
+
+        Actuators on the abdomen and stance-leg joints (hip, knee, ankle) whose names contain
+        no ``"z"`` get ``low``; every other actuator gets ``high``.
+
+        Args:
+            model: The model whose actuator (joint) names are read.
+            stance: ``"left"`` or ``"right"``.
+            scale: Noise scale.
+            low: Standard deviation on the balance joints.
+            high: Standard deviation on the others.
+        """
+        if stance not in ("left", "right"):
+            raise InvalidArgumentError(f"stance must be 'left' or 'right', got {stance!r}")
+        std = np.full(model.nu, high)
+        for i in range(model.nu):
+            jnt = model.actuator_trnid[i, 0]
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, jnt) or ""
+            leg = stance in name and any(k in name for k in ("hip", "knee", "ankle"))
+            if ("abdomen" in name or leg) and "z" not in name:
+                std[i] = low
+        return cls(std=std, scale=scale)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Push:
+    """A constant force on a body's center of mass over a time interval (``xfrc_applied``).
+
+    Attributes:
+        force: World-frame force ``(3,)`` in newtons.
+        start: Start time (s).
+        duration: Duration (s).
+        body: Body name.
+        torque: Optional world-frame torque ``(3,)``.
+    """
+
+    force: Sequence[float] | np.ndarray
+    start: float = 1.0
+    duration: float = 0.1
+    body: str = "torso"
+    torque: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0)
+
+    @property
+    def impulse(self) -> float:
+        """Magnitude of the linear impulse (N s)."""
+        return float(np.linalg.norm(self.force) * self.duration)
+
+    def active(self, time: float) -> bool:
+        """Whether the push acts at ``time``."""
+        return self.start <= time < self.start + self.duration
+
+    def wrench(self) -> np.ndarray:
+        """``[force, torque]`` of shape ``(6,)``."""
+        return np.concatenate(
+            [as_array("force", self.force, (3,)), as_array("torque", self.torque, (3,))]
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModelMismatch:
+    """Differences between the simulated plant and the model the controller plans with.
+
+    Attributes:
+        mass_scale: Multiplier on every body's mass and inertia.
+        friction_scale: Multiplier on every geom's sliding friction.
+        body_mass_scale: Extra per-body multipliers by name, e.g. ``{"torso": 1.2}``.
+    """
+
+    mass_scale: float = 1.0
+    friction_scale: float = 1.0
+    body_mass_scale: dict[str, float] | None = None
+
+    def apply(self, model: mujoco.MjModel) -> mujoco.MjModel:
+        """A modified copy of ``model``."""
+        out = copy.copy(model)
+        scale = np.full(model.nbody, positive("mass_scale", self.mass_scale))
+        for name, value in (self.body_mass_scale or {}).items():
+            scale[object_id(model, "body", name)] *= positive(f"body_mass_scale[{name!r}]", value)
+        out.body_mass[:] = model.body_mass * scale
+        out.body_inertia[:] = model.body_inertia * scale[:, None]
+        out.geom_friction[:, 0] = model.geom_friction[:, 0] * positive(
+            "friction_scale", self.friction_scale
+        )
+        # MuJoCo keeps mass-derived constants; recompute them for the new masses.
+        mujoco.mj_setConst(out, mujoco.MjData(out))
+        return out
+
+
+Disturbance = ActuatorNoise | Push | ModelMismatch
+PushSchedule = Sequence[Push] | Callable[[float], np.ndarray]

@@ -1,0 +1,1 @@
+"""Humanoid balance tasks on the humanoid scene shipped with mpcbox."""

@@ -1,0 +1,180 @@
+"""One-leg balance of a humanoid: the main mpcbox example."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, ClassVar
+
+import mujoco
+import numpy as np
+
+from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, StateCost
+from mpcbox.core.model import ModelSource, frame_object, object_id
+from mpcbox.errors import InvalidArgumentError
+from mpcbox.tasks import scene_path
+from mpcbox.tasks.humanoid.base import HumanoidProblem, balance_dofs, joint_weights
+
+
+class HumanoidBalance(HumanoidProblem):
+    """Balance a humanoid on one leg.
+
+    The reference posture is the keyframe ``stand_on_left_leg`` for the left leg, or a
+    mink inverse-kinematics stance (center of mass over the right foot, left foot lifted
+    10 cm) for the right leg. The root height is then adjusted and the holding control found
+    by inverse dynamics (:func:`~mpcbox.find_equilibrium`).
+
+    The cost is the one-leg balance cost: the horizontal distance of the center of mass from
+    the stance foot (weight ``balance_cost``), joint deviations from the reference posture
+    (``balance_joint_cost`` on the abdomen and stance-leg joints without a ``z`` in their
+    names, ``other_joint_cost`` elsewhere, none on the root), and control effort about the
+    holding control (``ctrl_cost``).
+
+    Args:
+        leg: Stance leg, ``"left"`` or ``"right"``.
+        model: MJCF of a humanoid with the classic humanoid's names (default:
+            ``mpcbox/tasks/scenes/humanoid.xml``).
+        balance_cost: Weight of the COM-over-foot residual.
+        balance_joint_cost: Weight of balance-joint deviations.
+        other_joint_cost: Weight of the other joint deviations.
+        velocity_cost: Weight of joint velocities (all dofs).
+        ctrl_cost: Weight of control deviations.
+        fall_height: The run fails when the torso is lower than this (m).
+        **kwargs: Passed to :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
+    """
+
+    name = "humanoid_balance"
+    #: Keyword arguments for each controller built by :func:`mpcbox.make_controller`.
+    controller_options: ClassVar[dict[str, dict[str, Any]]] = {
+        "lqr": {},
+        # Contact-force QP-MPC (issue #4): 10 steps of 0.02 s, stance-foot capsule ends.
+        "qp": dict(
+            horizon=10, dt=0.02, contacts=("body:foot_left",), stance_weight=1e5, terminal_scale=5.0
+        ),
+        # iLQR-MPC (issue #3): 0.35 s horizon on a 0.015 s planning model, 50 Hz replanning.
+        "ilqr": dict(
+            horizon=23,
+            planning_timestep=0.015,
+            replan_period=0.02,
+            mpc_iterations=1,
+            first_iterations=5,
+            linearize_every=2,
+            fd_centered=False,
+            regularization=1e-3,
+            terminal_value="lqr",
+        ),
+        # Sampling MPC (issue #5), sized for the warp backend on one GPU (H200 results under
+        # the noise recipe in benchmarks/results/sampling_gpu.json).
+        "ps": dict(
+            num_samples=2048,
+            horizon=0.5,
+            num_knots=6,
+            noise_scale=0.1,
+            planning_timestep=0.01,
+            period=0.02,
+        ),
+        "mppi": dict(
+            num_samples=2048,
+            horizon=0.8,
+            num_knots=8,
+            noise_scale=0.2,
+            temperature=0.1,
+            planning_timestep=0.02,
+            period=0.02,
+        ),
+        "cem": dict(
+            num_samples=2048,
+            horizon=0.5,
+            num_knots=6,
+            noise_scale=0.2,
+            num_elites=64,
+            std_min=0.05,
+            planning_timestep=0.01,
+            period=0.02,
+        ),
+    }
+
+    def __init__(
+        self,
+        leg: str = "left",
+        *,
+        model: ModelSource | None = None,
+        balance_cost: float = 1000.0,
+        balance_joint_cost: float = 3.0,
+        other_joint_cost: float = 0.3,
+        velocity_cost: float = 0.0,
+        ctrl_cost: float = 1.0,
+        fall_height: float = 0.8,
+        **kwargs: Any,
+    ) -> None:
+        if leg not in ("left", "right"):
+            raise InvalidArgumentError(f"leg must be 'left' or 'right', got {leg!r}")
+        self.leg = leg
+        self.swing_leg = "right" if leg == "left" else "left"
+        self.weights = dict(
+            balance=balance_cost,
+            balance_joint=balance_joint_cost,
+            other_joint=other_joint_cost,
+            velocity=velocity_cost,
+            ctrl=ctrl_cost,
+        )
+        self.fall_height = float(fall_height)
+        self.noise_stance = leg
+        source: ModelSource = scene_path("humanoid.xml") if model is None else model
+        if leg == "left":
+            kwargs.setdefault("keyframe", "stand_on_left_leg")
+        super().__init__(source, **kwargs)
+
+    # The feet: a site named foot_<leg> when the model has one, else the body foot_<leg>.
+    def foot(self, leg: str) -> str:
+        """Name of the support frame of a foot."""
+        return f"foot_{leg}"
+
+    def prepare(self, model: mujoco.MjModel) -> None:
+        if self.leg == "right":
+            from mpcbox.core.posture import stance_posture
+
+            start = (
+                model.key_qpos[object_id(model, "keyframe", "stand")]
+                if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "stand") >= 0
+                else model.qpos0
+            )
+            self.posture = stance_posture(
+                model, start, stance=self.foot("right"), swing=self.foot("left")
+            )
+            self.qpos_ref = self.posture.qpos
+        super().prepare(model)
+        frame_object(model, self.foot(self.leg))  # fails early with the valid names
+
+    def build_cost(self, model: mujoco.MjModel) -> Cost:
+        w = self.weights
+        dofs = balance_dofs(model, (self.leg,))
+        wq = joint_weights(model, dofs, w["balance_joint"], w["other_joint"])
+        return Cost(
+            [
+                ComOverSupport(self.foot(self.leg), w["balance"], root="torso", name="balance"),
+                StateCost(self.qpos_ref, wq, w["velocity"]),
+                ControlCost(w["ctrl"], self.ctrl_ref),
+            ]
+        )
+
+    def support_point(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+        return self.frame_xy(model, data, self.foot(self.leg))
+
+
+def classic_humanoid_path() -> Path | None:
+    """The classic MuJoCo humanoid that the mujoco-warp package ships as test data, if present."""
+    try:
+        import importlib.util
+
+        spec = importlib.util.find_spec("mujoco_warp")
+    except (ImportError, ValueError):
+        return None
+    if spec is None or not spec.submodule_search_locations:
+        return None
+    path = (
+        Path(next(iter(spec.submodule_search_locations)))
+        / "test_data"
+        / "humanoid"
+        / "humanoid.xml"
+    )
+    return path if path.is_file() else None

@@ -1,0 +1,143 @@
+"""Standing humanoid on two feet: a task where sampling-based MPC is the natural tool."""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import mujoco
+import numpy as np
+
+from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, FrameHeight, StateCost, Upright
+from mpcbox.core.model import ModelSource
+from mpcbox.tasks import scene_path
+from mpcbox.tasks.humanoid.base import HumanoidProblem
+
+
+class HumanoidStand(HumanoidProblem):
+    r"""Keep a humanoid standing on both feet (keyframe ``stand`` of ``mpcbox/tasks/scenes/humanoid.xml``).
+
+    The reference posture is the keyframe with the root height adjusted until the contacts
+    carry the weight, and the reference control holds it (:func:`~mpcbox.find_equilibrium`).
+    The running cost (and, ``terminal_scale`` times heavier, the terminal cost) is
+
+    .. math::
+        \tfrac12 w_h (z_{torso} - z_{ref})^2 + \tfrac12 w_u \|e_{z,xy}\|^2
+        + \tfrac12 \|q \ominus q_{ref}\|^2_{W_q} + \tfrac12 w_v \|v\|^2
+        + \tfrac12 w_c \|u - u_{ref}\|^2 ,
+
+    where :math:`e_{z,xy}` is the horizontal part of the torso's z axis and :math:`W_q` is
+    ``posture_cost`` on the joints and ``root_cost`` on the root's horizontal position (its
+    height and orientation are covered by the first two terms), plus
+    :math:`\tfrac12 w_b \sum_{f} \|c_{xy} - p_{f,xy}\|^2` over both feet ``f`` (the
+    whole-body centre of mass :math:`c` over each foot, i.e. over their midpoint up to a
+    constant). The balance term is what makes sampling MPC stand: without it the slow
+    falling mode (the whole body leaning over the ankles with the torso upright) costs too
+    little over a short horizon compared with the control deviations.
+
+    Args:
+        model: MJCF of the humanoid (default ``mpcbox/tasks/scenes/humanoid.xml``).
+        height_cost: Weight :math:`w_h` of the torso height.
+        upright_cost: Weight :math:`w_u` of the torso tilt.
+        posture_cost: Weight of the joint deviations.
+        root_cost: Weight of the root's horizontal drift.
+        velocity_cost: Weight :math:`w_v` of all velocities.
+        ctrl_cost: Weight :math:`w_c` of the control deviations.
+        balance_cost: Weight :math:`w_b` of the centre of mass over each foot (0 drops it).
+        terminal_scale: Multiplier of the terminal cost.
+        fall_height: The run fails when the torso is lower than this (m).
+        **kwargs: Passed to :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
+    """
+
+    name = "humanoid_stand"
+    #: Keyword arguments for controllers built by :func:`mpcbox.make_controller`.
+    controller_options: ClassVar[dict[str, dict[str, Any]]] = {
+        # Sampling MPC (issue #5), sized for the warp backend on one GPU: a 0.5 s horizon on
+        # a 0.01 s planning model (50 steps), six knots, replanning at 50 Hz. The planning
+        # model integrates with Euler and caps the constraint solver (MPPI and CEM at one
+        # Newton iteration, predictive sampling at two), about 1.5x faster per tick than the
+        # full model (benchmarks/sampling_planning_model.py). Survives 10 s of the published
+        # actuator noise on an H200 (benchmarks/sampling.py, closed_loop).
+        "ps": dict(
+            num_samples=2048, horizon=0.5, num_knots=6, noise_scale=0.2,
+            planning_timestep=0.01, period=0.02, planning_integrator="euler",
+            solver_iterations=2,
+        ),
+        "mppi": dict(
+            num_samples=2048, horizon=0.5, num_knots=6, noise_scale=0.2, temperature=0.1,
+            planning_timestep=0.01, period=0.02, planning_integrator="euler",
+            solver_iterations=1,
+        ),
+        "cem": dict(
+            num_samples=2048, horizon=0.5, num_knots=6, noise_scale=0.2, num_elites=64,
+            std_min=0.05, planning_timestep=0.01, period=0.02, planning_integrator="euler",
+            solver_iterations=1,
+        ),
+    }  # fmt: skip
+
+    def __init__(
+        self,
+        *,
+        model: ModelSource | None = None,
+        height_cost: float = 100.0,
+        upright_cost: float = 30.0,
+        posture_cost: float = 1.0,
+        root_cost: float = 10.0,
+        velocity_cost: float = 0.05,
+        ctrl_cost: float = 0.1,
+        balance_cost: float = 1000.0,
+        terminal_scale: float = 5.0,
+        fall_height: float = 0.9,
+        **kwargs: Any,
+    ) -> None:
+        self.weights = dict(
+            height=height_cost,
+            upright=upright_cost,
+            posture=posture_cost,
+            root=root_cost,
+            velocity=velocity_cost,
+            ctrl=ctrl_cost,
+            balance=balance_cost,
+            terminal=terminal_scale,
+        )
+        self.fall_height = float(fall_height)
+        kwargs.setdefault("keyframe", "stand")
+        super().__init__(scene_path("humanoid.xml") if model is None else model, **kwargs)
+
+    def prepare(self, model: mujoco.MjModel) -> None:
+        super().prepare(model)
+        data = mujoco.MjData(model)
+        data.qpos[:] = self.qpos_ref
+        mujoco.mj_kinematics(model, data)
+        self.torso_height = float(data.xpos[self._torso, 2])
+
+    def _terms(self, model: mujoco.MjModel, scale: float, suffix: str) -> list:
+        w = self.weights
+        wq = np.full(model.nv, w["posture"])
+        for j in range(model.njnt):
+            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+                adr = model.jnt_dofadr[j]
+                wq[adr : adr + 2] = w["root"]
+                wq[adr + 2 : adr + 6] = 0.0
+        balance = [
+            ComOverSupport(
+                f"foot_{side}", scale * w["balance"], root="torso", name=f"com_{side}{suffix}"
+            )
+            for side in ("left", "right")
+            if w["balance"] > 0
+        ]
+        return [
+            *balance,
+            FrameHeight("torso", self.torso_height, scale * w["height"], name="height" + suffix),
+            Upright("torso", scale * w["upright"], name="upright" + suffix),
+            StateCost(self.qpos_ref, scale * wq, scale * w["velocity"], name="posture" + suffix),
+        ]
+
+    def build_cost(self, model: mujoco.MjModel) -> Cost:
+        running = [*self._terms(model, 1.0, ""), ControlCost(self.weights["ctrl"], self.ctrl_ref)]
+        return Cost(running, self._terms(model, self.weights["terminal"], "_terminal"))
+
+    def support_point(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+        """Midpoint of the two foot sites."""
+        return 0.5 * (
+            self.frame_xy(model, data, "foot_left") + self.frame_xy(model, data, "foot_right")
+        )
