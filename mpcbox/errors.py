@@ -6,6 +6,7 @@ its meaning, so ``except ValueError`` keeps working for callers that do not know
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Iterable
 
 
@@ -55,7 +56,9 @@ class UnknownNameError(InvalidArgumentError):
         shown = ", ".join(repr(v) for v in valid[:40])
         if len(valid) > 40:
             shown += f", ... ({len(valid)} in all)"
-        super().__init__(f"unknown {kind} {name!r}; valid {kind} names: {shown or '(none)'}")
+        close = difflib.get_close_matches(str(name), valid, n=3)
+        hint = f" (did you mean {' or '.join(map(repr, close))}?)" if close else ""
+        super().__init__(f"unknown {kind} {name!r}{hint}; valid {kind} names: {shown or '(none)'}")
 
 
 class ModelNotFoundError(MpcboxError, FileNotFoundError):

@@ -7,6 +7,7 @@ imports optional dependencies (CasADi, MJWarp).
 from __future__ import annotations
 
 import importlib
+import importlib.util
 from typing import Any
 
 from mpcbox.errors import UnknownNameError
@@ -22,6 +23,10 @@ CONTROLLERS: dict[str, str] = {
     "mppi": "mpcbox.controllers.sampling:MPPI",
     "cem": "mpcbox.controllers.sampling:CEM",
 }
+
+#: Controller name -> the optional modules it needs at construction (imported lazily by the
+#: controller, so importing its class succeeds without them).
+OPTIONAL_DEPENDENCIES: dict[str, tuple[str, ...]] = {"ipopt": ("casadi",)}
 
 #: Task name -> Problem subclass with a no-argument constructor.
 TASKS: dict[str, str] = {
@@ -77,6 +82,8 @@ def available_controllers(problem: Any) -> list[str]:
     names = []
     for name in CONTROLLERS:
         if name not in getattr(problem, "controller_options", {}):
+            continue
+        if any(importlib.util.find_spec(m) is None for m in OPTIONAL_DEPENDENCIES.get(name, ())):
             continue
         try:
             controller_class(name)

@@ -1,0 +1,92 @@
+"""Menagerie loading: missing visual meshes are dropped, missing collision meshes are errors.
+
+The first tests write small MJCF files that reference mesh files which do not exist, so they
+run anywhere. Tests marked ``menagerie`` need an offline copy (``MENAGERIE_ROOT``) and skip
+without one.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from mpcbox.core import menagerie
+from mpcbox.errors import ModelLoadError
+
+CUBE_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n"
+
+
+def write_scene(folder: Path, *, visual_missing: bool, collision_missing: bool) -> Path:
+    (folder / "assets").mkdir()
+    (folder / "assets" / "present.obj").write_text(CUBE_OBJ)
+    xml = f"""
+<mujoco>
+  <compiler meshdir="assets"/>
+  <asset>
+    <mesh name="present" file="present.obj"/>
+    <mesh name="looks" file="{"gone" if visual_missing else "present"}.obj"/>
+    <mesh name="hits" file="{"absent" if collision_missing else "present"}.obj"/>
+  </asset>
+  <worldbody>
+    <body name="link">
+      <freejoint/>
+      <geom type="mesh" mesh="looks" contype="0" conaffinity="0" group="2"/>
+      <geom name="bumper" type="mesh" mesh="hits"/>
+      <geom type="mesh" mesh="present" contype="0" conaffinity="0"/>
+    </body>
+  </worldbody>
+</mujoco>"""
+    path = folder / "robot.xml"
+    path.write_text(xml)
+    return path
+
+
+def test_missing_visual_mesh_is_dropped_with_a_warning(tmp_path: Path) -> None:
+    path = write_scene(tmp_path, visual_missing=True, collision_missing=False)
+    with pytest.raises(ValueError):  # MuJoCo itself cannot compile it
+        mujoco.MjModel.from_xml_path(str(path))
+    spec = mujoco.MjSpec.from_file(str(path))
+    with pytest.warns(menagerie.MissingMeshWarning, match="looks"):
+        dropped = menagerie.drop_missing_visual_meshes(spec)
+    assert dropped == ["looks"]
+    model = spec.compile()
+    assert model.ngeom == 2 and model.nmesh == 2  # the collision geom and mesh are kept
+    assert model.geom("bumper").contype == 1
+
+
+def test_missing_collision_mesh_is_an_error_naming_the_geom(tmp_path: Path) -> None:
+    path = write_scene(tmp_path, visual_missing=False, collision_missing=True)
+    spec = mujoco.MjSpec.from_file(str(path))
+    with pytest.raises(ModelLoadError, match=r"bumper.*absent"):
+        menagerie.drop_missing_visual_meshes(spec)
+
+
+def test_nothing_missing_changes_nothing(tmp_path: Path) -> None:
+    path = write_scene(tmp_path, visual_missing=False, collision_missing=False)
+    spec = mujoco.MjSpec.from_file(str(path))
+    assert menagerie.drop_missing_visual_meshes(spec) == []
+    assert spec.compile().ngeom == 3
+
+
+def test_unknown_robot_lists_the_valid_names() -> None:
+    pytest.importorskip("mujoco_menagerie")
+    with pytest.raises(
+        ValueError, match=r"unknown Menagerie robot 'unitree_g2'.*mean 'unitree_g1'"
+    ):
+        menagerie.robot_xml("unitree_g2")
+
+
+@pytest.mark.menagerie
+def test_panda_loads_from_menagerie_root() -> None:
+    if not (os.environ.get("MENAGERIE_ROOT") and menagerie.available("franka_emika_panda")):
+        pytest.skip("no offline Menagerie copy with franka_emika_panda (set MENAGERIE_ROOT)")
+    model = menagerie.robot_spec("franka_emika_panda").compile()
+    assert model.nu == 8 and model.nkey >= 1
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    mujoco.mj_step(model, data)
+    assert np.all(np.isfinite(data.qpos))
