@@ -75,7 +75,7 @@ def test_nothing_missing_changes_nothing(tmp_path: Path) -> None:
 def test_unknown_robot_lists_the_valid_names() -> None:
     pytest.importorskip("mujoco_menagerie")
     with pytest.raises(
-        ValueError, match=r"unknown Menagerie robot 'unitree_g2'.*mean 'unitree_g1'"
+        ValueError, match=r"unknown Menagerie robot 'unitree_g2'.*did you mean.*'unitree_g1'"
     ):
         menagerie.robot_xml("unitree_g2")
 
