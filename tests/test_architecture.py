@@ -43,7 +43,7 @@ def modules() -> dict[str, Path]:
 
 def layer(name: str) -> int:
     best = None
-    for prefix, value in LAYERS.items():
+    for prefix in LAYERS:
         if (name == prefix or name.startswith(prefix + ".")) and (
             best is None or len(prefix) > len(best)
         ):
