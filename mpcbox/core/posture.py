@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 
 from mpcbox.core.model import frame_object
-from mpcbox.errors import SolverError
+from mpcbox.errors import InvalidArgumentError, SolverError
 from mpcbox.validation import as_array, positive, positive_int
 
 
@@ -120,3 +120,153 @@ def stance_posture(
     return StancePosture(
         config.q.copy(), com_err, float(height - swing_pose.translation()[2]), used
     )
+
+
+class ReachPosture(NamedTuple):
+    """Result of :func:`reach_posture`.
+
+    Attributes:
+        qpos: The posture ``(nq,)``.
+        position_error: Distance of the frame from the target position (m).
+        orientation_error: Angle between the frame and the target orientation (rad; 0 when no
+            orientation was asked for).
+        iterations: IK iterations used.
+        collisions: Names of the geom pairs in contact at the posture (empty when free).
+    """
+
+    qpos: np.ndarray
+    position_error: float
+    orientation_error: float
+    iterations: int
+    collisions: tuple[tuple[str, str], ...]
+
+
+def _geom_label(model: mujoco.MjModel, geom: int) -> str:
+    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
+    body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, model.geom_bodyid[geom])
+    return name or f"geom {geom} of body {body or model.geom_bodyid[geom]}"
+
+
+def self_collisions(
+    model: mujoco.MjModel, qpos: np.ndarray, *, margin: float = 0.0
+) -> tuple[tuple[str, str], ...]:
+    """The pairs of geoms of *different moving bodies* that touch or penetrate at ``qpos``.
+
+    Contacts with the world body (a floor, a table) are not self-collisions and are left out.
+
+    Args:
+        model: The model.
+        qpos: The posture ``(nq,)``.
+        margin: Report pairs closer than this distance (m); 0 reports penetrations only.
+
+    Returns:
+        ``(geom_a, geom_b)`` labels, one per touching pair.
+    """
+    qpos = as_array("qpos", qpos, (model.nq,))
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_forward(model, data)
+    pairs = []
+    for i in range(data.ncon):
+        con = data.contact[i]
+        b1, b2 = model.geom_bodyid[con.geom1], model.geom_bodyid[con.geom2]
+        if b1 == 0 or b2 == 0 or con.dist > -margin:
+            continue
+        pairs.append((_geom_label(model, con.geom1), _geom_label(model, con.geom2)))
+    return tuple(pairs)
+
+
+def reach_posture(
+    model: mujoco.MjModel,
+    qpos_init: np.ndarray,
+    *,
+    frame: str,
+    position: np.ndarray,
+    orientation: np.ndarray | None = None,
+    avoid_collisions: bool = True,
+    iterations: int = 500,
+    tolerance: float = 1e-4,
+    solver: str = "daqp",
+) -> ReachPosture:
+    """A posture that puts ``frame`` at ``position`` (and ``orientation``), free of collisions.
+
+    Differential inverse kinematics with mink from ``qpos_init``: a frame task, light posture
+    regularization toward ``qpos_init``, joint limits and, with ``avoid_collisions``, a
+    collision-avoidance limit between every pair of colliding geoms of the model (mink skips
+    pairs that cannot collide: welded, parent-child, or excluded by contype/conaffinity).
+
+    Args:
+        model: The model (a fixed-base arm; free joints are moved too).
+        qpos_init: Start posture ``(nq,)``; also the posture regularization target.
+        frame: Site or body name of the end effector.
+        position: Target position ``(3,)`` in the world frame (m).
+        orientation: Target orientation as a unit quaternion ``(4,)`` ``[w, x, y, z]``, or
+            ``None`` to leave the orientation free.
+        avoid_collisions: Keep geoms at least 5 mm apart while solving.
+        iterations: Maximum IK iterations.
+        tolerance: Stop when the position error is below this (m) and the orientation error
+            below ``10 * tolerance`` rad.
+        solver: A QP solver name that qpsolvers knows.
+
+    Raises:
+        SolverError: If the final posture is in self-collision.
+    """
+    import mink
+
+    qpos_init = as_array("qpos_init", qpos_init, (model.nq,))
+    target_pos = as_array("position", position, (3,))
+    if orientation is not None:
+        quat = as_array("orientation", orientation, (4,))
+        norm = float(np.linalg.norm(quat))
+        if not np.isfinite(norm) or norm < 1e-9:
+            raise InvalidArgumentError(f"orientation must be a unit quaternion, got {quat}")
+        quat = quat / norm
+    positive_int("iterations", iterations)
+    positive("tolerance", tolerance)
+    name, kind = _mink_frame(model, frame)
+    config = mink.Configuration(model, q=qpos_init.copy())
+    task = mink.FrameTask(
+        name, kind, position_cost=1.0, orientation_cost=0.0 if orientation is None else 0.5
+    )
+    rotation = (
+        config.get_transform_frame_to_world(name, kind).rotation()
+        if orientation is None
+        else mink.SO3(wxyz=quat)
+    )
+    task.set_target(mink.SE3.from_rotation_and_translation(rotation, target_pos))
+    posture = mink.PostureTask(model, cost=1e-3)
+    posture.set_target(qpos_init)
+    limits: list = [mink.ConfigurationLimit(model)]
+    if avoid_collisions:
+        colliding = [
+            g for g in range(model.ngeom) if model.geom_contype[g] or model.geom_conaffinity[g]
+        ]
+        if colliding:
+            limits.append(mink.CollisionAvoidanceLimit(model, [(colliding, colliding)]))
+
+    def errors() -> tuple[float, float]:
+        pose = config.get_transform_frame_to_world(name, kind)
+        pos_err = float(np.linalg.norm(pose.translation() - target_pos))
+        if orientation is None:
+            return pos_err, 0.0
+        delta = (rotation.inverse() @ pose.rotation()).log()
+        return pos_err, float(np.linalg.norm(delta))
+
+    dt = 0.02
+    used = iterations
+    for it in range(iterations):
+        vel = mink.solve_ik(config, [task, posture], dt, solver, damping=1e-3, limits=limits)
+        config.integrate_inplace(vel, dt)
+        pos_err, rot_err = errors()
+        if pos_err < tolerance and rot_err < 10 * tolerance:
+            used = it + 1
+            break
+    qpos = config.q.copy()
+    pos_err, rot_err = errors()
+    collisions = self_collisions(model, qpos)
+    if collisions:
+        raise SolverError(
+            f"reach_posture: the posture for {frame!r} is in self-collision: "
+            + ", ".join(f"{a} with {b}" for a, b in collisions)
+        )
+    return ReachPosture(qpos, pos_err, rot_err, used, collisions)
