@@ -13,9 +13,9 @@ import mpcbox
 from mpcbox.controllers.sampling import (
     CEM,
     MPPI,
-    Evaluation,
     PredictiveSampling,
     Randomization,
+    RolloutCosts,
     aggregate_risk,
     mppi_weights,
 )
@@ -39,7 +39,7 @@ class FixedBackend:
         self.nonfinite = np.zeros(shape, bool) if nonfinite is None else np.asarray(nonfinite)
 
     def evaluate(self, state, candidates):
-        return Evaluation(self.costs, self.overflow, self.nonfinite)
+        return RolloutCosts(self.costs, self.overflow, self.nonfinite)
 
     stats: ClassVar[dict] = {}
 

@@ -1,19 +1,21 @@
 """Sampling-based predictive control: predictive sampling, MPPI and CEM.
 
-The controllers share :class:`~mpcbox.controllers.sampling.base.SamplingController` (splines, warm
-starts, noise, cost evaluation, statistics) and two backends: ``"cpu"``
-(:func:`mujoco.rollout` on all cores) and ``"warp"`` (MuJoCo Warp, thousands of worlds per
+The controllers share :class:`~mpcbox.controllers.sampling.base.SamplingController` (splines,
+warm starts, noise, cost evaluation, statistics); an algorithm implements only ``sample`` and
+``update``. Rollouts run on a :class:`RolloutBackend` (:func:`make_backend`): ``"cpu"``
+(:func:`mujoco.rollout` on all cores) or ``"warp"`` (MuJoCo Warp, thousands of worlds per
 tick, costs computed on the device). MJWarp is imported only when the warp backend is used.
 """
 
 from __future__ import annotations
 
-from mpcbox.controllers.sampling.base import (
-    Evaluation,
-    SamplingController,
-    TickInfo,
-    aggregate_risk,
+from mpcbox.controllers.sampling.backends import (
+    AsyncRolloutBackend,
+    RolloutBackend,
+    RolloutCosts,
+    make_backend,
 )
+from mpcbox.controllers.sampling.base import SamplingController, TickInfo, aggregate_risk
 from mpcbox.controllers.sampling.cem import CEM
 from mpcbox.controllers.sampling.config import (
     CEMConfig,
@@ -29,16 +31,19 @@ from mpcbox.controllers.sampling.splines import Spline
 __all__ = [
     "CEM",
     "MPPI",
+    "AsyncRolloutBackend",
     "CEMConfig",
-    "Evaluation",
     "MPPIConfig",
     "PredictiveSampling",
     "PredictiveSamplingConfig",
     "Randomization",
+    "RolloutBackend",
+    "RolloutCosts",
     "SamplingConfig",
     "SamplingController",
     "Spline",
     "TickInfo",
     "aggregate_risk",
+    "make_backend",
     "mppi_weights",
 ]

@@ -27,44 +27,19 @@ Subclasses implement only :meth:`sample` and :meth:`update`.
 from __future__ import annotations
 
 import abc
-import dataclasses
 import time as _time
-import warnings
-from collections.abc import Sequence
 from typing import Any, NamedTuple
 
-import mujoco
 import numpy as np
 
-from mpcbox.controllers.base import Controller
-from mpcbox.controllers.sampling.config import (
-    BACKENDS,
-    INTEGRATORS,
-    RISKS,
-    Randomization,
-    SamplingConfig,
-)
+from mpcbox.config import resolve_config
+from mpcbox.controllers.base import Controller, check_problem
+from mpcbox.controllers.sampling.backends import RolloutBackend, make_backend
+from mpcbox.controllers.sampling.config import RISKS, SamplingConfig
+from mpcbox.controllers.sampling.planning import planning_models, planning_problem
 from mpcbox.controllers.sampling.splines import Spline
 from mpcbox.core.problem import Problem
-from mpcbox.errors import BackendUnavailableError, InvalidArgumentError
-from mpcbox.validation import one_of, positive, positive_int
-
-
-class Evaluation(NamedTuple):
-    """Backend output for ``N`` candidates on ``M`` models.
-
-    Attributes:
-        costs: Total rollout costs ``(N, M)`` (float64).
-        overflow: ``(N, M)`` True where the backend ran out of contact/constraint capacity.
-        nonfinite: ``(N, M)`` True where the rollout diverged: a NaN or infinite cost or
-            state, or a ``qpos``, ``qvel`` or ``qacc`` entry beyond ``1e10`` (MuJoCo's
-            ``mjMAXVAL``, where MuJoCo resets and :func:`mujoco.rollout` returns NaN; the
-            warp backend checks it after every step).
-    """
-
-    costs: np.ndarray
-    overflow: np.ndarray
-    nonfinite: np.ndarray
+from mpcbox.errors import InvalidArgumentError
 
 
 class TickInfo(NamedTuple):
@@ -112,47 +87,6 @@ def aggregate_risk(costs: np.ndarray, risk: str, alpha: float = 0.25) -> np.ndar
     raise InvalidArgumentError(f"risk must be one of {RISKS}; got {risk!r}")
 
 
-def _disable_bits(names: Sequence[str]) -> int:
-    """``mjtDisableBit`` flags from names such as ``"constraint"`` (the error lists them)."""
-    valid = {
-        n[len("mjDSBL_") :].lower(): int(getattr(mujoco.mjtDisableBit, n))
-        for n in dir(mujoco.mjtDisableBit)
-        if n.startswith("mjDSBL_")
-    }
-    if isinstance(names, str):
-        raise InvalidArgumentError(
-            f"planning_disable must be a sequence of names, got the string {names!r}"
-        )
-    bits = 0
-    for name in names:
-        bits |= valid[one_of("planning_disable", str(name).lower(), sorted(valid))]
-    return bits
-
-
-def randomized_models(model: mujoco.MjModel, rand: Randomization) -> list[mujoco.MjModel]:
-    """``rand.num_models`` copies of ``model`` with scaled masses/inertias and friction.
-
-    The first model is ``model`` unchanged; derived constants are recomputed with
-    :func:`mujoco.mj_setConst`.
-    """
-    import copy
-
-    rng = np.random.default_rng(rand.seed)
-    models = [model]
-    for _ in range(rand.num_models - 1):
-        m = copy.copy(model)
-        scale = rng.uniform(*rand.mass_scale, size=m.nbody)
-        scale[0] = 1.0
-        m.body_mass[:] = model.body_mass * scale
-        m.body_inertia[:] = model.body_inertia * scale[:, None]
-        m.geom_friction[:] = model.geom_friction * rng.uniform(
-            *rand.friction_scale, size=(m.ngeom, 1)
-        )
-        mujoco.mj_setConst(m, mujoco.MjData(m))
-        models.append(m)
-    return models
-
-
 class SamplingController(Controller):
     """Spline-parameterized sampling MPC on the Problem's planning model.
 
@@ -170,103 +104,47 @@ class SamplingController(Controller):
 
     name = "sampling"
     config_class: type[SamplingConfig] = SamplingConfig
+    #: Whether candidate 0 is the nominal (reported as ``TickInfo.nominal_cost``).
+    evaluates_nominal: bool = True
 
     def __init__(
         self, problem: Problem, config: SamplingConfig | None = None, **options: Any
     ) -> None:
-        if not isinstance(problem, Problem):
-            raise InvalidArgumentError(
-                f"problem must be an mpcbox.Problem, got {type(problem).__name__}"
-            )
-        config = self.config_class() if config is None else config
-        if not isinstance(config, SamplingConfig):
-            raise InvalidArgumentError(
-                f"config must be a {self.config_class.__name__}, got {type(config).__name__}"
-            )
-        valid = {f.name for f in dataclasses.fields(config)}
-        unknown = sorted(set(options) - valid)
-        if unknown:
-            raise InvalidArgumentError(
-                f"unknown option(s) {unknown} for {type(self).__name__}; valid: {sorted(valid)}"
-            )
-        self.config = config = dataclasses.replace(config, **options)
-        if config.planning_timestep is not None:
-            dt = positive("planning_timestep", config.planning_timestep)
-            if abs(dt - problem.dt) > 1e-12:
-                problem = problem.with_planning_timestep(dt)
-        disable = _disable_bits(config.planning_disable)
-        # The solver cap is for MJWarp only (see SamplingConfig.solver_iterations).
-        cap = config.solver_iterations if config.backend == "warp" else None
-        if config.solver_iterations is not None:
-            positive_int("solver_iterations", config.solver_iterations)
-        planning_opts = (cap, config.solver_tolerance, config.planning_integrator)
-        if disable or any(v is not None for v in planning_opts):
-            problem = problem.with_planning_timestep(problem.dt)  # a private planning model
-            opt = problem.planning_model.opt
-            if config.planning_integrator is not None:
-                name = one_of("planning_integrator", config.planning_integrator, list(INTEGRATORS))
-                opt.integrator = INTEGRATORS[name]
-            opt.disableflags |= disable
-            if cap is not None:
-                opt.iterations = cap
-            if config.solver_tolerance is not None:
-                opt.tolerance = positive("solver_tolerance", config.solver_tolerance)
-        self.problem = problem
-        self.num_samples = positive_int("num_samples", config.num_samples)
-        self.iterations = positive_int("iterations", config.iterations)
-        horizon = positive("horizon", config.horizon)
-        steps = round(horizon / problem.dt)
-        if horizon < problem.dt * (1 - 1e-9) or steps < 1:
-            raise InvalidArgumentError(
-                f"horizon must be at least one planning timestep ({problem.dt} s), got {horizon}"
-            )
-        self.horizon_steps = steps
+        owner = type(self).__name__
+        problem = check_problem(problem, owner)
+        self.config = config = resolve_config(self.config_class, config, options, owner)
+        config.validate(problem.nu, problem.dt)
+        self.problem = problem = planning_problem(problem, config)
+        self.num_samples = int(config.num_samples)
+        self.iterations = int(config.iterations)
+        self.horizon_steps = steps = config.horizon_steps(problem.dt)
         self.spline = Spline(config.num_knots, steps * problem.dt, config.interpolation)
         #: Interpolation matrix ``(T, K)`` from knots to the planning steps.
         self.weights = self.spline.weights(np.arange(steps) * problem.dt)
-        scale = np.asarray(config.noise_scale, dtype=np.float64)
-        if scale.ndim == 0:
-            scale = np.full(problem.nu, float(scale))
-        if scale.shape != (problem.nu,) or not np.all(np.isfinite(scale)) or np.any(scale < 0):
-            raise InvalidArgumentError(
-                f"noise_scale must be a non-negative scalar or ({problem.nu},) array, "
-                f"got {config.noise_scale!r}"
-            )
-        self.noise_scale = scale
-        self.period = None if config.period is None else positive("period", config.period)
+        #: Standard deviation of the knot noise per control ``(nu,)``.
+        self.noise_scale = config.noise_scales(problem.nu)
+        self.period = None if config.period is None else float(config.period)
         replan = config.replan_period
-        self.replan_period = None if replan is None else positive("replan_period", replan)
-        one_of("risk", config.risk, RISKS)
-        if not 0.0 < config.cvar_alpha <= 1.0:
-            raise InvalidArgumentError(f"cvar_alpha must be in (0, 1], got {config.cvar_alpha}")
-        positive("headroom", config.headroom)
-        one_of("backend", config.backend, BACKENDS)
-        rand = config.randomization
-        if rand is not None:
-            positive_int("randomization.num_models", rand.num_models)
-            for label, (lo, hi) in (
-                ("mass_scale", rand.mass_scale),
-                ("friction_scale", rand.friction_scale),
-            ):
-                if not 0.0 < lo <= hi:
-                    raise InvalidArgumentError(
-                        f"randomization.{label} must satisfy 0 < low <= high, got {(lo, hi)}"
-                    )
-        self.models = (
-            [problem.planning_model]
-            if rand is None
-            else randomized_models(problem.planning_model, rand)
+        self.replan_period = None if replan is None else float(replan)
+        #: The ``M`` planning models (the nominal one first).
+        self.models = planning_models(problem.planning_model, config.randomization)
+        self.backend: RolloutBackend = make_backend(
+            config.backend,
+            problem,
+            self.weights,
+            self.models,
+            device=config.device,
+            headroom=config.headroom,
+            use_graph=config.use_graph,
         )
-        self.backend = self._make_backend()
-        self.check_config()
         self.reset()
 
     # ------------------------------------------------------------------ hooks
-    def check_config(self) -> None:
-        """Validate algorithm-specific options (called once in ``__init__``)."""
-
     def reset_algorithm(self) -> None:
         """Reset algorithm state other than the nominal knots."""
+
+    def shift(self, elapsed: float) -> None:
+        """Warm-start hook for algorithm state besides :attr:`knots` (e.g. CEM's std)."""
 
     @abc.abstractmethod
     def sample(self) -> np.ndarray:
@@ -283,9 +161,21 @@ class SamplingController(Controller):
         """
 
     # ------------------------------------------------------------------ helpers
-    def noise(self, count: int) -> np.ndarray:
-        """Gaussian knot noise ``(count, K, nu)`` scaled by ``noise_scale``."""
-        return self.standard_normal(count) * self.noise_scale
+    def gaussian_candidates(self, std: np.ndarray) -> np.ndarray:
+        r"""The nominal and ``N - 1`` Gaussian perturbations of it ``(N, K, nu)``.
+
+        :math:`U^0 = \bar U` and :math:`U^n = \bar U + \sigma \odot \varepsilon^n` with
+        :math:`\varepsilon^n \sim \mathcal N(0, I)` drawn by :meth:`standard_normal`.
+
+        Args:
+            std: Standard deviation :math:`\sigma`, ``(nu,)`` or ``(K, nu)``.
+        """
+        assert self.knots is not None
+        eps = self.standard_normal(self.num_samples - 1)
+        cand = np.empty((self.num_samples, *self.knots.shape))
+        cand[0] = self.knots
+        cand[1:] = self.knots + std * eps
+        return cand
 
     def standard_normal(self, count: int) -> np.ndarray:
         """Standard normal draws ``(count, K, nu)`` from :attr:`rng`.
@@ -305,28 +195,6 @@ class SamplingController(Controller):
         if self._prefetched is None and self.num_samples > 1:
             shape = (self.num_samples - 1, self.spline.num_knots, self.problem.nu)
             self._prefetched = self.rng.standard_normal(shape)
-
-    def _make_backend(self):
-        cfg = self.config
-        if cfg.backend == "cpu":
-            if cfg.device not in (None, "cpu"):
-                raise InvalidArgumentError(
-                    f"device={cfg.device!r} needs backend='warp'; the cpu backend has no device"
-                )
-            from mpcbox.controllers.sampling.backends.cpu import CpuBackend
-
-            return CpuBackend(self.problem, self.weights, self.models)
-        from mpcbox.controllers.sampling.backends.warp import WarpBackend, resolve_device
-
-        device = resolve_device(cfg.device)
-        return WarpBackend(
-            self.problem,
-            self.weights,
-            self.models,
-            device=device,
-            headroom=cfg.headroom,
-            use_graph=cfg.use_graph,
-        )
 
     # ------------------------------------------------------------------ controller API
     def reset(self) -> None:
@@ -417,12 +285,6 @@ class SamplingController(Controller):
         self.last = TickInfo(float(time), best, nominal, valid, seconds)
         return self.knots
 
-    #: Whether candidate 0 is the nominal (reported as ``TickInfo.nominal_cost``).
-    evaluates_nominal: bool = True
-
-    def shift(self, elapsed: float) -> None:
-        """Warm-start hook for algorithm state besides :attr:`knots` (e.g. CEM's std)."""
-
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
         replan = self.replan_period
         if replan is None or self.knots is None or self._plan_time is None:
@@ -454,21 +316,8 @@ class SamplingController(Controller):
         self.backend.close()
 
 
-def warn_cpu_fallback(device: str) -> None:
-    """Warn that the warp backend runs on warp's CPU device (slow; for tests)."""
-    warnings.warn(
-        f"backend='warp' without CUDA: running MuJoCo Warp on warp's {device!r} device, which "
-        "is much slower than backend='cpu'",
-        RuntimeWarning,
-        stacklevel=3,
-    )
-
-
 __all__ = [
-    "BackendUnavailableError",
-    "Evaluation",
     "SamplingController",
     "TickInfo",
     "aggregate_risk",
-    "randomized_models",
 ]

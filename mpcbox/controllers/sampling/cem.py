@@ -6,7 +6,6 @@ import numpy as np
 
 from mpcbox.controllers.sampling.base import SamplingController
 from mpcbox.controllers.sampling.config import CEMConfig
-from mpcbox.errors import InvalidArgumentError
 
 
 class CEM(SamplingController):
@@ -33,28 +32,12 @@ class CEM(SamplingController):
     name = "cem"
     config_class = CEMConfig
 
-    def check_config(self) -> None:
-        cfg = self.config
-        if not 1 <= cfg.num_elites <= self.num_samples:
-            raise InvalidArgumentError(
-                f"num_elites must be in [1, num_samples={self.num_samples}], got {cfg.num_elites}"
-            )
-        if cfg.std_min < 0:
-            raise InvalidArgumentError(f"std_min must be non-negative, got {cfg.std_min}")
-        if not 0.0 <= cfg.smoothing < 1.0:
-            raise InvalidArgumentError(f"smoothing must be in [0, 1), got {cfg.smoothing}")
-
     def reset_algorithm(self) -> None:
         shape = (self.spline.num_knots, self.problem.nu)
         self.std = np.broadcast_to(self.noise_scale, shape).copy()
 
     def sample(self) -> np.ndarray:
-        assert self.knots is not None
-        eps = self.standard_normal(self.num_samples - 1)
-        cand = np.empty((self.num_samples, *self.knots.shape))
-        cand[0] = self.knots
-        cand[1:] = self.knots + self.std * eps
-        return cand
+        return self.gaussian_candidates(self.std)
 
     def update(self, candidates: np.ndarray, costs: np.ndarray) -> None:
         cfg = self.config

@@ -1,4 +1,8 @@
-"""Keyword-only configuration of the sampling controllers and of domain randomization."""
+"""Keyword-only configuration of the sampling controllers and of domain randomization.
+
+Each config checks its own options with ``validate``; the checks that depend on the Problem
+take its number of controls ``nu`` and its planning timestep ``dt``.
+"""
 
 from __future__ import annotations
 
@@ -6,15 +10,41 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
-from mpcbox.controllers.sampling.splines import Interpolation
+import mujoco
+import numpy as np
+
+from mpcbox.controllers.sampling.backends import BACKENDS
+from mpcbox.controllers.sampling.splines import INTERPOLATIONS, Interpolation
+from mpcbox.errors import InvalidArgumentError
+from mpcbox.validation import one_of, positive, positive_int
 
 Backend = Literal["cpu", "warp"]
 Risk = Literal["mean", "worst", "cvar"]
 Integrator = Literal["euler", "implicitfast", "implicit", "rk4"]
-BACKENDS: tuple[str, ...] = ("cpu", "warp")
 RISKS: tuple[str, ...] = ("mean", "worst", "cvar")
 #: MuJoCo integrator names (``mjtIntegrator``) accepted by ``planning_integrator``.
 INTEGRATORS: dict[str, int] = {"euler": 0, "rk4": 1, "implicit": 2, "implicitfast": 3}
+
+
+def disable_bits(names: Sequence[str]) -> int:
+    """``mjtDisableBit`` flags from names such as ``"constraint"`` (the error lists them).
+
+    Raises:
+        InvalidArgumentError: For a plain string or an unknown name.
+    """
+    valid = {
+        n[len("mjDSBL_") :].lower(): int(getattr(mujoco.mjtDisableBit, n))
+        for n in dir(mujoco.mjtDisableBit)
+        if n.startswith("mjDSBL_")
+    }
+    if isinstance(names, str):
+        raise InvalidArgumentError(
+            f"planning_disable must be a sequence of names, got the string {names!r}"
+        )
+    bits = 0
+    for name in names:
+        bits |= valid[one_of("planning_disable", str(name).lower(), sorted(valid))]
+    return bits
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -37,6 +67,22 @@ class Randomization:
     mass_scale: tuple[float, float] = (0.9, 1.1)
     friction_scale: tuple[float, float] = (0.7, 1.3)
     seed: int = 0
+
+    def validate(self) -> None:
+        """Check ``num_models >= 1`` and ``0 < low <= high`` for both ranges.
+
+        Raises:
+            InvalidArgumentError: Naming the offending field.
+        """
+        positive_int("randomization.num_models", self.num_models)
+        for label, (lo, hi) in (
+            ("mass_scale", self.mass_scale),
+            ("friction_scale", self.friction_scale),
+        ):
+            if not 0.0 < lo <= hi:
+                raise InvalidArgumentError(
+                    f"randomization.{label} must satisfy 0 < low <= high, got {(lo, hi)}"
+                )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -112,6 +158,74 @@ class SamplingConfig:
     headroom: float = 2.0
     use_graph: bool = True
 
+    def validate(self, nu: int, dt: float) -> None:
+        """Check every option for a Problem with ``nu`` controls and planning timestep ``dt``.
+
+        Args:
+            nu: Number of controls of the Problem.
+            dt: The Problem's planning timestep (s); ``planning_timestep`` replaces it.
+
+        Raises:
+            InvalidArgumentError: Naming the offending option (and listing the valid choices
+                of a choice).
+        """
+        if self.planning_timestep is not None:
+            dt = positive("planning_timestep", self.planning_timestep)
+        disable_bits(self.planning_disable)
+        if self.solver_iterations is not None:
+            positive_int("solver_iterations", self.solver_iterations)
+        if self.planning_integrator is not None:
+            one_of("planning_integrator", self.planning_integrator, list(INTEGRATORS))
+        if self.solver_tolerance is not None:
+            positive("solver_tolerance", self.solver_tolerance)
+        positive_int("num_samples", self.num_samples)
+        positive_int("iterations", self.iterations)
+        self.horizon_steps(dt)
+        positive_int("num_knots", self.num_knots)
+        one_of("interpolation", self.interpolation, INTERPOLATIONS)
+        self.noise_scales(nu)
+        if self.period is not None:
+            positive("period", self.period)
+        if self.replan_period is not None:
+            positive("replan_period", self.replan_period)
+        one_of("risk", self.risk, RISKS)
+        if not 0.0 < self.cvar_alpha <= 1.0:
+            raise InvalidArgumentError(f"cvar_alpha must be in (0, 1], got {self.cvar_alpha}")
+        positive("headroom", self.headroom)
+        one_of("backend", self.backend, BACKENDS)
+        if self.randomization is not None:
+            self.randomization.validate()
+
+    def horizon_steps(self, dt: float) -> int:
+        """Planning steps ``T = round(horizon / dt)`` of a rollout (at least one).
+
+        Raises:
+            InvalidArgumentError: If the horizon is shorter than one planning timestep.
+        """
+        horizon = positive("horizon", self.horizon)
+        steps = round(horizon / dt)
+        if horizon < dt * (1 - 1e-9) or steps < 1:
+            raise InvalidArgumentError(
+                f"horizon must be at least one planning timestep ({dt} s), got {horizon}"
+            )
+        return steps
+
+    def noise_scales(self, nu: int) -> np.ndarray:
+        """``noise_scale`` as one non-negative standard deviation per control ``(nu,)``.
+
+        Raises:
+            InvalidArgumentError: For a wrong shape, a negative or a non-finite value.
+        """
+        scale = np.asarray(self.noise_scale, dtype=np.float64)
+        if scale.ndim == 0:
+            scale = np.full(nu, float(scale))
+        if scale.shape != (nu,) or not np.all(np.isfinite(scale)) or np.any(scale < 0):
+            raise InvalidArgumentError(
+                f"noise_scale must be a non-negative scalar or ({nu},) array, "
+                f"got {self.noise_scale!r}"
+            )
+        return scale
+
 
 @dataclass(frozen=True, kw_only=True)
 class PredictiveSamplingConfig(SamplingConfig):
@@ -128,6 +242,12 @@ class MPPIConfig(SamplingConfig):
     """
 
     temperature: float = 0.1
+
+    def validate(self, nu: int, dt: float) -> None:
+        """The shared checks (:meth:`SamplingConfig.validate`) and ``temperature > 0``."""
+        super().validate(nu, dt)
+        if not self.temperature > 0:
+            raise InvalidArgumentError(f"temperature must be positive, got {self.temperature!r}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -147,3 +267,15 @@ class CEMConfig(SamplingConfig):
     num_elites: int = 16
     std_min: float = 0.05
     smoothing: float = 0.0
+
+    def validate(self, nu: int, dt: float) -> None:
+        """The shared checks (:meth:`SamplingConfig.validate`) and the elite/std options."""
+        super().validate(nu, dt)
+        if not 1 <= self.num_elites <= self.num_samples:
+            raise InvalidArgumentError(
+                f"num_elites must be in [1, num_samples={self.num_samples}], got {self.num_elites}"
+            )
+        if self.std_min < 0:
+            raise InvalidArgumentError(f"std_min must be non-negative, got {self.std_min}")
+        if not 0.0 <= self.smoothing < 1.0:
+            raise InvalidArgumentError(f"smoothing must be in [0, 1), got {self.smoothing}")

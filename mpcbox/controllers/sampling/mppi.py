@@ -6,7 +6,6 @@ import numpy as np
 
 from mpcbox.controllers.sampling.base import SamplingController
 from mpcbox.controllers.sampling.config import MPPIConfig
-from mpcbox.errors import InvalidArgumentError
 
 
 class MPPI(SamplingController):
@@ -32,18 +31,8 @@ class MPPI(SamplingController):
     name = "mppi"
     config_class = MPPIConfig
 
-    def check_config(self) -> None:
-        if not self.config.temperature > 0:
-            raise InvalidArgumentError(
-                f"temperature must be positive, got {self.config.temperature!r}"
-            )
-
     def sample(self) -> np.ndarray:
-        assert self.knots is not None
-        cand = np.empty((self.num_samples, *self.knots.shape))
-        cand[0] = self.knots
-        cand[1:] = self.knots + self.noise(self.num_samples - 1)
-        return cand
+        return self.gaussian_candidates(self.noise_scale)
 
     def update(self, candidates: np.ndarray, costs: np.ndarray) -> None:
         weights = mppi_weights(costs, self.config.temperature)

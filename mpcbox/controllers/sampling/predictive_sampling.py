@@ -26,11 +26,7 @@ class PredictiveSampling(SamplingController):
     config_class = PredictiveSamplingConfig
 
     def sample(self) -> np.ndarray:
-        assert self.knots is not None
-        cand = np.empty((self.num_samples, *self.knots.shape))
-        cand[0] = self.knots
-        cand[1:] = self.knots + self.noise(self.num_samples - 1)
-        return cand
+        return self.gaussian_candidates(self.noise_scale)
 
     def update(self, candidates: np.ndarray, costs: np.ndarray) -> None:
         self.knots = candidates[int(np.argmin(costs))].copy()

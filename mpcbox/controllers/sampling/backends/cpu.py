@@ -7,11 +7,11 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from mpcbox.controllers.sampling.base import Evaluation
+from mpcbox.controllers.sampling.backends.interface import RolloutBackend, RolloutCosts
 from mpcbox.core.problem import Problem
 
 
-class CpuBackend:
+class CpuBackend(RolloutBackend):
     """Evaluate candidate knots with :meth:`Problem.rollout` and :meth:`Problem.rollout_cost`.
 
     Args:
@@ -31,7 +31,7 @@ class CpuBackend:
         """Interpolated controls ``(N, T, nu)`` of knots ``(N, K, nu)``."""
         return np.einsum("tk,nkj->ntj", self.weights, candidates)
 
-    def evaluate(self, state: np.ndarray, candidates: np.ndarray) -> Evaluation:
+    def evaluate(self, state: np.ndarray, candidates: np.ndarray) -> RolloutCosts:
         """Costs ``(N, M)`` of candidate knots ``(N, K, nu)`` from ``state``."""
         n, m = candidates.shape[0], len(self.models)
         ctrls = self.controls(candidates)
@@ -45,11 +45,4 @@ class CpuBackend:
             costs = self.problem.rollout_cost(rollout).reshape(n, m)
         nonfinite = ~np.all(np.isfinite(rollout.states), axis=(1, 2)).reshape(n, m)
         nonfinite |= ~np.isfinite(costs)
-        return Evaluation(costs, np.zeros((n, m), dtype=bool), nonfinite)
-
-    @property
-    def stats(self) -> dict[str, float]:
-        return {}
-
-    def close(self) -> None:
-        """Nothing to release (the Problem owns the pool)."""
+        return RolloutCosts(costs, np.zeros((n, m), dtype=bool), nonfinite)

@@ -6,9 +6,9 @@ One tick, for ``W = N M`` worlds (world ``w`` rolls out candidate ``w // M`` on 
 1. the host uploads the start state ``(nstate,)`` and the knots ``(N, K, nu)``;
 2. on the device: broadcast the state to every world and clear costs and overflow flags;
    then for ``t = 0 .. T-1`` one fused launch (a thread per world and actuator or cost row:
-   :func:`~mpcbox.controllers.sampling.backends.warp_costs.fused_stage_kernel`) interpolates and clamps
-   :math:`u_t`, adds the state/control rows at :math:`x_t` and the sensor rows of step
-   ``t - 1`` (MJWarp computes sensors at :math:`x_{t-1}` inside that step), followed by
+   :func:`~mpcbox.controllers.sampling.backends.warp_costs.fused_stage_kernel`) interpolates
+   and clamps :math:`u_t`, adds the state/control rows at :math:`x_t` and the sensor rows of
+   step ``t - 1`` (MJWarp computes sensors at :math:`x_{t-1}` inside that step), followed by
    ``mjw.step``; then the last sensor rows, the terminal rows at :math:`x_T` (after
    ``mjw.forward`` if they read sensors) and per-world flags for capacity overflow and
    divergence (as MuJoCo checks after each step: a non-finite ``qacc`` or one beyond
@@ -42,7 +42,7 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from mpcbox.controllers.sampling.base import Evaluation
+from mpcbox.controllers.sampling.backends.interface import AsyncRolloutBackend, RolloutCosts
 from mpcbox.core.problem import Problem
 from mpcbox.errors import BackendUnavailableError, InvalidArgumentError, UnsupportedModelError
 
@@ -121,6 +121,16 @@ def broadphase_candidates(model: mujoco.MjModel, data: mujoco.MjData, pairs: np.
     return int(passed.sum())
 
 
+def warn_cpu_fallback(device: str) -> None:
+    """Warn that the warp backend runs on warp's CPU device (slow; for tests)."""
+    warnings.warn(
+        f"backend='warp' without CUDA: running MuJoCo Warp on warp's {device!r} device, which "
+        "is much slower than backend='cpu'",
+        RuntimeWarning,
+        stacklevel=3,
+    )
+
+
 def resolve_device(device: str | None) -> str:
     """The Warp device to use: CUDA when present; warp's CPU device with a warning otherwise.
 
@@ -135,8 +145,6 @@ def resolve_device(device: str | None) -> str:
     if device is None:
         if cuda:
             return "cuda:0"
-        from mpcbox.controllers.sampling.base import warn_cpu_fallback
-
         warn_cpu_fallback("cpu")
         return "cpu"
     if device.startswith("cuda"):
@@ -154,7 +162,7 @@ def resolve_device(device: str | None) -> str:
     raise InvalidArgumentError(f"device must be 'cpu', 'cuda' or 'cuda:<index>', got {device!r}")
 
 
-class WarpBackend:
+class WarpBackend(AsyncRolloutBackend):
     """Evaluate candidate knots on MuJoCo Warp with the costs computed on the device.
 
     Args:
@@ -376,11 +384,6 @@ class WarpBackend:
             outputs=[self.flags],
         )  # fmt: skip
 
-    def evaluate(self, state: np.ndarray, candidates: np.ndarray) -> Evaluation:
-        """Costs ``(N, M)`` of candidate knots ``(N, K, nu)`` from ``state``."""
-        self.submit(state, candidates)
-        return self.collect()
-
     def submit(self, state: np.ndarray, candidates: np.ndarray) -> None:
         """Upload ``state`` and the knots and launch the tick without waiting for it."""
         wp = self._wp
@@ -407,7 +410,7 @@ class WarpBackend:
                 self._run()
         self._pending = n
 
-    def collect(self) -> Evaluation:
+    def collect(self) -> RolloutCosts:
         """Wait for the launched tick and read back costs and flags."""
         wp = self._wp
         n, self._pending = self._pending, None
@@ -424,7 +427,7 @@ class WarpBackend:
         self._stats["solver_limit_samples"] += int(solver_limit.any(axis=1).sum())
         if overflow.any():
             self._grow()
-        return Evaluation(costs, overflow, diverged)
+        return RolloutCosts(costs, overflow, diverged)
 
     def _grow(self) -> None:
         if self._stats["resizes"] >= _MAX_RESIZES:

@@ -1,0 +1,83 @@
+"""The planning models a sampling controller rolls out.
+
+The controller plans on its own copy of the Problem's planning model when its config asks
+for another timestep, integrator, solver setting or disabled features, and optionally on
+randomized copies of it for robust planning.
+"""
+
+from __future__ import annotations
+
+import copy
+
+import mujoco
+import numpy as np
+
+from mpcbox.controllers.sampling.config import (
+    INTEGRATORS,
+    Randomization,
+    SamplingConfig,
+    disable_bits,
+)
+from mpcbox.core.problem import Problem
+
+
+def planning_problem(problem: Problem, config: SamplingConfig) -> Problem:
+    """The Problem to plan on: ``problem``, or a copy with its own planning model.
+
+    A copy is made when ``config`` sets ``planning_timestep`` (other than the Problem's),
+    ``planning_integrator``, ``planning_disable``, ``solver_tolerance``, or
+    ``solver_iterations`` with the warp backend (the CPU backend ignores the cap, see
+    :class:`~mpcbox.controllers.sampling.config.SamplingConfig`). ``problem`` is unchanged.
+
+    Args:
+        problem: The Problem.
+        config: A validated config.
+    """
+    if config.planning_timestep is not None:
+        dt = float(config.planning_timestep)
+        if abs(dt - problem.dt) > 1e-12:
+            problem = problem.with_planning_timestep(dt)
+    disable = disable_bits(config.planning_disable)
+    # The solver cap is for MJWarp only (see SamplingConfig.solver_iterations).
+    cap = config.solver_iterations if config.backend == "warp" else None
+    options = (cap, config.solver_tolerance, config.planning_integrator)
+    if disable or any(v is not None for v in options):
+        problem = problem.with_planning_timestep(problem.dt)  # a private planning model
+        opt = problem.planning_model.opt
+        if config.planning_integrator is not None:
+            opt.integrator = INTEGRATORS[config.planning_integrator]
+        opt.disableflags |= disable
+        if cap is not None:
+            opt.iterations = cap
+        if config.solver_tolerance is not None:
+            opt.tolerance = float(config.solver_tolerance)
+    return problem
+
+
+def randomized_models(model: mujoco.MjModel, rand: Randomization) -> list[mujoco.MjModel]:
+    r"""``rand.num_models`` copies of ``model`` with scaled masses/inertias and friction.
+
+    The first model is ``model`` unchanged; the others scale body ``b``'s mass and inertia by
+    :math:`s_b \sim U(\text{mass\_scale})` (the world body keeps 1) and each geom's friction
+    by :math:`f_g \sim U(\text{friction\_scale})`, drawn from ``rand.seed``. Derived
+    constants are recomputed with :func:`mujoco.mj_setConst`.
+    """
+    rng = np.random.default_rng(rand.seed)
+    models = [model]
+    for _ in range(rand.num_models - 1):
+        m = copy.copy(model)
+        scale = rng.uniform(*rand.mass_scale, size=m.nbody)
+        scale[0] = 1.0
+        m.body_mass[:] = model.body_mass * scale
+        m.body_inertia[:] = model.body_inertia * scale[:, None]
+        m.geom_friction[:] = model.geom_friction * rng.uniform(
+            *rand.friction_scale, size=(m.ngeom, 1)
+        )
+        mujoco.mj_setConst(m, mujoco.MjData(m))
+        models.append(m)
+    return models
+
+
+def planning_models(model: mujoco.MjModel, rand: Randomization | None) -> list[mujoco.MjModel]:
+    """``[model]``, or its :func:`randomized_models` when ``rand`` is given."""
+    return [model] if rand is None else randomized_models(model, rand)
