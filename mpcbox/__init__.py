@@ -21,6 +21,7 @@ from mpcbox.errors import (
     ShapeError,
     SolverError,
     UnknownNameError,
+    UnsupportedCostTermError,
     UnsupportedModelError,
 )
 
@@ -40,6 +41,7 @@ _LAZY: dict[str, str] = {
     "FrameHeight": "mpcbox.core.cost",
     "Upright": "mpcbox.core.cost",
     "QuadraticValue": "mpcbox.core.cost",
+    "WrappedAngle": "mpcbox.core.cost",
     "Controller": "mpcbox.controllers.base",
     "Equilibrium": "mpcbox.core.equilibrium",
     "find_equilibrium": "mpcbox.core.equilibrium",
@@ -73,6 +75,7 @@ __all__ = [
     "ShapeError",
     "SolverError",
     "UnknownNameError",
+    "UnsupportedCostTermError",
     "UnsupportedModelError",
     *sorted(_LAZY),
 ]

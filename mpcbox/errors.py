@@ -91,3 +91,10 @@ class BackendUnavailableError(MpcboxError, RuntimeError):
 
 class UnsupportedModelError(MpcboxError, NotImplementedError):
     """A backend does not implement a MuJoCo feature that the model uses."""
+
+
+class UnsupportedCostTermError(UnsupportedModelError):
+    """A backend has no form of a cost term (no GPU rows, no CasADi expression).
+
+    The message names the term, the backend and the term types that have that form.
+    """

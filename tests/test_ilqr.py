@@ -38,8 +38,8 @@ T = 40
 
 def point_mass(limited: bool = False, bound: float = 100.0) -> mpcbox.Problem:
     cost = Cost(
-        [StateCost(np.zeros(2), WQ, WV), ControlCost(WU)],
-        [StateCost(np.zeros(2), WQ_T, WV_T, name="terminal")],
+        [StateCost(np.zeros(2), weight_qpos=WQ, weight_qvel=WV), ControlCost(weight=WU)],
+        [StateCost(np.zeros(2), weight_qpos=WQ_T, weight_qvel=WV_T, name="terminal")],
     )
     xml = POINT_MASS.format(limited=str(limited).lower(), bound=bound)
     return mpcbox.Problem(xml, cost=cost, threads=1)
@@ -212,7 +212,7 @@ def test_bad_inputs_raise_named_errors():
     with pytest.raises(MpcboxError, match="weight"):
         mpcbox.Problem(
             POINT_MASS.format(limited="false", bound=1),
-            cost=Cost([StateCost(np.zeros(2), [1.0, np.inf])]),
+            cost=Cost([StateCost(np.zeros(2), weight_qpos=[1.0, np.inf])]),
         )
     with pytest.raises(InvalidArgumentError, match="terminal_value"):
         ILQR(problem, 10, terminal_value="riccati")
@@ -226,7 +226,7 @@ def test_lqr_terminal_value_makes_short_horizon_ilqr_match_lqr():
     # it as terminal cost a short-horizon iLQR's first feedback gain equals the LQR gain.
     problem = mpcbox.Problem(
         POINT_MASS.format(limited="false", bound=100.0),
-        cost=Cost([StateCost(np.zeros(2), WQ, WV), ControlCost(WU)]),
+        cost=Cost([StateCost(np.zeros(2), weight_qpos=WQ, weight_qvel=WV), ControlCost(weight=WU)]),
         threads=1,
     )
     lqr = mpcbox.LQR(problem)

@@ -44,12 +44,18 @@ class PositionNoJacobian(CostTerm):
 
 
 def slider(custom: bool) -> mpcbox.Problem:
-    position = PositionNoJacobian(1.0, "pos") if custom else StateCost(np.zeros(1), 1.0, 0.0)
-    terminal = PositionNoJacobian(30.0, "pos_T") if custom else StateCost(np.zeros(1), 30.0, 0.0)
+    position = PositionNoJacobian(1.0, "pos") if custom else StateCost(np.zeros(1), weight_qpos=1.0)
+    terminal = (
+        PositionNoJacobian(30.0, "pos_T") if custom else StateCost(np.zeros(1), weight_qpos=30.0)
+    )
     return mpcbox.Problem(
         SLIDER,
         cost=Cost(
-            [position, StateCost(np.zeros(1), 0.0, 0.1, name="vel"), ControlCost(0.1)],
+            [
+                position,
+                StateCost(np.zeros(1), weight_qpos=0.0, weight_qvel=0.1, name="vel"),
+                ControlCost(weight=0.1),
+            ],
             [terminal],
         ),
         threads=1,

@@ -95,11 +95,11 @@ def test_linearize_trajectory_threads_match_serial(balance):
 @pytest.mark.parametrize(
     "term",
     [
-        ComOverSupport("foot_left", 10.0, root="torso"),
-        Upright("torso", [2.0, 3.0]),
-        FrameHeight("hand_left", 1.5, 4.0),
-        FramePosition("hand_right", np.array([0.2, -0.3, 1.0]), 1.0),
-        FramePosition("foot_right", np.zeros(3), [1.0, 1.0, 0.0]),
+        ComOverSupport("foot_left", weight=10.0, root="torso"),
+        Upright("torso", weight=[2.0, 3.0]),
+        FrameHeight("hand_left", 1.5, weight=4.0),
+        FramePosition("hand_right", np.array([0.2, -0.3, 1.0]), weight=1.0),
+        FramePosition("foot_right", np.zeros(3), weight=[1.0, 1.0, 0.0]),
     ],
     ids=lambda t: type(t).__name__,
 )
@@ -205,7 +205,7 @@ def test_bad_inputs_raise_clear_errors(balance):
     with pytest.raises(mpcbox.UnknownNameError, match="stand_on_left_leg"):
         mpcbox.Problem(HUMANOID, keyframe="nope")
     with pytest.raises(mpcbox.UnknownNameError, match="foot_left"):
-        mpcbox.Problem(HUMANOID, cost=Cost([ComOverSupport("foot_middle", 1.0)]))
+        mpcbox.Problem(HUMANOID, cost=Cost([ComOverSupport("foot_middle", weight=1.0)]))
     with pytest.raises(mpcbox.ShapeError, match="state must have shape"):
         balance.linearize(np.zeros(3), balance.ctrl_ref)
     with pytest.raises(mpcbox.ShapeError, match="ctrl must have shape"):
@@ -215,14 +215,14 @@ def test_bad_inputs_raise_clear_errors(balance):
     with pytest.raises(mpcbox.DivergenceError, match="non-finite"):
         balance.linearize(bad, balance.ctrl_ref)
     with pytest.raises(mpcbox.InvalidArgumentError, match="weight"):
-        mpcbox.Problem(HUMANOID, cost=Cost([ControlCost([np.inf] * 21)]))
+        mpcbox.Problem(HUMANOID, cost=Cost([ControlCost(weight=[np.inf] * 21)]))
     with pytest.raises(mpcbox.InvalidArgumentError, match="fd_eps"):
         mpcbox.Problem(HUMANOID, fd_eps=-1.0)
     static = "<mujoco><worldbody><geom type='plane' size='1 1 0.1'/></worldbody></mujoco>"
     with pytest.raises(mpcbox.InvalidArgumentError, match="degrees of freedom"):
         mpcbox.Problem(static)
     with pytest.raises(mpcbox.ShapeError, match="qpos_ref"):
-        mpcbox.Problem(HUMANOID, cost=Cost([StateCost(np.zeros(5), 1.0)]))
+        mpcbox.Problem(HUMANOID, cost=Cost([StateCost(np.zeros(5), weight_qpos=1.0)]))
     with pytest.raises(ValueError):  # every mpcbox argument error is a ValueError too
         mpcbox.Problem(HUMANOID, keyframe="nope")
 
@@ -231,8 +231,8 @@ def test_quadratic_value_term_is_half_dx_P_dx(balance):
     rng = np.random.default_rng(8)
     M = rng.standard_normal((balance.nx, balance.nx))
     P = M @ M.T
-    value = mpcbox.QuadraticValue(P, balance.qpos_ref)
-    prob = balance.with_cost(Cost([ControlCost(0.0)], [value]))
+    value = mpcbox.QuadraticValue(balance.qpos_ref, P=P)
+    prob = balance.with_cost(Cost([ControlCost(weight=0.0)], [value]))
     x, _ = random_humanoid_state(prob, rng, 0.05)
     dx = prob.state_difference(x, prob.reference_state())
     assert prob.terminal_cost(x) == pytest.approx(0.5 * dx @ P @ dx, rel=1e-10)
@@ -241,4 +241,6 @@ def test_quadratic_value_term_is_half_dx_P_dx(balance):
     # The original Problem keeps its own cost.
     assert balance.cost is not prob.cost and len(balance.cost.terminal) == 0
     with pytest.raises(mpcbox.CostDefinitionError, match="positive semidefinite"):
-        balance.with_cost(Cost([ControlCost(0.0)], [mpcbox.QuadraticValue(-P, balance.qpos_ref)]))
+        balance.with_cost(
+            Cost([ControlCost(weight=0.0)], [mpcbox.QuadraticValue(balance.qpos_ref, P=-P)])
+        )

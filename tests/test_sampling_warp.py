@@ -145,7 +145,7 @@ def test_a_model_mjwarp_cannot_run_gets_a_clear_error(warp_device):
       <worldbody><body><joint name="j" type="hinge"/><geom size="0.1" mass="1"/></body></worldbody>
       <actuator><motor joint="j" ctrlrange="-1 1"/></actuator>
     </mujoco>"""
-    problem = mpcbox.Problem(xml, cost=mpcbox.Cost([mpcbox.ControlCost(1.0)]))
+    problem = mpcbox.Problem(xml, cost=mpcbox.Cost([mpcbox.ControlCost(weight=1.0)]))
     with pytest.raises(mpcbox.UnsupportedModelError, match="backend='cpu'") as err:
         MPPI(problem, num_samples=4, horizon=0.05, num_knots=2, backend="warp", device=warp_device)
     assert isinstance(err.value, NotImplementedError)
@@ -168,7 +168,7 @@ def test_diverging_rollouts_are_flagged_like_on_the_cpu(warp_device):
       </worldbody>
       <actuator><position joint="a" kp="1" kv="2"/><position joint="b" kp="11" kv="12"/></actuator>
     </mujoco>"""
-    problem = mpcbox.Problem(xml, cost=mpcbox.Cost([mpcbox.ControlCost(1.0)]))
+    problem = mpcbox.Problem(xml, cost=mpcbox.Cost([mpcbox.ControlCost(weight=1.0)]))
     opts = dict(num_samples=8, horizon=5 * problem.dt, num_knots=2)
     cpu = PredictiveSampling(problem, **opts)
     warp = PredictiveSampling(problem, backend="warp", device=warp_device, **opts)

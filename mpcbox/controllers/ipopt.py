@@ -9,9 +9,10 @@ The transcription uses exactly the discretization of :class:`~mpcbox.ILQR`: knot
     x_0 = \hat x_0,\ \ x_{t+1} = f(x_t, u_t),\ \ u_{lo} \le u_t \le u_{hi}.
 
 ``f`` is one MuJoCo step wrapped as a :class:`casadi.Callback` whose Jacobian comes from
-:meth:`mpcbox.Problem.linearize` (finite differences). ``StateCost`` and ``ControlCost`` terms
-become analytic CasADi expressions; other terms (or a whole cost with them) are evaluated by
-the Problem through a Callback with the Gauss-Newton gradient of
+:meth:`mpcbox.Problem.linearize` (finite differences). A running (or terminal) cost whose terms
+all have a CasADi form (:meth:`~mpcbox.core.cost.CostTerm.casadi_residual`: ``StateCost``,
+``ControlCost``, ``WrappedAngle``) becomes an analytic CasADi expression; a cost with other
+terms is evaluated by the Problem through a Callback with the Gauss-Newton gradient of
 :meth:`~mpcbox.Problem.quadratize`. Second derivatives of ``f`` are not available, so IPOPT
 runs with a limited-memory (L-BFGS) Hessian.
 
@@ -33,9 +34,14 @@ import scipy.linalg
 
 from mpcbox.controllers.base import Controller
 from mpcbox.controllers.ilqr.controller import backward_pass
-from mpcbox.core.cost import ControlCost, StateCost
+from mpcbox.core.cost import CostTerm
 from mpcbox.core.problem import Problem
-from mpcbox.errors import BackendUnavailableError, InvalidArgumentError, SolverError
+from mpcbox.errors import (
+    BackendUnavailableError,
+    InvalidArgumentError,
+    SolverError,
+    UnsupportedCostTermError,
+)
 from mpcbox.validation import as_array, positive, positive_int
 
 
@@ -55,7 +61,8 @@ class IpoptSolution(NamedTuple):
     Attributes:
         states: Optimal states ``(T + 1, nstate)``.
         ctrls: Optimal controls ``(T, nu)``.
-        cost: Objective value (same definition as :attr:`mpcbox.controllers.ilqr.controller.ILQRResult.cost`).
+        cost: Objective value (same definition as
+            :attr:`mpcbox.controllers.ilqr.controller.ILQRResult.cost`).
         iterations: IPOPT iterations.
         success: IPOPT reported success.
         status: IPOPT's return status.
@@ -199,21 +206,17 @@ def _cost_callback(problem: Problem, terminal: bool) -> Any:
     return _Cost("terminal_cost" if terminal else "running_cost", {"enable_fd": False})
 
 
-def _symbolic_terms(problem: Problem, terms: list, x: Any, u: Any) -> Any | None:
-    """``sum 0.5 w r^2`` as a CasADi expression, or ``None`` if a term has no symbolic form."""
+def _symbolic_terms(problem: Problem, terms: list[CostTerm], x: Any, u: Any) -> Any | None:
+    """``sum 0.5 w r^2`` as a CasADi expression, or ``None`` if a term has no CasADi form."""
+    ca = _casadi()
     nq, nv = problem.nq, problem.nv
     total = 0
     for term in terms:
-        if isinstance(term, StateCost):
-            r = [x[:nq] - term.qpos_ref, x[nq : nq + nv] - term.qvel_ref]
-            r = _casadi().vertcat(*r)
-        elif isinstance(term, ControlCost):
-            r = u - term.ctrl_ref
-        elif hasattr(term, "casadi_residual"):
+        try:
             r = term.casadi_residual(x[:nq], x[nq : nq + nv], u)
-        else:
+        except UnsupportedCostTermError:
             return None
-        total = total + 0.5 * _casadi().sumsqr(_casadi().sqrt(term.weight) * r)
+        total = total + 0.5 * ca.sumsqr(ca.sqrt(term.weight) * r)
     return total
 
 
@@ -339,10 +342,10 @@ class IpoptController(Controller):
 
     On the first call (after :meth:`reset`) it solves :func:`solve_ipopt` over ``horizon``
     knots, then computes feedback gains along the plan with the iLQR backward pass
-    (:func:`mpcbox.controllers.ilqr.controller.backward_pass`) and applies :math:`u_i + K_i (x \\ominus \\bar x_i)`
-    at every call. After the plan ends it regulates about the reference state and control
-    (``problem.reference_state()``, ``ctrl_ref``) with the infinite-horizon LQR gain there
-    (``scipy.linalg.solve_discrete_are``).
+    (:func:`mpcbox.controllers.ilqr.controller.backward_pass`) and applies
+    :math:`u_i + K_i (x \\ominus \\bar x_i)` at every call. After the plan ends it regulates
+    about the reference state and control (``problem.reference_state()``, ``ctrl_ref``) with the
+    infinite-horizon LQR gain there (``scipy.linalg.solve_discrete_are``).
 
     Args:
         problem: The Problem (``nq == nv``).

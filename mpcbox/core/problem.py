@@ -20,7 +20,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from mpcbox.core.cost import ControlCost, Cost, Features, StateCost, check_features
+from mpcbox.core.cost import ControlCost, Cost, Features, StateCost
 from mpcbox.core.model import ModelSource, compile_spec, frame_object, load_spec, object_id
 from mpcbox.core.tangent import TangentSpace
 from mpcbox.errors import DivergenceError, InvalidArgumentError, ModelLoadError, ShapeError
@@ -206,7 +206,7 @@ class Problem:
         return Cost(
             [
                 StateCost(self.qpos_ref, weight_qpos=1.0, weight_qvel=0.1),
-                ControlCost(0.1, self.ctrl_ref),
+                ControlCost(self.ctrl_ref, weight=0.1),
             ]
         )
 
@@ -557,13 +557,6 @@ class Problem:
             sens[:, horizon],
         )
         return running + self.cost.terminal_value(last)
-
-    def cost_of_features(self, features: Features, terminal: bool = False) -> np.ndarray:
-        """Running (or terminal) cost for a batch of features, shape ``(B,)``."""
-        check_features(features, self.planning_model)
-        if terminal:
-            return self.cost.terminal_value(features)
-        return self.cost.running_value(features)
 
     def quadratize(
         self, state: np.ndarray, ctrl: np.ndarray, *, terminal: bool = False

@@ -83,6 +83,18 @@ class TangentSpace:
         self._quat_v = np.array(quat_v, dtype=int)
         self.has_quaternions = len(quat_q) > 0
 
+    @property
+    def scalar_addresses(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(qpos addresses, dof addresses)`` of the coordinates differenced as plain numbers
+        (hinge, slide and free-joint translation), each ``(n,)``."""
+        return self._scal_q, self._scal_v
+
+    @property
+    def quaternion_addresses(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(qpos addresses, dof addresses)`` of the quaternions (ball joints and free-joint
+        rotation), each ``(n,)``: four positions and three dofs from each address."""
+        return self._quat_q, self._quat_v
+
     def difference(self, qpos: np.ndarray, qpos_ref: np.ndarray) -> np.ndarray:
         """Tangent vector ``dq`` such that integrating ``qpos_ref`` by ``dq`` gives ``qpos``.
 

@@ -1,8 +1,9 @@
 """Swing-up tasks: a torque-limited pendulum and a force-limited cart-pole.
 
 In both scenes a hinge angle of 0 means hanging down and pi means upright. The pole angle is
-penalized through :class:`WrappedAngle`, which is zero at every upright angle (pi, 3 pi, -pi,
-...), so a controller that lets the pole go over the top is not asked to unwind it.
+penalized through :class:`~mpcbox.core.cost.WrappedAngle`, which is zero at every upright
+angle (pi, 3 pi, -pi, ...), so a controller that lets the pole go over the top is not asked to
+unwind it.
 """
 
 from __future__ import annotations
@@ -12,54 +13,9 @@ from typing import Any, ClassVar
 import mujoco
 import numpy as np
 
-from mpcbox.core.cost import ControlCost, Cost, CostTerm, Features, Jacobian, StateCost
-from mpcbox.core.model import object_id
+from mpcbox.core.cost import ControlCost, Cost, StateCost, WrappedAngle
 from mpcbox.core.problem import Problem
 from mpcbox.tasks import scene_path
-
-
-class WrappedAngle(CostTerm):
-    r"""Periodic distance of a hinge angle from a target: :math:`r = 2 \sin((\theta -
-    \theta_{ref}) / 2)`.
-
-    ``r**2 = 2 (1 - cos(theta - theta_ref))`` is :math:`2\pi`-periodic, zero at the target and
-    its turns, and ``|dr/dtheta| = 1`` there. The hanging start is a critical point of this
-    cost (as of every smooth periodic one), so optimizers need an initial guess that moves.
-
-    Args:
-        joint: Hinge joint name.
-        target: Target angle (rad).
-        weight: Scalar weight.
-    """
-
-    def __init__(self, joint: str, target: float, weight: float, name: str = "") -> None:
-        super().__init__(weight, name or f"angle_{joint}")
-        self.joint = joint
-        self.target = float(target)
-        self._qadr = self._vadr = 0
-
-    def size(self, model: mujoco.MjModel) -> int:
-        return 1
-
-    def bind(self, model: mujoco.MjModel) -> None:
-        jid = object_id(model, "joint", self.joint)
-        self._qadr = int(model.jnt_qposadr[jid])
-        self._vadr = int(model.jnt_dofadr[jid])
-        super().bind(model)
-
-    def residual(self, features: Features) -> np.ndarray:
-        return 2.0 * np.sin(0.5 * (features.qpos[:, self._qadr : self._qadr + 1] - self.target))
-
-    def jacobian(self, model: mujoco.MjModel, data: mujoco.MjData) -> Jacobian:
-        dq = np.zeros((1, model.nv))
-        dq[0, self._vadr] = np.cos(0.5 * (data.qpos[self._qadr] - self.target))
-        return Jacobian(dq, np.zeros((1, model.nv)), np.zeros((1, model.nu)))
-
-    def casadi_residual(self, qpos: Any, qvel: Any, ctrl: Any) -> Any:
-        """The residual as a CasADi expression (used by :mod:`mpcbox.controllers.ipopt`)."""
-        import casadi
-
-        return 2.0 * casadi.sin(0.5 * (qpos[self._qadr] - self.target))
 
 
 class PendulumSwingup(Problem):
@@ -100,13 +56,15 @@ class PendulumSwingup(Problem):
     def build_cost(self, model: mujoco.MjModel) -> Cost:
         return Cost(
             [
-                WrappedAngle("hinge", np.pi, 1.0),
-                StateCost(self.qpos_ref, 0.0, 0.1, name="velocity"),
-                ControlCost(0.01),
+                WrappedAngle("hinge", np.pi, weight=1.0),
+                StateCost(self.qpos_ref, weight_qpos=0.0, weight_qvel=0.1, name="velocity"),
+                ControlCost(weight=0.01),
             ],
             [
-                WrappedAngle("hinge", np.pi, 100.0, name="terminal_angle"),
-                StateCost(self.qpos_ref, 0.0, 10.0, name="terminal_velocity"),
+                WrappedAngle("hinge", np.pi, weight=100.0, name="terminal_angle"),
+                StateCost(
+                    self.qpos_ref, weight_qpos=0.0, weight_qvel=10.0, name="terminal_velocity"
+                ),
             ],
         )
 
@@ -185,13 +143,18 @@ class CartpoleSwingup(Problem):
     def build_cost(self, model: mujoco.MjModel) -> Cost:
         return Cost(
             [
-                StateCost(self.qpos_ref, [2.0, 0.0], [0.5, 0.5]),
-                WrappedAngle("hinge_1", np.pi, 10.0),
-                ControlCost(1.0),
+                StateCost(self.qpos_ref, weight_qpos=[2.0, 0.0], weight_qvel=[0.5, 0.5]),
+                WrappedAngle("hinge_1", np.pi, weight=10.0),
+                ControlCost(weight=1.0),
             ],
             [
-                StateCost(self.qpos_ref, [20.0, 0.0], [10.0, 10.0], name="terminal_state"),
-                WrappedAngle("hinge_1", np.pi, 100.0, name="terminal_angle"),
+                StateCost(
+                    self.qpos_ref,
+                    weight_qpos=[20.0, 0.0],
+                    weight_qvel=[10.0, 10.0],
+                    name="terminal_state",
+                ),
+                WrappedAngle("hinge_1", np.pi, weight=100.0, name="terminal_angle"),
             ],
         )
 

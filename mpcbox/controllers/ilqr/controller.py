@@ -759,5 +759,7 @@ def _with_lqr_terminal_value(problem: Problem) -> Problem:
     from mpcbox.core.cost import Cost, QuadraticValue
 
     lqr = LQR(problem)
-    value = QuadraticValue(nearest_psd(lqr.P), problem.qpos_ref, problem.qvel_ref, name="lqr_value")
+    value = QuadraticValue(
+        problem.qpos_ref, problem.qvel_ref, P=nearest_psd(lqr.P), name="lqr_value"
+    )
     return problem.with_cost(Cost(problem.cost.running, [*problem.cost.terminal, value]))

@@ -151,9 +151,11 @@ class HumanoidBalance(HumanoidProblem):
         wq = joint_weights(model, dofs, w["balance_joint"], w["other_joint"])
         return Cost(
             [
-                ComOverSupport(self.foot(self.leg), w["balance"], root="torso", name="balance"),
-                StateCost(self.qpos_ref, wq, w["velocity"]),
-                ControlCost(w["ctrl"], self.ctrl_ref),
+                ComOverSupport(
+                    self.foot(self.leg), weight=w["balance"], root="torso", name="balance"
+                ),
+                StateCost(self.qpos_ref, weight_qpos=wq, weight_qvel=w["velocity"]),
+                ControlCost(self.ctrl_ref, weight=w["ctrl"]),
             ]
         )
 

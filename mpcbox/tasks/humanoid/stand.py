@@ -120,20 +120,31 @@ class HumanoidStand(HumanoidProblem):
                 wq[adr + 2 : adr + 6] = 0.0
         balance = [
             ComOverSupport(
-                f"foot_{side}", scale * w["balance"], root="torso", name=f"com_{side}{suffix}"
+                f"foot_{side}",
+                weight=scale * w["balance"],
+                root="torso",
+                name=f"com_{side}{suffix}",
             )
             for side in ("left", "right")
             if w["balance"] > 0
         ]
         return [
             *balance,
-            FrameHeight("torso", self.torso_height, scale * w["height"], name="height" + suffix),
-            Upright("torso", scale * w["upright"], name="upright" + suffix),
-            StateCost(self.qpos_ref, scale * wq, scale * w["velocity"], name="posture" + suffix),
+            FrameHeight(
+                "torso", self.torso_height, weight=scale * w["height"], name="height" + suffix
+            ),
+            Upright("torso", weight=scale * w["upright"], name="upright" + suffix),
+            StateCost(
+                self.qpos_ref,
+                weight_qpos=scale * wq,
+                weight_qvel=scale * w["velocity"],
+                name="posture" + suffix,
+            ),
         ]
 
     def build_cost(self, model: mujoco.MjModel) -> Cost:
-        running = [*self._terms(model, 1.0, ""), ControlCost(self.weights["ctrl"], self.ctrl_ref)]
+        control = ControlCost(self.ctrl_ref, weight=self.weights["ctrl"])
+        running = [*self._terms(model, 1.0, ""), control]
         return Cost(running, self._terms(model, self.weights["terminal"], "_terminal"))
 
     def support_point(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:

@@ -90,9 +90,9 @@ class HumanoidTwoFeet(HumanoidProblem):
         wq = joint_weights(model, dofs, w["balance_joint"], w["other_joint"])
         return Cost(
             [
-                ComOverSupport(FEET_CENTER, w["balance"], root="torso", name="balance"),
-                StateCost(self.qpos_ref, wq, w["velocity"]),
-                ControlCost(w["ctrl"], self.ctrl_ref),
+                ComOverSupport(FEET_CENTER, weight=w["balance"], root="torso", name="balance"),
+                StateCost(self.qpos_ref, weight_qpos=wq, weight_qvel=w["velocity"]),
+                ControlCost(self.ctrl_ref, weight=w["ctrl"]),
             ]
         )
 

@@ -195,10 +195,9 @@ class WarpBackend(AsyncRolloutBackend):
         self.horizon_steps, self.num_knots = self.weights_host.shape
         self.models = list(models)
         self.use_graph = bool(use_graph) and device.startswith("cuda")
-        model = problem.planning_model
-        # Raises BackendUnavailableError for custom terms, before anything is compiled.
-        self.running_rows = wc.build_rows(problem.cost.running, model)
-        self.terminal_rows = wc.build_rows(problem.cost.terminal, model)
+        # Raises UnsupportedCostTermError for terms without rows, before anything is compiled.
+        self.running_rows = wc.build_rows(problem.cost.running)
+        self.terminal_rows = wc.build_rows(problem.cost.terminal)
         self.nconmax: int | None = None
         self.njmax: int | None = None
         self.nworld = 0

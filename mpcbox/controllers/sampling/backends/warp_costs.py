@@ -1,7 +1,8 @@
 r"""The Problem's cost terms as Warp kernels, one thread per world.
 
-Every supported term is a weighted least-squares residual (:mod:`mpcbox.core.cost`), so a cost
-is flattened into *row tables*; each row contributes :math:`\tfrac12 w r^2` with
+Every term with a row form (:meth:`mpcbox.core.cost.CostTerm.rows`) is a sum of elementary
+rows (:mod:`mpcbox.core.cost.rows`), each contributing :math:`\tfrac12 w r^2`. The rows of a
+set of terms are gathered into *row tables*, one per row kind:
 
 * position rows ``(i, ref, w)``: :math:`r = q_i - \mathrm{ref}` (hinge, slide, free-joint
   translation);
@@ -10,16 +11,12 @@ is flattened into *row tables*; each row contributes :math:`\tfrac12 w r^2` with
   :math:`(-\pi, \pi]`);
 * velocity rows ``(i, ref, w)``: :math:`r = v_i - \mathrm{ref}`;
 * control rows ``(i, ref, w)``: :math:`r = u_i - \mathrm{ref}`;
-* wrapped-angle rows ``(i, ref, w)``: :math:`r = 2 \sin((q_i - \mathrm{ref}) / 2)` (the
-  swing-up tasks' :class:`~mpcbox.tasks.swingup.WrappedAngle`);
-* sensor rows ``(a, b, c, w)``: :math:`r = s_a - s_b - c` (:math:`s_b = 0` when ``b < 0``),
-  which covers :class:`~mpcbox.core.cost.ComOverSupport`, :class:`~mpcbox.core.cost.FramePosition`,
-  :class:`~mpcbox.core.cost.FrameHeight` and :class:`~mpcbox.core.cost.Upright` (their sensors are in
-  MJWarp's ``Data.sensordata`` at the same addresses as on the CPU).
+* wrapped-angle rows ``(i, ref, w)``: :math:`r = 2 \sin((q_i - \mathrm{ref}) / 2)`;
+* sensor rows ``(a, b, c, w)``: :math:`r = s_a - s_b - c` (:math:`s_b = 0` when ``b < 0``);
+  the sensors are in MJWarp's ``Data.sensordata`` at the same addresses as on the CPU.
 
-:class:`~mpcbox.core.cost.StateCost` and :class:`~mpcbox.core.cost.ControlCost` become position,
-quaternion, velocity and control rows. Any other term raises
-:class:`~mpcbox.errors.BackendUnavailableError`. Rows with zero weight are dropped.
+A term without a row form raises :class:`~mpcbox.errors.UnsupportedCostTermError`. Rows with
+zero weight are dropped.
 """
 
 from __future__ import annotations
@@ -27,30 +24,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import NamedTuple
 
-import mujoco
 import numpy as np
 import warp as wp
 
-from mpcbox.core.cost import (
-    ComOverSupport,
-    ControlCost,
-    CostTerm,
-    FrameHeight,
-    FramePosition,
-    StateCost,
-    Upright,
-)
-from mpcbox.core.tangent import TangentSpace
-from mpcbox.errors import BackendUnavailableError
-
-SUPPORTED_TERMS: tuple[type, ...] = (
-    StateCost,
-    ControlCost,
-    ComOverSupport,
-    FramePosition,
-    FrameHeight,
-    Upright,
-)
+from mpcbox.core.cost import CostTerm
+from mpcbox.core.cost.rows import ROW_KINDS
 
 
 class RowTables(NamedTuple):
@@ -91,71 +69,20 @@ class RowTables(NamedTuple):
         return self.s_a.size > 0
 
 
-def _wrapped_angle_type() -> type | None:
-    try:
-        from mpcbox.tasks.swingup import WrappedAngle
-    except ImportError:  # pragma: no cover - tasks need a source checkout
-        return None
-    return WrappedAngle
-
-
-def _check_supported(term: CostTerm) -> None:
-    if type(term) not in (*SUPPORTED_TERMS, _wrapped_angle_type()):
-        names = ", ".join(t.__name__ for t in SUPPORTED_TERMS)
-        raise BackendUnavailableError(
-            f"cost term {term.name!r} of type {type(term).__name__} has no Warp kernel; the "
-            f"warp backend supports {names}. Use backend='cpu' for custom terms."
-        )
-
-
-def build_rows(terms: Sequence[CostTerm], model: mujoco.MjModel) -> RowTables:
-    """Flatten bound cost terms into row tables.
+def build_rows(terms: Sequence[CostTerm]) -> RowTables:
+    """Gather the rows of bound cost terms into row tables.
 
     Args:
         terms: Bound terms (running or terminal) of a Problem's cost.
-        model: The planning model they are bound to.
 
     Raises:
-        BackendUnavailableError: For a term type without a Warp kernel.
+        UnsupportedCostTermError: For a term without a row form.
     """
-    q, quat, v, u, a, s = [], [], [], [], [], []
-    wrapped = _wrapped_angle_type()
-    tangent = TangentSpace(model)
-    nv = model.nv
+    groups: dict[type, list[tuple]] = {kind: [] for kind in ROW_KINDS}
     for term in terms:
-        _check_supported(term)
-        w = term.weight
-        if isinstance(term, StateCost):
-            wq, wv = w[:nv], w[nv:]
-            for qa, va in zip(tangent._scal_q, tangent._scal_v, strict=True):
-                q.append((int(qa), term.qpos_ref[qa], wq[va]))
-            for qa, va in zip(tangent._quat_q, tangent._quat_v, strict=True):
-                quat.append((int(qa), term.qpos_ref[qa : qa + 4], wq[va : va + 3]))
-            for j in range(nv):
-                v.append((j, term.qvel_ref[j], wv[j]))
-        elif isinstance(term, ControlCost):
-            for j in range(model.nu):
-                u.append((j, term.ctrl_ref[j], w[j]))
-        elif wrapped is not None and isinstance(term, wrapped):
-            a.append((term._qadr, term.target, w[0]))
-        elif isinstance(term, ComOverSupport):
-            com = term.sensor_address(f"mpcbox_{term.name}_com").start
-            foot = term.sensor_address(f"mpcbox_{term.name}_support").start
-            for i in range(2):
-                s.append((com + i, foot + i, 0.0, w[i]))
-        elif isinstance(term, FramePosition):
-            adr = term.sensor_address(f"mpcbox_{term.name}").start
-            for i in range(3):
-                s.append((adr + i, -1, term.target[i], w[i]))
-        elif isinstance(term, FrameHeight):
-            adr = term.sensor_address(f"mpcbox_{term.name}").start
-            s.append((adr + 2, -1, term.target, w[0]))
-        elif isinstance(term, Upright):
-            adr = term.sensor_address(f"mpcbox_{term.name}").start
-            for i in range(2):
-                s.append((adr + i, -1, 0.0, w[i]))
-
-    q, quat, v, u, a, s = (_nonzero(rows) for rows in (q, quat, v, u, a, s))
+        for row in term.rows():
+            groups[type(row)].append(tuple(row))
+    q, quat, v, u, a, s = (_nonzero(groups[kind]) for kind in ROW_KINDS)
     i32 = lambda rows, i: np.array([r[i] for r in rows], dtype=np.int32)  # noqa: E731
     f32 = lambda rows, i, *shape: np.array(  # noqa: E731
         [r[i] for r in rows], dtype=np.float32

@@ -1,0 +1,79 @@
+"""Center of mass over a support point."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+from mpcbox.core.cost.base import CostTerm, Features, Jacobian, SensorRequest
+from mpcbox.core.cost.frames import frame_sensor, point_jacobian
+from mpcbox.core.cost.rows import Row, SensorRow
+from mpcbox.core.model import object_id
+
+
+class ComOverSupport(CostTerm):
+    """Horizontal distance of a subtree's center of mass from a support point.
+
+    ``r = com_xy(root) - p_xy(support)``: zero when the center of mass is above the support
+    (for example a stance foot).
+
+    Args:
+        support: Site or body name of the support point.
+        weight: Scalar or ``(2,)`` weights.
+        root: Body whose subtree center of mass is used (default: body 1, the first body).
+        name: Short label used in sensor names and reports.
+    """
+
+    def __init__(
+        self,
+        support: str,
+        *,
+        weight: float | np.ndarray,
+        root: str | None = None,
+        name: str = "",
+    ) -> None:
+        super().__init__(weight, name or f"com_over_{support}")
+        self.support = support
+        self.root = root
+
+    def _root(self, model: mujoco.MjModel) -> str:
+        if self.root is not None:
+            return self.root
+        return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, 1)
+
+    def size(self, model: mujoco.MjModel) -> int:
+        return 2
+
+    def sensors(self, model: mujoco.MjModel) -> Sequence[SensorRequest]:
+        object_id(model, "body", self._root(model))
+        objtype, objname = frame_sensor(model, self.support)
+        return (
+            SensorRequest(
+                f"mpcbox_{self.name}_com",
+                mujoco.mjtSensor.mjSENS_SUBTREECOM,
+                mujoco.mjtObj.mjOBJ_BODY,
+                self._root(model),
+            ),
+            SensorRequest(
+                f"mpcbox_{self.name}_support", mujoco.mjtSensor.mjSENS_FRAMEPOS, objtype, objname
+            ),
+        )
+
+    def residual(self, features: Features) -> np.ndarray:
+        com = self.sensor_slice(features, f"mpcbox_{self.name}_com")
+        foot = self.sensor_slice(features, f"mpcbox_{self.name}_support")
+        return com[:, :2] - foot[:, :2]
+
+    def jacobian(self, model: mujoco.MjModel, data: mujoco.MjData) -> Jacobian:
+        jac_com = np.zeros((3, model.nv))
+        mujoco.mj_jacSubtreeCom(model, data, jac_com, object_id(model, "body", self._root(model)))
+        jq = (jac_com - point_jacobian(model, data, self.support))[:2]
+        return Jacobian(jq, np.zeros((2, model.nv)), np.zeros((2, model.nu)))
+
+    def rows(self) -> list[Row]:
+        """Sensor rows ``com_i - support_i`` for ``i = x, y``."""
+        com = self.sensor_address(f"mpcbox_{self.name}_com").start
+        foot = self.sensor_address(f"mpcbox_{self.name}_support").start
+        return [SensorRow(com + i, foot + i, 0.0, self.weight[i]) for i in range(2)]

@@ -1,0 +1,134 @@
+"""Cost terms own all their forms: the row form and the CasADi form agree with the residual."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import mpcbox
+from mpcbox.core.cost import (
+    ComOverSupport,
+    ControlCost,
+    Cost,
+    CostTerm,
+    FrameHeight,
+    FramePosition,
+    QuadraticValue,
+    StateCost,
+    Upright,
+    WrappedAngle,
+)
+from mpcbox.core.cost.rows import (
+    AngleRow,
+    ControlRow,
+    PositionRow,
+    QuaternionRow,
+    SensorRow,
+    VelocityRow,
+)
+from mpcbox.core.tangent import quat_difference
+from mpcbox.errors import UnsupportedCostTermError
+from mpcbox.tasks import scene_path
+
+
+def row_value(row, qpos, qvel, ctrl, sensordata) -> float:
+    """``0.5 w r^2`` of one row, written out from the row definitions."""
+    if isinstance(row, QuaternionRow):
+        d = quat_difference(qpos[row.address : row.address + 4], row.ref)
+        return 0.5 * float(np.sum(row.weight * d * d))
+    if isinstance(row, PositionRow):
+        r = qpos[row.index] - row.ref
+    elif isinstance(row, VelocityRow):
+        r = qvel[row.index] - row.ref
+    elif isinstance(row, ControlRow):
+        r = ctrl[row.index] - row.ref
+    elif isinstance(row, AngleRow):
+        r = 2.0 * np.sin(0.5 * (qpos[row.index] - row.ref))
+    else:
+        assert isinstance(row, SensorRow)
+        r = sensordata[row.a] - row.offset - (sensordata[row.b] if row.b >= 0 else 0.0)
+    return 0.5 * row.weight * r * r
+
+
+def check_rows(problem: mpcbox.Problem, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    x = problem.state_add(problem.reference_state(), 0.3 * rng.standard_normal(problem.nx))
+    u = problem.clip_ctrl(problem.ctrl_ref + rng.standard_normal(problem.nu))
+    features = problem.features(x, u)
+    qpos, qvel, ctrl, sens = (f[0] for f in features)
+    for term in problem.cost.terms:
+        r = term.residual(features)[0]
+        want = 0.5 * np.sum(term.weight * r * r)
+        got = sum(row_value(row, qpos, qvel, ctrl, sens) for row in term.rows())
+        assert got == pytest.approx(want, rel=1e-12, abs=1e-12), term.name
+
+
+def test_humanoid_rows_sum_to_the_residual_cost():
+    """Quaternion, position, velocity, control and sensor rows (free joint weighted too)."""
+    humanoid = scene_path("humanoid.xml")
+    ref = mpcbox.Problem(humanoid, keyframe="stand")
+    terms = [
+        StateCost(ref.qpos_ref, weight_qpos=2.0, weight_qvel=0.5),
+        ControlCost(np.full(ref.nu, 0.1), weight=np.linspace(0.5, 1.5, ref.nu)),
+        ComOverSupport("foot_left", weight=[3.0, 4.0], root="torso"),
+        FramePosition("hand_right", np.array([0.2, -0.3, 1.0]), weight=[1.0, 0.0, 2.0]),
+        FrameHeight("torso", 1.3, weight=5.0),
+        Upright("torso", weight=[2.0, 3.0]),
+    ]
+    problem = mpcbox.Problem(humanoid, keyframe="stand", cost=Cost(terms))
+    assert any(isinstance(row, QuaternionRow) for row in problem.cost.running[0].rows())
+    check_rows(problem, 0)
+
+
+def test_wrapped_angle_rows_sum_to_the_residual_cost():
+    from mpcbox.tasks.swingup import CartpoleSwingup
+
+    check_rows(CartpoleSwingup(), 1)
+
+
+class Custom(CostTerm):
+    def size(self, model):
+        return model.nq
+
+    def residual(self, features):
+        return features.qpos.copy()
+
+
+def test_terms_without_a_form_say_which_backend_needs_it():
+    problem = mpcbox.Problem(scene_path("cartpole.xml"), cost=Cost([Custom(1.0, "mine")]))
+    term = problem.cost.running[0]
+    with pytest.raises(UnsupportedCostTermError, match=r"'mine' of type Custom.*warp") as err:
+        term.rows()
+    assert isinstance(err.value, NotImplementedError) and "StateCost" in str(err.value)
+    with pytest.raises(UnsupportedCostTermError, match=r"CasADi form.*IPOPT"):
+        term.casadi_residual(None, None, None)
+    value = QuadraticValue(problem.qpos_ref, P=np.eye(problem.nx))
+    with pytest.raises(UnsupportedCostTermError, match="QuadraticValue"):
+        problem.with_cost(Cost([value])).cost.running[0].rows()
+
+
+def test_casadi_forms_match_the_residuals():
+    casadi = pytest.importorskip("casadi")
+    from mpcbox.tasks.swingup import CartpoleSwingup
+
+    problem = CartpoleSwingup()
+    rng = np.random.default_rng(2)
+    x = problem.state_add(problem.reference_state(), rng.standard_normal(problem.nx))
+    u = rng.standard_normal(problem.nu)
+    q, v, c = casadi.SX.sym("q", problem.nq), casadi.SX.sym("v", problem.nv), casadi.SX.sym("u")
+    features = problem.features(x, u)
+    for term in problem.cost.terms:
+        fn = casadi.Function("r", [q, v, c], [term.casadi_residual(q, v, c)])
+        got = np.asarray(fn(x[: problem.nq], x[problem.nq :], u)).ravel()
+        np.testing.assert_allclose(got, term.residual(features)[0], rtol=1e-12, atol=1e-12)
+    with pytest.raises(UnsupportedCostTermError, match="nq == nv"):
+        mpcbox.Problem(scene_path("humanoid.xml")).cost.running[0].casadi_residual(q, v, c)
+
+
+def test_weights_are_keyword_only():
+    with pytest.raises(TypeError):
+        ControlCost(None, 1.0)
+    with pytest.raises(TypeError):
+        StateCost(np.zeros(2), None, 1.0)
+    with pytest.raises(TypeError):
+        WrappedAngle("hinge", np.pi, 1.0)
