@@ -88,3 +88,15 @@ class BackendUnavailableError(MpcboxError, RuntimeError):
 
 class UnsupportedModelError(MpcboxError, NotImplementedError):
     """A backend does not implement a MuJoCo feature that the model uses."""
+
+
+class InfeasibleEquilibriumError(SolverError):
+    """The actuators cannot hold a posture within their control, activation and force limits.
+
+    The message names the worst joint, its shortfall and the actuators at a limit there.
+    """
+
+
+class EquilibriumWarning(UserWarning):
+    """Warning that the actuators cannot fully hold a posture (see
+    :class:`InfeasibleEquilibriumError` for the same condition as an error)."""
