@@ -98,3 +98,15 @@ class UnsupportedCostTermError(UnsupportedModelError):
 
     The message names the term, the backend and the term types that have that form.
     """
+
+
+class InfeasibleEquilibriumError(SolverError):
+    """The actuators cannot hold a posture within their control, activation and force limits.
+
+    The message names the worst joint, its shortfall and the actuators at a limit there.
+    """
+
+
+class EquilibriumWarning(UserWarning):
+    """Warning that the actuators cannot fully hold a posture (see
+    :class:`InfeasibleEquilibriumError` for the same condition as an error)."""
