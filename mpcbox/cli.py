@@ -224,7 +224,7 @@ def run_comparison(
         args: Arguments from :func:`build_parser`.
         controller_defaults: Controller option overrides applied to the chosen controllers
             that have an entry (before ``--set``, which must name chosen controllers).
-        stream: Where the table is printed (default: stdout).
+        stream (typing.TextIO | None): Where the table is printed (default: stdout).
 
     Returns:
         The exit status (0).

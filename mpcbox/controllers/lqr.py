@@ -100,7 +100,11 @@ def dlqr(
     """Checked discrete LQR: the gain ``K`` ``(nu, nx)`` and Riccati solution ``P`` ``(nx, nx)``.
 
     Raises:
-        ShapeError, CostDefinitionError, NotStabilizableError, SolverError.
+        ShapeError: An array has the wrong shape, or ``A`` or ``B`` is not finite.
+        CostDefinitionError: ``Q`` or ``R`` is not symmetric, ``R`` is not positive
+            definite or ``Q`` is not positive semidefinite.
+        NotStabilizableError: No stabilizing gain exists.
+        SolverError: The Riccati solver failed.
     """
     n = A.shape[0] if A.ndim == 2 else -1
     A = as_array("A", A, (n, n))
