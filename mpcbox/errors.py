@@ -88,3 +88,15 @@ class BackendUnavailableError(MpcboxError, RuntimeError):
 
 class UnsupportedModelError(MpcboxError, NotImplementedError):
     """A backend does not implement a MuJoCo feature that the model uses."""
+
+
+class MujocoError(MpcboxError, RuntimeError):
+    """MuJoCo stopped a computation with a fatal error (``mujoco.FatalError``)."""
+
+
+class PlanningModelWarning(UserWarning):
+    """The planning model differs from the model in a way the user did not ask for.
+
+    For example a model with the RK4 integrator is planned with ``implicitfast``, because
+    MuJoCo cannot differentiate an RK4 step.
+    """

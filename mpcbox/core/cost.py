@@ -22,7 +22,7 @@ import numpy as np
 
 from mpcbox.core.model import frame_object, object_id
 from mpcbox.core.tangent import TangentSpace
-from mpcbox.errors import CostDefinitionError, InvalidArgumentError, ShapeError
+from mpcbox.errors import CostDefinitionError, InvalidArgumentError
 from mpcbox.validation import as_array, as_weights
 
 
@@ -523,18 +523,3 @@ class Cost:
     def terminal_value(self, features: Features) -> np.ndarray:
         """Terminal cost per row, shape ``(B,)``; zero without terminal terms."""
         return self._sum(self.terminal, features)
-
-
-def check_features(features: Features, model: mujoco.MjModel) -> None:
-    """Shape check used by batch entry points."""
-    b = features.qpos.shape[0]
-    want = {
-        "qpos": (b, model.nq),
-        "qvel": (b, model.nv),
-        "ctrl": (b, model.nu),
-        "sensordata": (b, model.nsensordata),
-    }
-    for key, shape in want.items():
-        got = getattr(features, key).shape
-        if got != shape:
-            raise ShapeError(f"features.{key} must have shape {shape}, got {got}")
