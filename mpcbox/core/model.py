@@ -11,8 +11,10 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from mpcbox.core import menagerie
 from mpcbox.errors import (
     InvalidArgumentError,
+    InvalidTypeError,
     ModelLoadError,
     ModelNotFoundError,
     PlanningModelWarning,
@@ -59,14 +61,26 @@ _COUNTS = {
 
 
 def load_spec(source: str | Path | mujoco.MjSpec) -> mujoco.MjSpec:
-    """An editable :class:`mujoco.MjSpec` from an MJCF path, an XML string or a spec.
+    """An editable :class:`mujoco.MjSpec` from an MJCF path, an XML string, a spec, or a
+    MuJoCo Menagerie robot named ``"menagerie:NAME"`` or ``"menagerie:NAME/ENTRY"`` (for
+    example ``"menagerie:franka_emika_panda"``, ``"menagerie:unitree_g1/g1"``; see
+    :mod:`mpcbox.core.menagerie`).
 
     Raises:
+        InvalidTypeError: If ``source`` is none of these types.
         ModelNotFoundError: If a path does not exist.
         ModelLoadError: If MuJoCo cannot parse the file.
     """
     if isinstance(source, mujoco.MjSpec):
         return source.copy()
+    if not isinstance(source, (str, Path)):
+        raise InvalidTypeError(
+            "model must be an MJCF path, an XML string, a mujoco.MjSpec, a mujoco.MjModel or "
+            f"'menagerie:NAME', got {type(source).__name__}"
+        )
+    if isinstance(source, str) and source.startswith(menagerie.PREFIX):
+        name, _, entry = source[len(menagerie.PREFIX) :].partition("/")
+        return menagerie.robot_spec(name, entry or None)
     if isinstance(source, str) and source.lstrip().startswith("<"):
         try:
             return mujoco.MjSpec.from_string(source)
