@@ -308,7 +308,7 @@ class QPMPC(Controller):
         self.state_ref = problem.reference_state()
         self.ctrl_ref = problem.ctrl_ref.copy()
         if contacts is None:
-            contacts = getattr(problem, "contacts", None) or self._default_contacts()
+            contacts = problem.contacts or self._default_contacts()
         self.points: ContactPoints = contact_points(
             self.model, _resolve_kinds(contacts), self.state_ref[: problem.nq]
         )
