@@ -69,8 +69,8 @@ _LAZY: dict[str, str] = {
     "simulate": "mpcbox.sim.simulation",
     "SimulationResult": "mpcbox.sim.simulation",
     "Metrics": "mpcbox.sim.simulation",
-    "compare": "mpcbox.comparison.comparison",
-    "Scenario": "mpcbox.comparison.comparison",
+    "compare": "mpcbox.comparison.runner",
+    "Scenario": "mpcbox.comparison.scenario",
     "make_controller": "mpcbox.registry",
 }
 

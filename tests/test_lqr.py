@@ -67,7 +67,7 @@ def test_lqr_holds_one_leg_12s_under_recipe_noise(balance):
     lqr = mpcbox.LQR(balance)
     res = mpcbox.simulate(balance, lqr, 12.0, noise=balance.noise(), seed=1)
     assert res.survived, res.failure
-    assert res.metrics.com_deviation_rms < 0.02
+    assert res.metrics.measures["com_deviation_rms_m"] < 0.02
 
     # Without a controller (holding the equilibrium control) the humanoid falls.
     class Hold(mpcbox.Controller):

@@ -162,11 +162,12 @@ def test_survives_a_moderate_push(one_leg, two_feet):
 
 def test_push_limit_at_least_lqr(one_leg):
     from mpcbox.comparison.push_limits import largest_push
+    from mpcbox.comparison.scenario import PushTest
     from mpcbox.controllers.lqr import LQR
 
-    kw = dict(tolerance=4.0, max_force=96.0, settle=2.5)
-    lqr = largest_push(one_leg, LQR(one_leg), **kw)
-    qp = largest_push(one_leg, QPMPC(one_leg, **one_leg.controller_options["qp"]), **kw)
+    test = PushTest(tolerance=4.0, max_force=96.0, settle=2.5)
+    lqr = largest_push(one_leg, LQR(one_leg), test)
+    qp = largest_push(one_leg, QPMPC(one_leg, **one_leg.controller_options["qp"]), test)
     print(f"largest push: QP-MPC {qp.force:.1f} N, LQR {lqr.force:.1f} N")
     assert qp.force >= 1.4 * lqr.force
 

@@ -19,6 +19,7 @@ import copy
 import os
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -34,7 +35,6 @@ from mpcbox.core.model import (
     build_planning_model,
     check_model,
     compile_spec,
-    frame_object,
     load_spec,
     object_id,
     plannable,
@@ -65,7 +65,9 @@ class Problem:
     keeps RK4.
 
     Subclasses typically override :meth:`build_cost` (and :meth:`prepare` to compute a
-    reference posture before the cost is built) and :meth:`failure` (what counts as a fall).
+    reference posture before the cost is built) and :meth:`failure` (what counts as a fall);
+    tasks may also declare :meth:`measures` (reported by :func:`~mpcbox.simulate`), a
+    :meth:`noise` model and :attr:`contacts`.
 
     Args:
         model: MJCF path, XML string, :class:`mujoco.MjSpec`, or compiled
@@ -91,6 +93,10 @@ class Problem:
     """
 
     name: str = "problem"
+    #: Contact geoms, bodies or sites (names, optionally prefixed ``"geom:"``, ``"body:"`` or
+    #: ``"site:"``; see :func:`~mpcbox.core.contact.contact_points`) that contact-aware
+    #: controllers (:class:`~mpcbox.QPMPC`) use when given none; empty: they find their own.
+    contacts: tuple[str, ...] = ()
 
     def __init__(
         self,
@@ -410,35 +416,38 @@ class Problem:
             return "non-finite state"
         return None
 
-    def support_point(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray | None:
-        """Horizontal point the center of mass should stay above (``None``: initial COM)."""
-        return None
+    def measures(self) -> Sequence[Any]:
+        """The task's own measures, sampled at every step of a closed-loop run.
 
-    def tilt_body(self) -> int:
-        """Body whose tilt is reported (default: body 1)."""
-        return 1
+        :func:`mpcbox.simulate` samples each one after every step and summarizes it in
+        :attr:`Metrics.measures <mpcbox.Metrics>`; comparison tables show a column per
+        summary. The base class declares none; the humanoid tasks report the center of mass
+        over the support and the torso tilt (:mod:`mpcbox.tasks.humanoid.measures`).
 
-    def balance_measures(
-        self, model: mujoco.MjModel, data: mujoco.MjData, com_origin: np.ndarray
-    ) -> tuple[float, float]:
-        """Horizontal COM deviation (m) and tilt (deg) of ``data`` after kinematics.
+        Returns:
+            A sequence of :class:`mpcbox.sim.measures.Measure` with distinct names.
+        """
+        return ()
+
+    def noise(self, scale: float = 1.0) -> Any:
+        """The task's actuator-noise model at ``scale`` times its nominal level.
+
+        Scenarios of :func:`mpcbox.compare` that ask for noise without giving one use it.
+        The base class has none.
 
         Args:
-            model: The model of ``data``.
-            data: Data after ``mj_forward`` or a step.
-            com_origin: Horizontal COM at the start, used when there is no support point.
-        """
-        com = data.subtree_com[self.tilt_body()][:2]
-        support = self.support_point(model, data)
-        ref = com_origin if support is None else support
-        zaxis = data.xmat[self.tilt_body()].reshape(3, 3)[:, 2]
-        tilt = float(np.degrees(np.arccos(np.clip(zaxis[2], -1.0, 1.0))))
-        return float(np.linalg.norm(com - ref)), tilt
+            scale: Multiplier on the nominal standard deviations.
 
-    def frame_xy(self, model: mujoco.MjModel, data: mujoco.MjData, name: str) -> np.ndarray:
-        """Horizontal position of a site or body."""
-        kind, idx = frame_object(model, name)
-        return (data.site_xpos[idx] if kind == "site" else data.xpos[idx])[:2].copy()
+        Returns:
+            A :class:`mpcbox.ActuatorNoise`.
+
+        Raises:
+            InvalidArgumentError: Always, in the base class: the task has no noise model.
+        """
+        raise InvalidArgumentError(
+            f"task {self.name!r} ({type(self).__name__}) has no noise model: give an explicit "
+            "mpcbox.ActuatorNoise, or noise scale 0"
+        )
 
     # ------------------------------------------------------------------ copies
     def with_planning_timestep(self, timestep: float) -> Problem:

@@ -164,9 +164,7 @@ class QPMPC(Controller):
         self.ctrl_ref = problem.ctrl_ref.copy()
         contacts = cfg.contacts
         if contacts is None:
-            contacts = getattr(problem, "contacts", None) or default_contacts(
-                problem, self.state_ref
-            )
+            contacts = problem.contacts or default_contacts(problem, self.state_ref)
         contacts = [contacts] if isinstance(contacts, str) else list(contacts)
         self.points = contact_points(self.model, contacts, self.state_ref[: problem.nq])
         self.dynamics = ContactDynamics(
