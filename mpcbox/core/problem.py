@@ -59,10 +59,8 @@ class Problem:
     model and ``planning_model`` the one controllers predict with (by default identical; a
     coarser ``planning_timestep`` makes planning cheaper). It also owns the :class:`Cost`.
 
-    A model with the RK4 integrator is planned with ``implicitfast`` (MuJoCo cannot
-    differentiate an RK4 step; see :func:`~mpcbox.core.model.plannable`): a
-    :class:`~mpcbox.errors.PlanningModelWarning` and the repr say so. The simulation model
-    keeps RK4.
+    An RK4 model is planned with ``implicitfast`` (MuJoCo cannot differentiate an RK4 step),
+    said by a :class:`~mpcbox.errors.PlanningModelWarning` and the repr; it simulates in RK4.
 
     Subclasses typically override :meth:`build_cost` (and :meth:`prepare` to compute a
     reference posture before the cost is built) and :meth:`failure` (what counts as a fall);
@@ -462,7 +460,7 @@ class Problem:
             timestep: Planning timestep (s).
         """
         clone = copy.copy(self)
-        clone.planning_model = _copy_model(self.planning_model)
+        clone.planning_model = copy.copy(self.planning_model)
         clone.planning_model.opt.timestep = positive("timestep", timestep)
         clone.dynamics = Dynamics(clone.planning_model, self.threads)
         return clone
@@ -500,7 +498,3 @@ class Problem:
             f"{type(self).__name__}(name={self.name!r}, nq={self.nq}, nv={self.nv}, nu={self.nu}, "
             f"dt_sim={self.model.opt.timestep}, dt_plan={self.dt}{replaced})"
         )
-
-
-def _copy_model(model: mujoco.MjModel) -> mujoco.MjModel:
-    return copy.copy(model)
