@@ -27,7 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mpcbox.comparison.comparison import PushTest, Scenario, compare
+from mpcbox.comparison.runner import compare
+from mpcbox.comparison.scenario import PushTest, Scenario
 
 
 def problem_options(args: argparse.Namespace) -> dict:
@@ -99,8 +100,8 @@ def evaluate(args: argparse.Namespace) -> dict:
                 else None
             ),
             "failed_seeds": [r.seed for r in failed],
-            "com_deviation_rms_cm": round(row.com_deviation_rms_cm, 3),
-            "tilt_rms_deg": round(row.tilt_rms_deg, 3),
+            "com_deviation_rms_cm": round(row.measures["com_deviation_rms_cm"], 3),
+            "tilt_rms_deg": round(row.measures["tilt_rms_deg"], 3),
             "compute_mean_ms": round(row.compute_mean_ms, 3),
             "compute_p99_ms": round(row.compute_p99_ms, 3),
             "realtime_factor": round(row.realtime_factor, 2),

@@ -20,7 +20,8 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
 
-from mpcbox.controllers.qp_mpc.controller import QPMPC, to_qpsolvers
+from mpcbox.controllers.qp_mpc.controller import QPMPC
+from mpcbox.controllers.qp_mpc.solvers import to_qpsolvers
 from mpcbox.sim.disturbances import Push
 from mpcbox.sim.simulation import simulate
 from mpcbox.tasks.humanoid.balance import HumanoidBalance
@@ -66,8 +67,8 @@ def main() -> None:
     out["qp_size"] = {
         "variables": ctl.nvar,
         "constraints": ctl.ncon,
-        "nnz_A": int(ctl._A.nnz),
-        "nnz_P": int(ctl._P.nnz),
+        "nnz_A": int(ctl.formulation.A.nnz),
+        "nnz_P": int(ctl.formulation.P.nnz),
     }
     # Iteration counts without the controller's iteration cap, so cold solves are not cut off.
     uncapped = {"max_iter": 4000}

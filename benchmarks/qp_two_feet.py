@@ -3,8 +3,9 @@
 Each trial is the README's push scenario on :class:`~mpcbox.tasks.HumanoidTwoFeet`: a 0.1 s
 push on the torso at t = 1 s, the robot must stay up 3 s after it (no noise, seed 0). Every
 (controller, direction, force) runs once, in parallel worker processes; each grid is then
-summarized by :func:`mpcbox.comparison.push_limits.summarize_push_grid` (largest force below the first
-failure, and whether survival is monotone in the force) and the QP-MPC fallbacks are counted.
+summarized by :func:`mpcbox.comparison.push_limits.summarize_push_grid` (largest force below
+the first failure, and whether survival is monotone in the force) and the QP-MPC fallbacks are
+counted.
 
 The QP-MPC variants: the task's tuning (soft stance, 10 x 0.02 s, solved at 50 Hz), a 0.6 s
 horizon (15 x 0.04 s), relinearization every tick, the rigid stance with OSQP and with
@@ -28,6 +29,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
 
+from mpcbox.comparison.scenario import PushTest
 from mpcbox.tasks.humanoid.balance import HumanoidBalance
 
 #: Controller name and keyword overrides on top of the task's ``controller_options``. The
@@ -50,22 +52,27 @@ FORCES = {
     "lat": [40, 70, 90, 105, 110, 115, 120, 125, 130, 140],
 }
 START, DURATION, SETTLE = 1.0, 0.1, 3.0
+#: The push of each direction (its force magnitude comes from ``FORCES``).
+TESTS = {
+    name: PushTest(direction=d, duration=DURATION, start=START, settle=SETTLE)
+    for name, d in DIRECTIONS.items()
+}
 
 
 def trial(variant: str, direction: str, force: float) -> dict:
     """One push trial; the controller is built fresh in the worker."""
     import warnings
 
-    from mpcbox import Push, make_controller, simulate
+    from mpcbox import make_controller, simulate
     from mpcbox.tasks.humanoid.two_feet import HumanoidTwoFeet
 
     warnings.filterwarnings("ignore")  # Clarabel's per-solve warnings; failures are counted
     problem = HumanoidTwoFeet(threads=1)
     name, options = VARIANTS[variant]
     controller = make_controller(name, problem, **options)
-    push = Push(force=force * np.asarray(DIRECTIONS[direction]), start=START, duration=DURATION)
+    test = TESTS[direction]
     t0 = time.perf_counter()
-    res = simulate(problem, controller, START + DURATION + SETTLE, pushes=[push], seed=0)
+    res = simulate(problem, controller, test.total_time, pushes=[test.push(force)], seed=0)
     return dict(
         variant=variant,
         direction=direction,

@@ -182,8 +182,8 @@ def closed_loop(name: str, spec: dict, seed: int, quick: bool, out: dict, contro
         extra = {
             "survived": bool(res.metrics.survived),
             "time_to_fall_s": float(res.metrics.time_to_fall),
-            "tilt_rms_deg": float(res.metrics.tilt_rms_deg),
-            "com_deviation_rms_m": float(res.metrics.com_deviation_rms),
+            "tilt_rms_deg": float(res.metrics.measures["tilt_rms_deg"]),
+            "com_deviation_rms_m": float(res.metrics.measures["com_deviation_rms_m"]),
         }
     row = {
         "variant": name,

@@ -165,7 +165,7 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
 
 
 def _scenarios(args: argparse.Namespace):
-    from mpcbox.comparison.comparison import Scenario
+    from mpcbox.comparison.scenario import Scenario
     from mpcbox.sim.disturbances import ModelMismatch, Push
 
     try:
@@ -229,7 +229,9 @@ def run_comparison(
     Returns:
         The exit status (0).
     """
-    from mpcbox.comparison.comparison import PushTest, compare, resolve_controllers
+    from mpcbox.comparison.plots import plot_comparison
+    from mpcbox.comparison.runner import compare, resolve_controllers
+    from mpcbox.comparison.scenario import PushTest
     from mpcbox.registry import task_class
 
     stream = stream or sys.stdout
@@ -283,7 +285,7 @@ def run_comparison(
     result.to_csv(out / "results.csv")
     written = [out / "results.md", out / "results.csv"]
     if args.plots:
-        written += result.plot(out)
+        written += plot_comparison(result, out)
     print("\nwrote " + ", ".join(str(p) for p in written), file=stream)
     failed = {r.controller: r.failure for r in result.runs if r.failure}
     for name, reason in failed.items():

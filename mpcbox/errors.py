@@ -110,3 +110,15 @@ class InfeasibleEquilibriumError(SolverError):
 class EquilibriumWarning(UserWarning):
     """Warning that the actuators cannot fully hold a posture (see
     :class:`InfeasibleEquilibriumError` for the same condition as an error)."""
+
+
+class MujocoError(MpcboxError, RuntimeError):
+    """MuJoCo stopped a computation with a fatal error (``mujoco.FatalError``)."""
+
+
+class PlanningModelWarning(UserWarning):
+    """The planning model differs from the model in a way the user did not ask for.
+
+    For example a model with the RK4 integrator is planned with ``implicitfast``, because
+    MuJoCo cannot differentiate an RK4 step.
+    """

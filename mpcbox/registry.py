@@ -17,7 +17,7 @@ from mpcbox.errors import UnknownNameError
 CONTROLLERS: dict[str, str] = {
     "lqr": "mpcbox.controllers.lqr:LQR",
     "ilqr": "mpcbox.controllers.ilqr.controller:ILQR",
-    "ipopt": "mpcbox.controllers.ipopt:IpoptController",
+    "ipopt": "mpcbox.controllers.ipopt_controller:IpoptController",
     "qp": "mpcbox.controllers.qp_mpc.controller:QPMPC",
     "ps": "mpcbox.controllers.sampling:PredictiveSampling",
     "mppi": "mpcbox.controllers.sampling:MPPI",

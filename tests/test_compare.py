@@ -9,7 +9,10 @@ import numpy as np
 import pytest
 
 from mpcbox.cli import main, run_task_script
-from mpcbox.comparison.comparison import Comparison, PushTest, Scenario, compare
+from mpcbox.comparison.plots import plot_comparison
+from mpcbox.comparison.report import Comparison
+from mpcbox.comparison.runner import compare
+from mpcbox.comparison.scenario import PushTest, Scenario
 from mpcbox.controllers.lqr import LQR
 from mpcbox.errors import InvalidArgumentError, UnknownNameError
 from mpcbox.sim.disturbances import ModelMismatch, Push
@@ -17,10 +20,10 @@ from mpcbox.sim.disturbances import ModelMismatch, Push
 DETERMINISTIC = (
     "survived",
     "time_to_fall",
-    "com_deviation_rms",
-    "tilt_rms_deg",
+    "cost",
     "control_effort",
     "fallbacks",
+    "measures",  # com_deviation_rms_m, tilt_rms_deg
 )
 
 
@@ -58,7 +61,7 @@ def test_serial_and_parallel_runs_are_identical():
         if a.trace is not None:
             np.testing.assert_array_equal(a.trace.ctrls, b.trace.ctrls)
     # Different seeds see different noise.
-    assert len({r.metrics.tilt_rms_deg for r in serial.runs_of("lqr", 0)}) == 3
+    assert len({r.metrics.measures["tilt_rms_deg"] for r in serial.runs_of("lqr", 0)}) == 3
     # The trace is kept for the first seed only.
     assert [r.trace is not None for r in serial.runs_of("lqr", 1)] == [True, False, False]
 
@@ -118,7 +121,7 @@ def test_table_csv_and_plots(balance, tmp_path):
     assert rows[0]["tilt_rms_deg"] == rows[1]["tilt_rms_deg"]
     assert float(rows[0]["largest_push_fwd"]) == result.push_limits["lqr"]["fwd"].force
 
-    files = result.plot(tmp_path / "plots")
+    files = plot_comparison(result, tmp_path / "plots")
     names = sorted(p.name for p in files)
     assert names == [
         "compute_time.png",
@@ -144,6 +147,29 @@ def test_unknown_names_list_the_valid_ones(balance):
         Scenario(noise_scale=-1.0)
     with pytest.raises(InvalidArgumentError, match="direction"):
         PushTest(direction=(0.0, 0.0, 0.0))
+
+
+def test_columns_follow_the_task_measures():
+    """A swing-up declares no measures (no COM or tilt columns) and has no noise model."""
+    with pytest.raises(InvalidArgumentError, match="no noise model"):
+        compare("pendulum_swingup", ["lqr"], Scenario(duration=0.1), seeds=1, progress=False)
+    result = compare(
+        "pendulum_swingup",
+        ["lqr"],
+        Scenario(duration=0.1, noise_scale=0.0),
+        seeds=1,
+        workers=1,
+        progress=False,
+    )
+    assert result.measures == ()
+    assert result.runs[0].metrics.measures == {}
+    assert np.isfinite(result.runs[0].metrics.cost)
+    header = result.to_markdown().splitlines()[0]
+    assert "COM" not in header and "tilt" not in header
+    assert result.to_csv().splitlines()[0] == (
+        "scenario,controller,runs,success_rate,mean_time_to_fall,control_effort,"
+        "compute_mean_ms,compute_p99_ms,realtime_factor,fallbacks"
+    )
 
 
 def test_cli_unknown_names(capsys):

@@ -101,7 +101,7 @@ def test_pyramid(facets):
 
 
 def test_pyramid_rejects_bad_input():
-    with pytest.raises(InvalidArgumentError, match="mu"):
+    with pytest.raises(InvalidArgumentError, match="friction"):
         friction_pyramid(0.0)
     with pytest.raises(InvalidArgumentError, match="facets"):
         friction_pyramid(0.5, 5)

@@ -7,6 +7,7 @@ import pytest
 
 from mpcbox import LQR, InvalidArgumentError
 from mpcbox.comparison.push_limits import largest_push, push_grid, summarize_push_grid
+from mpcbox.comparison.scenario import PushTest
 from mpcbox.tasks.humanoid.two_feet import HumanoidTwoFeet
 
 
@@ -45,12 +46,12 @@ def test_push_grid_brackets_the_bisection(two_feet):
     bisection's limit lies between the grid's last survived and first failed force."""
     lqr = LQR(two_feet)
     kw = dict(settle=1.5, direction=(1.0, 0.0, 0.0))
-    grid = push_grid(two_feet, lqr, [400.0, 0.0, 40.0], **kw)
+    grid = push_grid(two_feet, lqr, [400.0, 0.0, 40.0], PushTest(**kw))
     np.testing.assert_array_equal(grid.forces, [0.0, 40.0, 400.0])
     np.testing.assert_array_equal(grid.survived, [True, True, False])
     assert grid.monotone and grid.limit == 40.0
     assert grid.time_to_fall[0] == pytest.approx(2.6) and grid.time_to_fall[2] < 2.6
-    limit = largest_push(two_feet, lqr, max_force=400.0, tolerance=25.0, **kw)
+    limit = largest_push(two_feet, lqr, PushTest(max_force=400.0, tolerance=25.0, **kw))
     assert 40.0 <= limit.force < limit.smallest_failed <= 400.0
 
 
@@ -61,6 +62,6 @@ def test_push_grid_argument_errors(two_feet):
     with pytest.raises(InvalidArgumentError, match="forces"):
         push_grid(two_feet, lqr, [-1.0, 10.0])
     with pytest.raises(InvalidArgumentError, match="direction"):
-        push_grid(two_feet, lqr, [10.0], direction=(0.0, 0.0, 0.0))
+        push_grid(two_feet, lqr, [10.0], PushTest(direction=(0.0, 0.0, 0.0)))
     with pytest.raises(InvalidArgumentError, match="settle"):
-        push_grid(two_feet, lqr, [10.0], settle=0.0)
+        push_grid(two_feet, lqr, [10.0], PushTest(settle=0.0))

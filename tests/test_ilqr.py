@@ -6,9 +6,18 @@ import numpy as np
 import pytest
 
 import mpcbox
-from mpcbox.controllers.ilqr.controller import ILQR, interpolate_linearization
+from mpcbox.controllers.ilqr.backward_pass import interpolate_linearization
+from mpcbox.controllers.ilqr.config import ILQRConfig
+from mpcbox.controllers.ilqr.controller import ILQR
+from mpcbox.controllers.ilqr.result import StopReason
 from mpcbox.core.cost import ControlCost, Cost, StateCost
-from mpcbox.errors import InvalidArgumentError, MpcboxError, ShapeError
+from mpcbox.errors import (
+    InvalidArgumentError,
+    InvalidTypeError,
+    MpcboxError,
+    ShapeError,
+    UnknownOptionError,
+)
 from mpcbox.registry import make_controller
 from mpcbox.tasks.swingup import CartpoleSwingup, PendulumSwingup
 
@@ -46,7 +55,7 @@ def point_mass(limited: bool = False, bound: float = 100.0) -> mpcbox.Problem:
 
 
 def riccati(problem: mpcbox.Problem):
-    """Time-varying Riccati recursion written out independently of mpcbox.controllers.ilqr.controller."""
+    """Time-varying Riccati recursion written out independently of mpcbox.controllers.ilqr."""
     A, B = problem.linearize(np.zeros(4), np.zeros(2))
     Q, R = np.diag(np.r_[WQ, WV]), np.diag(WU)
     P = np.diag(np.r_[WQ_T, WV_T])
@@ -68,7 +77,7 @@ def riccati(problem: mpcbox.Problem):
 def test_linear_quadratic_one_iteration_is_riccati(limited):
     problem = point_mass(limited=limited)  # limits far away exercise the box-QP path
     gains, xs, us = riccati(problem)
-    ilqr = ILQR(problem, T, regularization=0.0)  # plain Newton step
+    ilqr = ILQR(problem, horizon=T, regularization=0.0)  # plain Newton step
     one = ilqr.solve(X0, max_iterations=1)
     assert one.iterations == 1
     np.testing.assert_allclose(one.ctrls, us, atol=1e-6)
@@ -83,9 +92,9 @@ def test_linear_quadratic_one_iteration_is_riccati(limited):
 
 def test_parallel_line_search_and_interpolated_linearization_agree():
     problem = point_mass()
-    ref = ILQR(problem, T).solve(X0)
-    par = ILQR(problem, T, line_search="parallel", threads=2).solve(X0)
-    sparse = ILQR(problem, T, linearize_every=4).solve(X0)  # linear system: exact anyway
+    ref = ILQR(problem, horizon=T).solve(X0)
+    par = ILQR(problem, horizon=T, line_search="parallel", threads=2).solve(X0)
+    sparse = ILQR(problem, horizon=T, linearize_every=4).solve(X0)  # linear system: exact anyway
     assert par.cost == pytest.approx(ref.cost, rel=1e-9)
     assert sparse.cost == pytest.approx(ref.cost, rel=1e-9)
 
@@ -100,7 +109,7 @@ def test_interpolate_linearization():
 
 def test_tight_control_limits_hold_and_clamped_gains_vanish():
     problem = point_mass(limited=True, bound=0.05)
-    res = ILQR(problem, T).solve(X0)
+    res = ILQR(problem, horizon=T).solve(X0)
     u = res.ctrls[:, 1]
     assert np.all(np.abs(u) <= 0.05 + 1e-12)
     clamped = np.abs(np.abs(u) - 0.05) < 1e-9
@@ -123,18 +132,18 @@ def test_divergent_rollouts_raise_regularization_and_recover():
                 return out[0] * np.nan, out[1], np.inf
             return super()._forward(*args)
 
-    res = Flaky(problem, T).solve(X0)
-    ref = ILQR(problem, T).solve(X0)
+    res = Flaky(problem, horizon=T).solve(X0)
+    ref = ILQR(problem, horizon=T).solve(X0)
     assert res.divergences == 7
     assert res.cost == pytest.approx(ref.cost, rel=1e-6)
 
 
 def test_mpc_feedback_between_replans_and_no_crash_on_nan():
     problem = point_mass()
-    ctrl = ILQR(problem, T, replan_period=0.2)
+    ctrl = ILQR(problem, horizon=T, replan_period=0.2)
     assert ctrl.period is None
     u0 = ctrl(X0, 0.0)
-    plan = ctrl.plan
+    plan = ctrl.last_result
     np.testing.assert_allclose(u0, plan.ctrls[0], atol=1e-12)
     # One planning step later, off the nominal: u = u_1 + K_1 (x - x_1), no replan.
     delta = np.array([0.01, -0.02, 0.03, 0.0])
@@ -145,14 +154,14 @@ def test_mpc_feedback_between_replans_and_no_crash_on_nan():
     assert ctrl.stats["replans"] == 2
     out = ctrl(np.full(4, np.nan), 5 * problem.dt)
     assert np.all(np.isfinite(out)) and ctrl.stats["fallbacks"] == 1
-    held = ILQR(problem, T, replan_period=0.1, feedback=False)
+    held = ILQR(problem, horizon=T, replan_period=0.1, feedback=False)
     assert held.period == pytest.approx(0.1)
 
 
 def test_pendulum_offline_swingup_matches_ipopt():
     problem = PendulumSwingup(planning_timestep=0.025)
     horizon, u0 = 120, np.array([0.5])  # 3 s; the hanging rest is a critical point
-    res = ILQR(problem, horizon, max_iterations=300, ctrls_init=u0, threads=1).solve(
+    res = ILQR(problem, horizon=horizon, max_iterations=300, ctrls_init=u0, threads=1).solve(
         problem.initial_state()
     )
     assert res.converged
@@ -187,20 +196,20 @@ def test_bad_inputs_raise_named_errors():
     problem = point_mass()
     for horizon in (0, -3, 2.5, True):
         with pytest.raises(InvalidArgumentError, match="horizon"):
-            ILQR(problem, horizon)
+            ILQR(problem, horizon=horizon)
     with pytest.raises(InvalidArgumentError, match="ctrl_low must be <= ctrl_high"):
-        ILQR(problem, 10, ctrl_low=np.array([1.0, 0.0]), ctrl_high=np.array([-1.0, 1.0]))
+        ILQR(problem, horizon=10, ctrl_low=np.array([1.0, 0.0]), ctrl_high=np.array([-1.0, 1.0]))
     with pytest.raises(ShapeError, match="ctrl_low"):
-        ILQR(problem, 10, ctrl_low=np.zeros(3))
+        ILQR(problem, horizon=10, ctrl_low=np.zeros(3))
     with pytest.raises(InvalidArgumentError, match="step_sizes"):
-        ILQR(problem, 10, step_sizes=(1.0, 0.0))
+        ILQR(problem, horizon=10, step_sizes=(1.0, 0.0))
     with pytest.raises(InvalidArgumentError, match="line_search"):
-        ILQR(problem, 10, line_search="golden")
+        ILQR(problem, horizon=10, line_search="golden")
     with pytest.raises(InvalidArgumentError, match="regularization"):
-        ILQR(problem, 10, regularization=float("nan"))
+        ILQR(problem, horizon=10, regularization=float("nan"))
     with pytest.raises(InvalidArgumentError, match="problem"):
-        ILQR("scene.xml", 10)
-    ilqr = ILQR(problem, 10)
+        ILQR("scene.xml", horizon=10)
+    ilqr = ILQR(problem, horizon=10)
     with pytest.raises(ShapeError, match="x0"):
         ilqr.solve(np.zeros(3))
     with pytest.raises(ShapeError, match="ctrls_init"):
@@ -215,10 +224,10 @@ def test_bad_inputs_raise_named_errors():
             cost=Cost([StateCost(np.zeros(2), weight_qpos=[1.0, np.inf])]),
         )
     with pytest.raises(InvalidArgumentError, match="terminal_value"):
-        ILQR(problem, 10, terminal_value="riccati")
+        ILQR(problem, horizon=10, terminal_value="riccati")
     # Every error is also the matching built-in exception.
     with pytest.raises(ValueError):
-        ILQR(problem, 0)
+        ILQR(problem, horizon=0)
 
 
 def test_lqr_terminal_value_makes_short_horizon_ilqr_match_lqr():
@@ -230,7 +239,7 @@ def test_lqr_terminal_value_makes_short_horizon_ilqr_match_lqr():
         threads=1,
     )
     lqr = mpcbox.LQR(problem)
-    ilqr = ILQR(problem, 3, terminal_value="lqr")
+    ilqr = ILQR(problem, horizon=3, terminal_value="lqr")
     res = ilqr.solve(problem.reference_state() + np.array([0.1, -0.2, 0.0, 0.0]))
     np.testing.assert_allclose(res.K[0], -lqr.K, rtol=1e-5, atol=1e-6)
 
@@ -243,10 +252,86 @@ def test_lqr_terminal_value_on_the_humanoid_at_its_own_timestep():
 
     problem = HumanoidBalance(threads=1)
     P = mpcbox.LQR(problem).P
-    ilqr = ILQR(problem, 3, terminal_value="lqr", max_iterations=1)
+    ilqr = ILQR(problem, horizon=3, terminal_value="lqr", max_iterations=1)
     (value,) = [t for t in ilqr.problem.cost.terminal if t.name == "lqr_value"]
     V = np.asarray(value.P)
     assert np.linalg.eigvalsh(V).min() >= -1e-9 * np.abs(V).max()
     np.testing.assert_allclose(V, 0.5 * (P + P.T), atol=1e-5 * np.abs(P).max())
     u = ilqr(problem.reference_state(), 0.0)
     assert u.shape == (problem.nu,) and np.all(np.isfinite(u))
+
+
+def test_stop_reasons_iteration_cap_and_stall_at_maximum_regularization():
+    problem = PendulumSwingup(planning_timestep=0.05)
+
+    def solve(**options):
+        ilqr = ILQR(problem, horizon=40, ctrls_init=np.array([0.5]), threads=1, **options)
+        return ilqr.solve(problem.initial_state())
+
+    done = solve()
+    assert done.stop_reason is StopReason.COST_CHANGE and done.converged
+    capped = solve(max_iterations=3)
+    assert capped.stop_reason is StopReason.ITERATION_LIMIT and capped.status == "iteration limit"
+    assert capped.iterations == 3 and not capped.converged
+    # Full steps only: the swing-up soon rejects every step, and the regularization grows
+    # past a low cap.
+    stalled = solve(step_sizes=(1.0,), regularization_max=1e-4)
+    assert stalled.stop_reason is StopReason.REGULARIZATION_LIMIT and stalled.stop_reason.stalled
+    assert stalled.status == "regularization limit (line search)"
+    assert stalled.regularization > 1e-4 and not stalled.converged
+    assert stalled.cost == stalled.costs[-1] and len(stalled.costs) == stalled.iterations
+    # The same with the default cap but two retries: the retry limit, not the regularization.
+    retried = solve(step_sizes=(1.0,), max_retries=2)
+    assert retried.stop_reason is StopReason.RETRY_LIMIT and not retried.converged
+    assert retried.regularization < 1e10
+
+
+def test_stop_reasons_divergence_short_step_and_no_predicted_decrease():
+    problem = point_mass()
+
+    class Diverging(ILQR):
+        def _forward(self, *args):
+            out = super()._forward(*args)
+            return out[0] * np.nan, out[1], np.inf
+
+    res = Diverging(problem, horizon=T, max_retries=3).solve(X0)
+    assert res.stop_reason is StopReason.DIVERGED and res.stop_reason.stalled
+    assert not res.converged and res.divergences == 4 * 6  # 4 line searches of 6 step sizes
+
+    class NoFullStep(ILQR):
+        def _forward(self, x0, states, ctrls, k, K, alpha):
+            out = super()._forward(x0, states, ctrls, k, K, alpha)
+            return (out[0], out[1], np.inf) if alpha == 1.0 else out
+
+    # A huge tolerance stops at the first accepted step: converged only if it was a full one.
+    short = NoFullStep(problem, horizon=T, tolerance=1e3).solve(X0)
+    assert short.stop_reason is StopReason.SHORT_STEP and not short.converged
+    assert short.status.startswith("short step") and not short.stop_reason.stalled
+    full = ILQR(problem, horizon=T, tolerance=1e3).solve(X0)
+    assert full.stop_reason is StopReason.COST_CHANGE and full.converged
+    newton = ILQR(problem, horizon=T, regularization=0.0).solve(X0)
+    assert newton.stop_reason is StopReason.NO_PREDICTED_DECREASE and newton.converged
+
+
+def test_config_object_defaults_and_option_errors():
+    problem = point_mass()
+    config = ILQRConfig(horizon=T, max_iterations=5)
+    ilqr = ILQR(problem, config, tolerance=1e-8)
+    assert ilqr.config.horizon == T and ilqr.config.max_iterations == 5
+    assert ilqr.config.tolerance == 1e-8 and config.tolerance == 1e-6
+    assert ILQR.config_class is ILQRConfig
+    # Any Problem gets a working iLQR from the defaults (50 knots).
+    default = make_controller("ilqr", problem)
+    assert default.horizon == ILQRConfig().horizon == 50
+    u = default(X0, 0.0)
+    assert u.shape == (2,) and np.all(np.isfinite(u))
+    with pytest.raises(UnknownOptionError, match="regularization_max"):
+        ILQR(problem, mu_max=1.0)
+    with pytest.raises(InvalidTypeError, match="ILQRConfig"):
+        ILQR(problem, 10)
+    with pytest.raises(InvalidArgumentError, match="regularization_factor"):
+        ILQRConfig(regularization_factor=1.0)
+    with pytest.raises(InvalidArgumentError, match="armijo"):
+        ILQRConfig(armijo=1.0)
+    with pytest.raises(InvalidArgumentError, match="regularization_max"):
+        ILQRConfig(regularization_min=1.0, regularization_max=0.5)

@@ -17,7 +17,8 @@ from mpcbox.tasks.swingup import PendulumSwingup
 
 casadi = pytest.importorskip("casadi")
 
-from mpcbox.controllers.ipopt import IpoptController, solve_ipopt  # noqa: E402
+from mpcbox.controllers.ipopt import solve_ipopt  # noqa: E402
+from mpcbox.controllers.ipopt_controller import IpoptConfig, IpoptController  # noqa: E402
 
 SLIDER = """
 <mujoco>
@@ -67,7 +68,7 @@ def test_matches_ilqr_on_control_limited_slider(custom):
     problem = slider(custom)
     x0 = np.array([1.5, 0.0])
     ref = solve_ipopt(problem, x0, 30, tolerance=1e-10)
-    res = ILQR(problem, 30, tolerance=1e-10).solve(x0)
+    res = ILQR(problem, horizon=30, tolerance=1e-10).solve(x0)
     assert ref.defect < 1e-8  # (at tol 1e-10 IPOPT may stop on a tiny search direction)
     assert np.all(np.abs(ref.ctrls) <= 0.6 + 1e-9)
     assert np.any(np.abs(ref.ctrls) > 0.6 - 1e-6)  # the bound is active
@@ -83,6 +84,8 @@ def test_ipopt_controller_tracks_pendulum_swingup():
     assert result.failure is None
     assert problem.upright_error(result.states[-1]) < 0.1
     assert controller.stats["fallbacks"] == 0
+    assert isinstance(controller.config, IpoptConfig) and controller.config.horizon == 100
+    assert controller.config.tolerance == 1e-6  # the task's tuned option
 
 
 def test_quaternion_models_are_rejected():
@@ -100,3 +103,14 @@ def test_bad_shapes_and_missing_casadi(monkeypatch):
     monkeypatch.setitem(sys.modules, "casadi", None)
     with pytest.raises(BackendUnavailableError, match="pip install"):
         solve_ipopt(problem, np.zeros(2), 5)
+
+
+def test_config_defaults_and_unknown_options():
+    problem = slider(False)
+    controller = IpoptController(problem)
+    assert controller.horizon == IpoptConfig().horizon == 50
+    assert IpoptController.config_class is IpoptConfig
+    with pytest.raises(mpcbox.errors.UnknownOptionError, match="nlpsol_options"):
+        IpoptController(problem, options={"ipopt.acceptable_tol": 1e-6})
+    with pytest.raises(InvalidArgumentError, match="horizon"):
+        IpoptConfig(horizon=0)

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 import mpcbox
-from mpcbox.controllers.lqr import dlqr
+from mpcbox.controllers.lqr import LQRConfig, dlqr
+from mpcbox.errors import InvalidTypeError, UnknownOptionError
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.balance import HumanoidBalance, classic_humanoid_path
 
@@ -66,7 +67,7 @@ def test_lqr_holds_one_leg_12s_under_recipe_noise(balance):
     lqr = mpcbox.LQR(balance)
     res = mpcbox.simulate(balance, lqr, 12.0, noise=balance.noise(), seed=1)
     assert res.survived, res.failure
-    assert res.metrics.com_deviation_rms < 0.02
+    assert res.metrics.measures["com_deviation_rms_m"] < 0.02
 
     # Without a controller (holding the equilibrium control) the humanoid falls.
     class Hold(mpcbox.Controller):
@@ -94,3 +95,17 @@ def test_classic_humanoid_from_mujoco_warp_test_data():
     assert abs(classic.equilibrium.vertical_residual) <= 1e-3
     res = mpcbox.simulate(classic, mpcbox.LQR(classic), 6.0, noise=classic.noise(), seed=1)
     assert res.survived, res.failure
+
+
+def test_config_object_and_option_errors():
+    cart = mpcbox.Problem(scene_path("cartpole.xml"), qpos_ref=np.array([0.0, np.pi]))
+    base = mpcbox.LQR(cart)
+    config = LQRConfig(R=10.0 * base.R)
+    heavy = mpcbox.LQR(cart, config)
+    np.testing.assert_array_equal(mpcbox.LQR(cart, R=10.0 * base.R).K, heavy.K)
+    assert np.abs(heavy.K).max() < np.abs(base.K).max()
+    assert mpcbox.LQR.config_class is LQRConfig
+    with pytest.raises(UnknownOptionError, match="centered"):
+        mpcbox.LQR(cart, weights=1.0)
+    with pytest.raises(InvalidTypeError, match="problem"):
+        mpcbox.LQR("cartpole.xml")

@@ -16,6 +16,7 @@ from mpcbox.core.cost import (
     StateCost,
     Upright,
 )
+from mpcbox.core.derivatives import residual_fd
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.balance import HumanoidBalance
 
@@ -107,12 +108,12 @@ def test_analytic_residual_jacobians_match_finite_differences(term):
     problem = mpcbox.Problem(HUMANOID, keyframe="stand_on_left_leg", cost=Cost([term]))
     x, _ = random_humanoid_state(problem, np.random.default_rng(5), 0.1)
     u = np.zeros(problem.nu)
-    data = problem._data()
+    data = problem.scratch_data()
     problem.set_state(data, x)
     mujoco.mj_forward(problem.planning_model, data)
     jac = term.jacobian(problem.planning_model, data)
     r0 = term.residual(problem.features(x, u))[0]
-    fd_x, fd_u = problem._residual_fd(term, x, u, r0)
+    fd_x, fd_u = residual_fd(problem.dynamics, problem.tangent, term, x, u, r0, problem.fd_eps)
     np.testing.assert_allclose(jac.dq, fd_x[:, : problem.nv], atol=2e-5)
     np.testing.assert_allclose(jac.du, fd_u, atol=1e-8)
 

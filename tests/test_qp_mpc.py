@@ -8,10 +8,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from mpcbox.controllers.qp_mpc.controller import QPMPC, load_qp, to_qpsolvers
+from mpcbox.controllers.qp_mpc.config import QPMPCConfig
+from mpcbox.controllers.qp_mpc.controller import QPMPC
+from mpcbox.controllers.qp_mpc.solvers import load_qp, to_qpsolvers
 from mpcbox.core.contact import cone_violation
 from mpcbox.core.equilibrium import actuator_moment
-from mpcbox.errors import InvalidArgumentError, UnknownNameError
+from mpcbox.errors import InvalidArgumentError, UnknownNameError, UnknownOptionError
 from mpcbox.sim.disturbances import Push
 from mpcbox.sim.simulation import simulate
 from mpcbox.tasks.humanoid.balance import HumanoidBalance
@@ -60,7 +62,7 @@ def test_force_input_matrix_matches_the_actuator_columns(qp, one_leg):
     mujoco.mj_fullM(m, data, M)
     M += h * np.diag(m.dof_damping)
     Bv = h * np.linalg.solve(M, actuator_moment(m, data).T)
-    Bh = qp._lin["Bh"]
+    Bh = qp.linearization.Bh
     np.testing.assert_allclose(Bh[nv : 2 * nv], Bv, atol=1e-6 * np.abs(Bv).max())
     np.testing.assert_allclose(Bh[:nv], h * Bv, atol=1e-3 * np.abs(h * Bv).max())
     # Composition: a small control change held over the QP step, against the nonlinear
@@ -75,22 +77,22 @@ def test_force_input_matrix_matches_the_actuator_columns(qp, one_leg):
         mujoco.mj_step(qp.soft_model, soft, qp.substeps)
         ends.append(one_leg.get_state(soft))
     fd = one_leg.state_difference(ends[1], ends[0])
-    np.testing.assert_allclose(qp._lin["B"] @ du, fd, atol=2e-2 * np.abs(fd).max())
+    np.testing.assert_allclose(qp.linearization.B @ du, fd, atol=2e-2 * np.abs(fd).max())
 
 
 def test_force_law_predicts_the_soft_contact_forces(qp, one_leg):
     """``fbar + F_x dx + F_u du`` matches the simulator's contact forces near the reference,
     and at the reference the stance foot carries the whole weight."""
-    lin = qp._lin
-    fbar = lin["fbar"].reshape(-1, 3)
+    lin = qp.linearization
+    fbar = lin.fbar.reshape(-1, 3)
     assert fbar[:, 2].sum() == pytest.approx(1.0, rel=1e-3)  # in weights
     rng = np.random.default_rng(0)
     dx = 1e-4 * rng.standard_normal(one_leg.nx)
     du = 1e-3 * rng.standard_normal(one_leg.nu)
-    actual = qp._point_forces(one_leg.state_add(qp.state_ref, dx), qp.ctrl_ref + du)
-    predicted = lin["fbar"] + lin["Fx"] @ dx + lin["Fu"] @ du
-    change = actual - lin["fbar"]
-    np.testing.assert_allclose(predicted - lin["fbar"], change, atol=0.05 * np.abs(change).max())
+    actual = qp.dynamics.point_forces(one_leg.state_add(qp.state_ref, dx), qp.ctrl_ref + du)
+    predicted = lin.fbar + lin.Fx @ dx + lin.Fu @ du
+    change = actual - lin.fbar
+    np.testing.assert_allclose(predicted - lin.fbar, change, atol=0.05 * np.abs(change).max())
 
 
 def _contact_force_per_body(model, data, bodies):
@@ -130,9 +132,12 @@ def test_predicted_forces_match_the_simulator_and_respect_the_cones(task, reques
     assert res.survived and res.metrics.fallbacks == 0
     for plan in plans:
         # Returned forces: inside the pyramid and bounds to 1e-6 of the weight.
-        assert cone_violation(plan.forces, ctl.mu, ctl.facets, ctl.f_max) <= 1e-6 * ctl.weight
+        assert (
+            cone_violation(plan.forces, ctl.friction, ctl.facets, ctl.f_max)
+            <= 1e-6 * ctl.body_weight
+        )
         # Raw solver output: within the solver tolerance.
-        assert plan.violation <= 1e-2 * ctl.weight
+        assert plan.violation <= 1e-2 * ctl.body_weight
     data = mujoco.MjData(problem.model)
     problem.set_state(data, res.states[-1])
     data.ctrl[:] = res.ctrls[-2]  # the control held over the last step
@@ -157,11 +162,12 @@ def test_survives_a_moderate_push(one_leg, two_feet):
 
 def test_push_limit_at_least_lqr(one_leg):
     from mpcbox.comparison.push_limits import largest_push
+    from mpcbox.comparison.scenario import PushTest
     from mpcbox.controllers.lqr import LQR
 
-    kw = dict(tolerance=4.0, max_force=96.0, settle=2.5)
-    lqr = largest_push(one_leg, LQR(one_leg), **kw)
-    qp = largest_push(one_leg, QPMPC(one_leg, **one_leg.controller_options["qp"]), **kw)
+    test = PushTest(tolerance=4.0, max_force=96.0, settle=2.5)
+    lqr = largest_push(one_leg, LQR(one_leg), test)
+    qp = largest_push(one_leg, QPMPC(one_leg, **one_leg.controller_options["qp"]), test)
     print(f"largest push: QP-MPC {qp.force:.1f} N, LQR {lqr.force:.1f} N")
     assert qp.force >= 1.4 * lqr.force
 
@@ -215,17 +221,17 @@ def test_qpsolvers_backend_agrees_with_osqp(qp, one_leg, tmp_path):
     assert data.P.shape == (qp.nvar, qp.nvar) and data.A.shape == (qp.ncon, qp.nvar)
     sol = qpsolvers.solve_problem(to_qpsolvers(data), solver="clarabel")
     assert sol.found
-    u0 = qp._lin["ctrl"] + sol.x[qp._ou : qp._ou + one_leg.nu]
+    u0 = qp.linearization.ctrl + sol.x[qp.layout.ou : qp.layout.ou + one_leg.nu]
     np.testing.assert_allclose(u0, plan.ctrls[0], atol=2e-2)
     other = QPMPC(one_leg, solver="clarabel")
     np.testing.assert_allclose(other.solve(state).ctrls[0], u0, atol=1e-3)
 
 
 def test_bad_input(one_leg):
-    with pytest.raises(InvalidArgumentError, match="mu"):
-        QPMPC(one_leg, mu=0.0)
-    with pytest.raises(InvalidArgumentError, match="mu"):
-        QPMPC(one_leg, mu=-1.0)
+    with pytest.raises(InvalidArgumentError, match="friction"):
+        QPMPC(one_leg, friction=0.0)
+    with pytest.raises(InvalidArgumentError, match="friction"):
+        QPMPC(one_leg, friction=-1.0)
     with pytest.raises(InvalidArgumentError, match="horizon"):
         QPMPC(one_leg, horizon=0)
     with pytest.raises(UnknownNameError) as err:
@@ -246,7 +252,7 @@ def test_terminal_matrices(two_feet, stance_model):
     """Every terminal choice builds for both stance models (two feet: 12 stance-twist rows, 24
     force rows). ``"cost"`` is the running ``Q``; the Riccati ones solve their DARE, so they
     dominate ``Q`` (``P - Q = A^T (P^{-1} + B R^{-1} B^T)^{-1} A >= 0``)."""
-    from mpcbox.controllers.qp_mpc.controller import _compose
+    from mpcbox.controllers.qp_mpc.dynamics import compose
 
     opts = dict(contacts=two_feet.contacts, stance_model=stance_model, horizon=3)
     for terminal in ("cost", "lqr", "stance"):
@@ -265,8 +271,28 @@ def test_terminal_matrices(two_feet, stance_model):
             nx, nu = two_feet.nx, two_feet.nu
             Ah, Bh = np.zeros((nx, nx)), np.zeros((nx, nu))
             mujoco.mjd_transitionFD(soft, d, two_feet.fd_eps, True, Ah, Bh, None, None)
-            A, S = _compose(Ah, qp.substeps)
+            A, S = compose(Ah, qp.substeps)
             B = S @ Bh
             G = qp.R + B.T @ P @ B
             rhs = qp.Q + A.T @ P @ A - A.T @ P @ B @ np.linalg.solve(G, B.T @ P @ A)
             np.testing.assert_allclose(rhs, P, atol=1e-6 * np.abs(P).max())
+
+
+def test_config_object_and_keywords_agree(one_leg):
+    """``QPMPC(problem, config)`` and keyword options build the same controller; options
+    outside :class:`QPMPCConfig` (such as the old ``mu``) are rejected, naming the valid ones;
+    a bad field is named in the error."""
+    a = QPMPC(one_leg, QPMPCConfig(horizon=5, friction=0.5, stance_model="rigid"))
+    b = QPMPC(one_leg, horizon=5, friction=0.5, stance_model="rigid")
+    assert a.config == b.config and a.friction == 0.5
+    state = one_leg.reference_state()
+    state[one_leg.nq + 3] = 0.05
+    np.testing.assert_array_equal(a.solve(state).ctrls, b.solve(state).ctrls)
+    with pytest.raises(UnknownOptionError, match="friction"):
+        QPMPC(one_leg, mu=0.7)
+    with pytest.raises(InvalidArgumentError, match="drift_gain"):
+        QPMPCConfig(drift_gain=2.0)
+    with pytest.raises(InvalidArgumentError, match="stance_weight"):
+        QPMPCConfig(stance_weight=None)
+    with pytest.raises(InvalidArgumentError, match="terminal"):
+        QPMPCConfig(terminal="riccati")

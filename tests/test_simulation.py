@@ -58,6 +58,29 @@ def test_balance_recipe_assigns_low_noise_to_balance_joints():
     }
 
 
+def test_humanoid_measures_are_sampled_and_summarized():
+    from mpcbox.tasks.humanoid.balance import HumanoidBalance
+
+    problem = HumanoidBalance(threads=1)
+    res = mpcbox.simulate(problem, mpcbox.LQR(problem), 0.2, noise=problem.noise(), seed=0)
+    assert [m.name for m in res.measures] == ["com_deviation", "tilt"]
+    assert set(res.series) == {"com_deviation", "tilt"}
+    assert all(v.shape == res.time.shape for v in res.series.values())
+    assert set(res.metrics.measures) == {"com_deviation_rms_m", "tilt_rms_deg"}
+    tilt = res.series["tilt"]
+    assert res.metrics.measures["tilt_rms_deg"] == pytest.approx(np.sqrt(np.mean(tilt**2)))
+    assert res.metrics.cost > 0
+
+
+def test_generic_problem_has_no_measures_noise_or_contacts():
+    problem = mpcbox.Problem(FREE_BODY)
+    res = mpcbox.simulate(problem, Zero(), 0.05)
+    assert res.series == {} and res.metrics.measures == {} and res.measures == ()
+    assert problem.contacts == ()
+    with pytest.raises(mpcbox.InvalidArgumentError, match="no noise model"):
+        problem.noise(1.0)
+
+
 def test_push_impulse_changes_momentum_by_force_times_duration():
     problem = mpcbox.Problem(FREE_BODY)
     push = Push(force=(30.0, 0.0, 0.0), start=0.01, duration=0.1, body="box")

@@ -1,7 +1,8 @@
 """PNG plots of closed-loop runs and comparisons (matplotlib with the headless Agg backend).
 
-* :func:`plot_balance`: COM deviation and tilt of a few :class:`~mpcbox.SimulationResult`.
-* :func:`plot_comparison`: every figure of a :class:`~mpcbox.comparison.comparison.Comparison`:
+* :func:`plot_measures`: the task's measures (e.g. COM deviation and tilt of the humanoid
+  tasks) over time for a few :class:`~mpcbox.SimulationResult`.
+* :func:`plot_comparison`: every figure of a :class:`~mpcbox.comparison.report.Comparison`:
   :func:`plot_time_series` per scenario, :func:`plot_survival` against the noise scale and
   :func:`plot_compute_times`.
 """
@@ -11,14 +12,13 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from mpcbox.comparison.report import Comparison, Trace
+from mpcbox.errors import InvalidArgumentError
+from mpcbox.sim.measures import Measure
 from mpcbox.sim.simulation import SimulationResult
-
-if TYPE_CHECKING:  # pragma: no cover
-    from mpcbox.comparison.comparison import Comparison, Trace
 
 
 def _pyplot():
@@ -50,8 +50,17 @@ def _control_series(ctrls: np.ndarray, ctrl_ref: np.ndarray) -> tuple[np.ndarray
     return np.sqrt(np.mean((ctrls - ctrl_ref) ** 2, axis=1)), "RMS control - reference"
 
 
-def plot_balance(results: Sequence[SimulationResult], path: str | Path, title: str = "") -> Path:
-    """COM deviation and torso tilt over time, one line per controller.
+def _axis_label(measure: Measure) -> str:
+    unit = measure.shown_unit
+    return f"{measure.title} ({unit})" if unit else measure.title
+
+
+def plot_measures(results: Sequence[SimulationResult], path: str | Path, title: str = "") -> Path:
+    """The task's measures over time, one panel per measure, one line per run.
+
+    The panels follow the first run's :attr:`~mpcbox.SimulationResult.measures` (e.g. COM
+    deviation from the support and torso tilt for the humanoid tasks), in their display
+    units.
 
     Args:
         results: Runs to plot (typically one per controller on the same scenario).
@@ -60,53 +69,69 @@ def plot_balance(results: Sequence[SimulationResult], path: str | Path, title: s
 
     Returns:
         The written path.
+
+    Raises:
+        InvalidArgumentError: When there is no run or the task declares no measures.
     """
+    if not results or not results[0].measures:
+        raise InvalidArgumentError(
+            "plot_measures needs at least one run of a task that declares measures "
+            "(Problem.measures)"
+        )
+    measures = results[0].measures
     plt = _pyplot()
-    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    fig, axes = plt.subplots(len(measures), 1, figsize=(9, 3 * len(measures)), sharex=True)
+    axes = np.atleast_1d(axes)
     for res in results:
         label = res.controller + ("" if res.survived else f" (fell at {res.time[-1]:.2f} s)")
-        axes[0].plot(res.time, res.com_deviation * 100.0, label=label)
-        axes[1].plot(res.time, res.tilt_deg, label=label)
-    axes[0].set_ylabel("COM deviation from support (cm)")
-    axes[1].set_ylabel("tilt (deg)")
-    axes[1].set_xlabel("time (s)")
-    axes[0].legend(loc="upper right")
-    for ax in axes:
+        for ax, measure in zip(axes, measures):
+            ax.plot(res.time, res.series[measure.name] * measure.display_scale, label=label)
+    for ax, measure in zip(axes, measures):
+        ax.set_ylabel(_axis_label(measure))
         ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("time (s)")
+    axes[0].legend(loc="upper right")
     if title:
         fig.suptitle(title)
     return _save(fig, path)
 
 
 def plot_time_series(
-    traces: dict[str, Trace], path: str | Path, title: str = "", failures: dict | None = None
+    traces: dict[str, Trace],
+    path: str | Path,
+    title: str = "",
+    failures: dict[str, str | None] | None = None,
+    measures: Sequence[Measure] = (),
 ) -> Path:
-    """COM deviation, tilt and control activity over time, one line per controller.
+    """The task's measures and the control activity over time, one line per controller.
 
     Args:
         traces: ``{controller label: Trace}`` of runs on the same scenario and seed.
         path: Output PNG path.
         title: Figure title.
         failures: ``{controller label: failure reason or None}`` for the legend.
+        measures: The task's measures, one panel each above the control panel.
 
     Returns:
         The written path.
     """
     plt = _pyplot()
-    fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
+    rows = len(measures) + 1
+    fig, axes = plt.subplots(rows, 1, figsize=(9, 2 + 2 * rows), sharex=True)
+    axes = np.atleast_1d(axes)
     ylabel = "control"
     for name, tr in traces.items():
         fell = (failures or {}).get(name)
         label = name + (f" (fell at {tr.time[-1]:.2f} s)" if fell else "")
-        axes[0].plot(tr.time, tr.com_deviation * 100.0, label=label)
-        axes[1].plot(tr.time, tr.tilt_deg, label=label)
+        for ax, measure in zip(axes, measures):
+            ax.plot(tr.time, tr.series[measure.name] * measure.display_scale, label=label)
         series, ylabel = _control_series(tr.ctrls, tr.ctrl_ref)
         # The last row of a run holds no applied control.
-        axes[2].plot(tr.time[:-1], series[:-1], label=label)
-    axes[0].set_ylabel("COM deviation (cm)")
-    axes[1].set_ylabel("tilt (deg)")
-    axes[2].set_ylabel(ylabel)
-    axes[2].set_xlabel("time (s)")
+        axes[-1].plot(tr.time[:-1], series[:-1], label=label)
+    for ax, measure in zip(axes, measures):
+        ax.set_ylabel(_axis_label(measure))
+    axes[-1].set_ylabel(ylabel)
+    axes[-1].set_xlabel("time (s)")
     axes[0].legend(loc="upper right")
     for ax in axes:
         ax.grid(alpha=0.3)
@@ -197,7 +222,13 @@ def plot_comparison(comparison: Comparison, folder: str | Path) -> list[Path]:
         if traces:
             title = f"{comparison.problem}, {scenario.label}, seed {comparison.seeds[0]}"
             paths.append(
-                plot_time_series(traces, folder / f"timeseries_{slug}.png", title, failures)
+                plot_time_series(
+                    traces,
+                    folder / f"timeseries_{slug}.png",
+                    title,
+                    failures,
+                    comparison.measures,
+                )
             )
     paths.append(plot_survival(comparison, folder / "survival_vs_noise.png"))
     paths.append(plot_compute_times(comparison, folder / "compute_time.png"))

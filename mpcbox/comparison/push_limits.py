@@ -1,5 +1,9 @@
-"""Robustness measures of a controller: survival over seeds, the largest survived push, and
-survival over a grid of push forces (which shows whether survival is monotone in the force)."""
+"""Robustness of a controller: survival over seeds, the largest survived push, and survival
+over a grid of push forces (which shows whether survival is monotone in the force).
+
+The pushes are described by :class:`~mpcbox.comparison.scenario.PushTest`, the same object
+that :func:`mpcbox.compare` takes.
+"""
 
 from __future__ import annotations
 
@@ -8,12 +12,15 @@ from typing import NamedTuple
 
 import numpy as np
 
+from mpcbox.comparison.scenario import PushTest, task_noise
 from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.simulation import SimulationResult, simulate
-from mpcbox.validation import as_array, positive
+
+#: The push test used when none is given (every :class:`PushTest` default).
+DEFAULT_PUSH = PushTest()
 
 
 class SurvivalSummary(NamedTuple):
@@ -121,27 +128,19 @@ def survival(
 
 
 def _push_trial(
-    problem: Problem,
-    controller: Controller,
-    direction: Sequence[float],
-    push_duration: float,
-    start: float,
-    settle: float,
-    body: str,
-    noise: ActuatorNoise | None,
-    seed: int,
+    problem: Problem, controller: Controller, test: PushTest, seed: int
 ) -> Callable[[float], SimulationResult]:
-    """``trial(force) -> SimulationResult`` for one push along ``direction`` (checked)."""
-    direction = as_array("direction", direction, (3,))
-    norm = np.linalg.norm(direction)
-    if norm == 0:
-        raise InvalidArgumentError("direction must be a non-zero vector")
-    direction = direction / norm
-    total = start + positive("push_duration", push_duration) + positive("settle", settle)
+    """``trial(force) -> SimulationResult`` for the push of ``test`` at a force magnitude."""
+    if not isinstance(test, PushTest):
+        raise InvalidArgumentError(
+            f"test must be an mpcbox.comparison.scenario.PushTest, got {type(test).__name__}"
+        )
+    noise = task_noise(problem, test.noise_scale)
 
     def trial(force: float) -> SimulationResult:
-        push = Push(force=force * direction, start=start, duration=push_duration, body=body)
-        return simulate(problem, controller, total, noise=noise, pushes=[push], seed=seed)
+        return simulate(
+            problem, controller, test.total_time, noise=noise, pushes=[test.push(force)], seed=seed
+        )
 
     return trial
 
@@ -150,32 +149,23 @@ def push_grid(
     problem: Problem,
     controller: Controller,
     forces: Sequence[float],
+    test: PushTest = DEFAULT_PUSH,
     *,
-    direction: Sequence[float] = (1.0, 0.0, 0.0),
-    push_duration: float = 0.1,
-    start: float = 1.0,
-    settle: float = 4.0,
-    body: str = "torso",
-    noise: ActuatorNoise | None = None,
     seed: int = 0,
     progress: bool = False,
 ) -> PushGrid:
-    """Survival of the same push scenario as :func:`largest_push` at every force of a grid.
+    """Survival of the push of ``test`` at every force of a grid (its search settings unused).
 
-    Unlike the bisection, the grid shows when survival is not monotone in the force (a
-    controller that falls at 60 N and survives 100 N); :attr:`PushGrid.limit` is then the
-    honest figure, the largest force below which nothing failed.
+    Unlike the bisection of :func:`largest_push`, the grid shows when survival is not
+    monotone in the force (a controller that falls at 60 N and survives 100 N);
+    :attr:`PushGrid.limit` is then the honest figure, the largest force below which nothing
+    failed.
 
     Args:
         problem: The Problem.
         controller: The controller (reset by each simulation).
         forces: Force magnitudes, at least one, non-negative (N); sorted here.
-        direction: Push direction (normalized here); ``(1, 0, 0)`` is sagittal (forward).
-        push_duration: How long the force acts (s).
-        start: When the push starts (s).
-        settle: How long after the push the robot must stay up (s).
-        body: Pushed body.
-        noise: Optional actuator noise during the trials.
+        test: The push (direction, duration, start, settle, body) and the trials' noise.
         seed: Noise seed.
         progress: Show a progress bar.
     """
@@ -184,8 +174,7 @@ def push_grid(
         raise InvalidArgumentError(
             f"forces must hold at least one finite non-negative force, got {list(forces)!r}"
         )
-    args = (direction, push_duration, start, settle, body, noise, seed)
-    trial = _push_trial(problem, controller, *args)
+    trial = _push_trial(problem, controller, test, seed)
     iterator = grid
     if progress:
         from tqdm import tqdm
@@ -228,43 +217,24 @@ def summarize_push_grid(
 
 
 def largest_push(
-    problem: Problem,
-    controller: Controller,
-    *,
-    direction: Sequence[float] = (1.0, 0.0, 0.0),
-    push_duration: float = 0.1,
-    start: float = 1.0,
-    settle: float = 4.0,
-    body: str = "torso",
-    max_force: float = 2000.0,
-    tolerance: float = 1.0,
-    noise: ActuatorNoise | None = None,
-    seed: int = 0,
+    problem: Problem, controller: Controller, test: PushTest = DEFAULT_PUSH, *, seed: int = 0
 ) -> PushLimit:
-    """Largest force magnitude along ``direction`` over ``push_duration`` that is survived.
+    """Largest force magnitude of the push of ``test`` that is survived.
 
-    Bisection on the magnitude, assuming that surviving a force means surviving every
-    smaller one; :func:`push_grid` checks that assumption. Each trial simulates until
-    ``start + push_duration + settle``.
+    Bisection on the magnitude over ``[0, test.max_force]`` until the bracket is narrower
+    than ``test.tolerance``, assuming that surviving a force means surviving every smaller
+    one; :func:`push_grid` checks that assumption. Each trial simulates
+    ``test.total_time`` seconds.
 
     Args:
         problem: The Problem.
         controller: The controller.
-        direction: Push direction (normalized here); ``(1, 0, 0)`` is sagittal (forward).
-        push_duration: How long the force acts (s).
-        start: When the push starts (s).
-        settle: How long after the push the robot must stay up (s).
-        body: Pushed body.
-        max_force: Upper end of the search (N).
-        tolerance: Stop when the bracket is this narrow (N).
-        noise: Optional actuator noise during the trials.
+        test: The push, the search settings and the trials' noise
+            (:class:`~mpcbox.comparison.scenario.PushTest`).
         seed: Noise seed.
     """
-    positive("max_force", max_force)
-    positive("tolerance", tolerance)
-    args = (direction, push_duration, start, settle, body, noise, seed)
-    trial = _push_trial(problem, controller, *args)
-    count = 0
+    trial = _push_trial(problem, controller, test, seed)
+    max_force, count = test.max_force, 0
 
     def survives(force: float) -> bool:
         nonlocal count
@@ -274,12 +244,12 @@ def largest_push(
     if not survives(0.0):
         return PushLimit(0.0, 0.0, 0.0, count)
     if survives(max_force):
-        return PushLimit(max_force, max_force * push_duration, float("inf"), count)
+        return PushLimit(max_force, max_force * test.duration, float("inf"), count)
     lo, hi = 0.0, max_force
-    while hi - lo > tolerance:
+    while hi - lo > test.tolerance:
         mid = 0.5 * (lo + hi)
         if survives(mid):
             lo = mid
         else:
             hi = mid
-    return PushLimit(lo, lo * push_duration, hi, count)
+    return PushLimit(lo, lo * test.duration, hi, count)

@@ -16,9 +16,10 @@ terms is evaluated by the Problem through a Callback with the Gauss-Newton gradi
 :meth:`~mpcbox.Problem.quadratize`. Second derivatives of ``f`` are not available, so IPOPT
 runs with a limited-memory (L-BFGS) Hessian.
 
-It serves as an oracle for the iLQR tests and as the ``"ipopt"`` controller of comparison
-tables on small problems (:class:`IpoptController`: an offline plan tracked with time-varying
-LQR feedback). Only models without free or ball joints (``nq == nv``) are supported.
+It serves as an oracle for the iLQR tests and as the plan of the ``"ipopt"`` controller of
+comparison tables on small problems
+(:class:`~mpcbox.controllers.ipopt_controller.IpoptController`: an offline plan tracked with
+time-varying LQR feedback). Only models without free or ball joints (``nq == nv``) are supported.
 
 CasADi is optional: it is imported on first use and a missing install raises
 :class:`~mpcbox.errors.BackendUnavailableError`.
@@ -30,22 +31,19 @@ import time as _time
 from typing import Any, NamedTuple
 
 import numpy as np
-import scipy.linalg
 
-from mpcbox.controllers.base import Controller
-from mpcbox.controllers.ilqr.controller import backward_pass
 from mpcbox.core.cost import CostTerm
 from mpcbox.core.problem import Problem
 from mpcbox.errors import (
     BackendUnavailableError,
     InvalidArgumentError,
-    SolverError,
     UnsupportedCostTermError,
 )
 from mpcbox.validation import as_array, positive, positive_int
 
 
-def _casadi() -> Any:
+def require_casadi() -> Any:
+    """The ``casadi`` module, or :class:`~mpcbox.errors.BackendUnavailableError` if missing."""
     try:
         import casadi
     except ImportError as exc:  # pragma: no cover - depends on the environment
@@ -55,6 +53,9 @@ def _casadi() -> Any:
     return casadi
 
 
+_casadi = require_casadi
+
+
 class IpoptSolution(NamedTuple):
     """Result of :func:`solve_ipopt`.
 
@@ -62,7 +63,7 @@ class IpoptSolution(NamedTuple):
         states: Optimal states ``(T + 1, nstate)``.
         ctrls: Optimal controls ``(T, nu)``.
         cost: Objective value (same definition as
-            :attr:`mpcbox.controllers.ilqr.controller.ILQRResult.cost`).
+            :attr:`mpcbox.controllers.ilqr.result.ILQRResult.cost`).
         iterations: IPOPT iterations.
         success: IPOPT reported success.
         status: IPOPT's return status.
@@ -337,142 +338,4 @@ def solve_ipopt(
     )
 
 
-class IpoptController(Controller):
-    """Offline IPOPT plan from the first measured state, tracked with time-varying LQR.
-
-    On the first call (after :meth:`reset`) it solves :func:`solve_ipopt` over ``horizon``
-    knots, then computes feedback gains along the plan with the iLQR backward pass
-    (:func:`mpcbox.controllers.ilqr.controller.backward_pass`) and applies
-    :math:`u_i + K_i (x \\ominus \\bar x_i)` at every call. After the plan ends it regulates
-    about the reference state and control (``problem.reference_state()``, ``ctrl_ref``) with the
-    infinite-horizon LQR gain there (``scipy.linalg.solve_discrete_are``).
-
-    Args:
-        problem: The Problem (``nq == nv``).
-        horizon: Plan length in knots of the planning model.
-        warm_start_ilqr: Initialize IPOPT with an iLQR solution (more robust on swing-ups,
-            whose costs have several local minima).
-        ilqr_options: Keyword arguments of the :class:`~mpcbox.ILQR` used for the warm start.
-        regularization: Added to ``Q_uu`` when computing the tracking gains.
-        planning_timestep: Plan on a copy of the Problem with this planning timestep
-            (:meth:`~mpcbox.Problem.with_planning_timestep`).
-        **ipopt_options: Passed to :func:`solve_ipopt`.
-    """
-
-    name = "ipopt"
-    period = None
-
-    def __init__(
-        self,
-        problem: Problem,
-        horizon: int,
-        *,
-        warm_start_ilqr: bool = False,
-        ilqr_options: dict[str, Any] | None = None,
-        regularization: float = 1e-6,
-        planning_timestep: float | None = None,
-        **ipopt_options: Any,
-    ) -> None:
-        _casadi()
-        if planning_timestep is not None:
-            dt = positive("planning_timestep", planning_timestep)
-            if abs(dt - problem.dt) > 1e-12:
-                problem = problem.with_planning_timestep(dt)
-        if problem.nq != problem.nv:
-            raise InvalidArgumentError(
-                "problem: IpoptController needs a model without free or ball joints (nq == nv)"
-            )
-        self.problem = problem
-        self.horizon = positive_int("horizon", horizon)
-        self.warm_start_ilqr = bool(warm_start_ilqr)
-        self.ilqr_options = dict(ilqr_options or {})
-        self.regularization = positive("regularization", regularization)
-        self.ipopt_options = ipopt_options
-        self.solution: IpoptSolution | None = None
-        self.reset()
-
-    def reset(self) -> None:
-        """Forget the plan; the next call solves again."""
-        self._plan_time = 0.0
-        self._K: np.ndarray | None = None
-        self._failures = 0
-        self.solution = None
-
-    @property
-    def stats(self) -> dict[str, float]:
-        """IPOPT iterations and solve time of the current plan, and failed solves."""
-        out = {"fallbacks": float(self._failures)}
-        if self.solution is not None:
-            out["ipopt_iterations"] = float(self.solution.iterations)
-            out["ipopt_solve_time"] = float(self.solution.solve_time)
-        return out
-
-    def plan(self, state: np.ndarray) -> IpoptSolution:
-        """Solve from ``state`` and compute the tracking gains."""
-        p = self.problem
-        options = dict(self.ipopt_options)
-        if self.warm_start_ilqr:
-            from mpcbox.controllers.ilqr.controller import ILQR
-
-            ilqr_options = {"max_iterations": 300, **self.ilqr_options}
-            if "ctrls_init" in options:
-                ilqr_options.setdefault("ctrls_init", options["ctrls_init"])
-            res = ILQR(p, self.horizon, **ilqr_options).solve(state)
-            options.update(ctrls_init=res.ctrls, states_init=res.states)
-        sol = solve_ipopt(p, state, self.horizon, **options)
-        # Track the dynamically consistent rollout of the plan's controls.
-        states = p.rollout(state, sol.ctrls).states[0]
-        lin = p.linearize_trajectory(states[:-1], sol.ctrls)
-        quad = p.quadratize_trajectory(states, sol.ctrls)
-        mu = self.regularization
-        for _ in range(30):
-            try:
-                bp = backward_pass(lin, quad, sol.ctrls, p.ctrl_low, p.ctrl_high, mu)
-                break
-            except SolverError:
-                mu *= 10.0
-        else:
-            raise SolverError("IpoptController: could not compute tracking gains")
-        self._states, self._ctrls, self._K = states, sol.ctrls, bp.K
-        self._tail = (p.reference_state(), p.clip_ctrl(p.ctrl_ref))
-        self._K_tail = self._tail_gain(*self._tail, bp.K[-1])
-        self.solution = sol
-        return sol
-
-    def _tail_gain(self, state: np.ndarray, ctrl: np.ndarray, fallback: np.ndarray) -> np.ndarray:
-        """Infinite-horizon LQR gain about ``(state, ctrl)`` (used after the plan ends)."""
-        p = self.problem
-        A, B = p.linearize(state, ctrl)
-        q = p.quadratize(state, ctrl)
-        Q = q.lxx + 1e-9 * np.eye(p.nx)
-        R = q.luu + self.regularization * np.eye(p.nu)
-        try:
-            P = scipy.linalg.solve_discrete_are(A, B, Q, R, s=q.lux.T)
-            return -np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A + q.lux)
-        except (np.linalg.LinAlgError, ValueError):
-            return fallback
-
-    def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
-        p = self.problem
-        state = as_array("state", state, (p.nstate,))
-        if self._K is None or time < self._plan_time - 1e-9:
-            try:
-                self.plan(state)
-            except (SolverError, InvalidArgumentError, RuntimeError):
-                self._failures += 1
-                return p.clip_ctrl(p.ctrl_ref)
-            self._plan_time = float(time)
-        assert self._K is not None
-        s = (time - self._plan_time) / p.dt + 1e-9
-        if s >= self.horizon:
-            (nominal, ctrl), gain = self._tail, self._K_tail
-        else:
-            i = max(int(s), 0)
-            nominal, ctrl, gain = self._states[i], self._ctrls[i], self._K[i]
-        u = ctrl + gain @ p.state_difference(state, nominal)
-        if not np.all(np.isfinite(u)):
-            return p.clip_ctrl(ctrl)
-        return p.clip_ctrl(u)
-
-
-__all__ = ["IpoptController", "IpoptSolution", "solve_ipopt"]
+__all__ = ["IpoptSolution", "require_casadi", "solve_ipopt"]

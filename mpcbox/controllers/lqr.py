@@ -9,10 +9,14 @@ controller applies :math:`u = u_0 - K\,(x \ominus x_0)`.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Any
+
 import numpy as np
 import scipy.linalg
 
-from mpcbox.controllers.base import Controller
+from mpcbox.config import resolve_config
+from mpcbox.controllers.base import Controller, check_problem
 from mpcbox.core.problem import Problem
 from mpcbox.errors import CostDefinitionError, NotStabilizableError, ShapeError, SolverError
 from mpcbox.validation import as_array
@@ -131,52 +135,75 @@ def dlqr(
     return K, P
 
 
-class LQR(Controller):
-    """Infinite-horizon LQR about an operating point of a Problem.
+@dataclass(frozen=True, kw_only=True)
+class LQRConfig:
+    """Options of :class:`LQR`.
 
-    The linearization is that of the Problem's planning model, so the controller runs at the
-    planning timestep (``period``).
-
-    Args:
-        problem: The Problem.
+    Attributes:
         Q: State weight ``(nx, nx)``; by default the Gauss-Newton Hessian of the Problem's
             running cost at the operating point.
         R: Control weight ``(nu, nu)``; likewise by default.
         state: Operating state ``(nstate,)`` (default: the Problem's reference state).
         ctrl: Operating control ``(nu,)`` (default: the Problem's ``ctrl_ref``).
-        eps: Finite-difference step for the linearization.
-        centered: Centered finite differences.
+        eps: Finite-difference step for the linearization (default: the Problem's).
+        centered: Centered finite differences (default: the Problem's).
+    """
+
+    Q: np.ndarray | None = None
+    R: np.ndarray | None = None
+    state: np.ndarray | None = None
+    ctrl: np.ndarray | None = None
+    eps: float | None = None
+    centered: bool | None = None
+
+
+class LQR(Controller):
+    """Infinite-horizon LQR about an operating point of a Problem.
+
+    The linearization is that of the Problem's planning model, so the controller runs at the
+    planning timestep (``period``). With no options it regulates about the Problem's
+    reference with weights from its running cost.
+
+    Args:
+        problem: The Problem.
+        config: An :class:`LQRConfig` (default: its defaults).
+        **options: Fields of :class:`LQRConfig` that replace those of ``config``, e.g.
+            ``LQR(problem, R=0.1 * quad.luu)``.
 
     Attributes:
+        config: The resolved config.
         A, B: The linearization.
         K: Gain ``(nu, nx)``.
         P: Riccati solution ``(nx, nx)``.
+
+    Raises:
+        InvalidTypeError: If ``problem`` is not a Problem or ``config`` not an LQRConfig.
+        UnknownOptionError: For an option that is not a config field; it lists the valid ones.
+        ShapeError, CostDefinitionError, NotStabilizableError, SolverError: From :func:`dlqr`.
     """
 
     name = "lqr"
+    config_class = LQRConfig
 
-    def __init__(
-        self,
-        problem: Problem,
-        *,
-        Q: np.ndarray | None = None,
-        R: np.ndarray | None = None,
-        state: np.ndarray | None = None,
-        ctrl: np.ndarray | None = None,
-        eps: float | None = None,
-        centered: bool | None = None,
-    ) -> None:
+    def __init__(self, problem: Problem, config: LQRConfig | None = None, **options: Any) -> None:
+        problem = check_problem(problem, "LQR")
+        cfg = resolve_config(LQRConfig, config, options, "LQR")
         self.problem = problem
+        self.config = cfg
         self.state0 = (
             problem.reference_state()
-            if state is None
-            else as_array("state", state, (problem.nstate,))
+            if cfg.state is None
+            else as_array("state", cfg.state, (problem.nstate,))
         )
         self.ctrl0 = (
-            problem.ctrl_ref.copy() if ctrl is None else as_array("ctrl", ctrl, (problem.nu,))
+            problem.ctrl_ref.copy()
+            if cfg.ctrl is None
+            else as_array("ctrl", cfg.ctrl, (problem.nu,))
         )
-        self.A, self.B = problem.linearize(self.state0, self.ctrl0, eps=eps, centered=centered)
-        N = None
+        self.A, self.B = problem.linearize(
+            self.state0, self.ctrl0, eps=cfg.eps, centered=cfg.centered
+        )
+        Q, R, N = cfg.Q, cfg.R, None
         if Q is None or R is None:
             quad = problem.quadratize(self.state0, self.ctrl0)
             Q = quad.lxx if Q is None else Q
@@ -201,3 +228,14 @@ class LQR(Controller):
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
         dx = self.problem.state_difference(state, self.state0)
         return self.problem.clip_ctrl(self.ctrl0 - self.K @ dx)
+
+
+__all__ = [
+    "LQR",
+    "LQRConfig",
+    "check_stabilizable",
+    "check_symmetric",
+    "check_weights",
+    "dlqr",
+    "nearest_psd",
+]

@@ -5,7 +5,8 @@ A contact point is a point fixed in a body, where the ground may push with a for
 ``z`` axis). Its generalized force is :math:`J^T f` with the translational Jacobian
 :math:`J` ``(3, nv)`` of the point.
 
-The Coulomb cone :math:`\|f_t\| \le \mu f_n` is replaced by a pyramid with ``F`` facets of
+The Coulomb cone :math:`\|f_t\| \le \mu f_n` (friction coefficient :math:`\mu`, the
+``friction`` argument below) is replaced by a pyramid with ``F`` facets of
 outward normals :math:`n_i = (\cos\theta_i, \sin\theta_i)`, :math:`\theta_i = 2\pi i / F`:
 
 .. math:: n_i^T f_t - \mu f_n \le 0, \qquad 0 \le f_n \le f_{\max} .
@@ -199,47 +200,50 @@ def body_twist_jacobian(
     return jac
 
 
-def friction_pyramid(mu: float, facets: int = 4) -> np.ndarray:
+def friction_pyramid(friction: float, facets: int = 4) -> np.ndarray:
     r"""Rows ``G`` ``(facets, 3)`` with :math:`G f \le 0` the linearized friction cone.
 
     Row ``i`` is :math:`(\cos\theta_i, \sin\theta_i, -\mu)`, :math:`\theta_i = 2\pi i / F`.
 
     Args:
-        mu: Friction coefficient (> 0).
+        friction: Friction coefficient :math:`\mu` (> 0).
         facets: Number of facets, ``4`` or ``8`` (any even number >= 4 works).
 
     Raises:
-        InvalidArgumentError: If ``mu <= 0`` or ``facets`` is not an even integer >= 4.
+        InvalidArgumentError: If ``friction <= 0`` or ``facets`` is not an even integer >= 4.
     """
-    mu = positive("mu", mu)
+    friction = positive("friction", friction)
     facets = positive_int("facets", facets)
     if facets < 4 or facets % 2:
         raise InvalidArgumentError(f"facets must be an even integer >= 4, got {facets}")
     theta = 2.0 * np.pi * np.arange(facets) / facets
-    return np.column_stack([np.cos(theta), np.sin(theta), np.full(facets, -mu)])
+    return np.column_stack([np.cos(theta), np.sin(theta), np.full(facets, -friction)])
 
 
-def cone_violation(forces: np.ndarray, mu: float, facets: int, f_max: float) -> float:
-    """Largest violation of the pyramid and ``0 <= f_n <= f_max`` over forces ``(..., 3)``."""
+def cone_violation(forces: np.ndarray, friction: float, facets: int, f_max: float) -> float:
+    """Largest violation of the pyramid (friction coefficient ``friction``, ``facets``) and
+    ``0 <= f_n <= f_max`` over forces ``(..., 3)``."""
     forces = np.asarray(forces, dtype=np.float64).reshape(-1, 3)
     if forces.size == 0:
         return 0.0
-    g = forces @ friction_pyramid(mu, facets).T
+    g = forces @ friction_pyramid(friction, facets).T
     fn = forces[:, 2]
     return float(max(np.max(g), np.max(-fn), np.max(fn - f_max), 0.0))
 
 
-def project_to_pyramid(forces: np.ndarray, mu: float, facets: int, f_max: float) -> np.ndarray:
+def project_to_pyramid(
+    forces: np.ndarray, friction: float, facets: int, f_max: float
+) -> np.ndarray:
     """Nearby forces ``(..., 3)`` inside the pyramid: clamp ``f_n``, then shrink ``f_t``.
 
     Used to remove the solver's tolerance-level violations from a plan; it moves a force by
-    no more than that violation (times a factor depending on ``mu`` and ``facets``).
+    no more than that violation (times a factor depending on ``friction`` and ``facets``).
     """
     out = np.array(forces, dtype=np.float64, copy=True).reshape(-1, 3)
     out[:, 2] = np.clip(out[:, 2], 0.0, f_max)
-    normals = friction_pyramid(mu, facets)[:, :2]
+    normals = friction_pyramid(friction, facets)[:, :2]
     support = np.max(out[:, :2] @ normals.T, axis=1)
-    limit = mu * out[:, 2]
+    limit = friction * out[:, 2]
     scale = np.where(support > limit, limit / np.maximum(support, 1e-300), 1.0)
     out[:, :2] *= scale[:, None]
     return out.reshape(np.shape(forces))

@@ -1,14 +1,44 @@
-"""Loading MuJoCo models and resolving names, with errors that list the valid names."""
+"""Loading and checking MuJoCo models, and resolving names with errors that list valid names."""
 
 from __future__ import annotations
 
+import copy
+import warnings
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import mujoco
+import numpy as np
 
-from mpcbox.errors import InvalidArgumentError, ModelLoadError, ModelNotFoundError, UnknownNameError
+from mpcbox.core import menagerie
+from mpcbox.errors import (
+    InvalidArgumentError,
+    InvalidTypeError,
+    ModelLoadError,
+    ModelNotFoundError,
+    PlanningModelWarning,
+    ShapeError,
+    UnknownNameError,
+)
+from mpcbox.validation import positive
 
 ModelSource = str | Path | mujoco.MjSpec | mujoco.MjModel
+
+#: The integrator that replaces RK4 in planning models (:func:`plannable`):
+#: ``mjd_transitionFD`` cannot differentiate RK4, and on damped, actuated test models the
+#: implicitfast step's ``A`` and ``B`` are as close to the RK4 step's as implicit's and much
+#: closer than Euler's.
+PLANNING_INTEGRATOR = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+
+#: Per-body and per-actuator model fields that must be finite.
+_FINITE_FIELDS = (
+    "body_mass",
+    "body_inertia",
+    "actuator_gainprm",
+    "actuator_biasprm",
+    "actuator_gear",
+)
 
 _OBJ_KINDS = {
     "body": mujoco.mjtObj.mjOBJ_BODY,
@@ -31,14 +61,26 @@ _COUNTS = {
 
 
 def load_spec(source: str | Path | mujoco.MjSpec) -> mujoco.MjSpec:
-    """An editable :class:`mujoco.MjSpec` from an MJCF path, an XML string or a spec.
+    """An editable :class:`mujoco.MjSpec` from an MJCF path, an XML string, a spec, or a
+    MuJoCo Menagerie robot named ``"menagerie:NAME"`` or ``"menagerie:NAME/ENTRY"`` (for
+    example ``"menagerie:franka_emika_panda"``, ``"menagerie:unitree_g1/g1"``; see
+    :mod:`mpcbox.core.menagerie`).
 
     Raises:
+        InvalidTypeError: If ``source`` is none of these types.
         ModelNotFoundError: If a path does not exist.
         ModelLoadError: If MuJoCo cannot parse the file.
     """
     if isinstance(source, mujoco.MjSpec):
         return source.copy()
+    if not isinstance(source, (str, Path)):
+        raise InvalidTypeError(
+            "model must be an MJCF path, an XML string, a mujoco.MjSpec, a mujoco.MjModel or "
+            f"'menagerie:NAME', got {type(source).__name__}"
+        )
+    if isinstance(source, str) and source.startswith(menagerie.PREFIX):
+        name, _, entry = source[len(menagerie.PREFIX) :].partition("/")
+        return menagerie.robot_spec(name, entry or None)
     if isinstance(source, str) and source.lstrip().startswith("<"):
         try:
             return mujoco.MjSpec.from_string(source)
@@ -59,6 +101,173 @@ def compile_spec(spec: mujoco.MjSpec) -> mujoco.MjModel:
         return spec.compile()
     except Exception as exc:
         raise ModelLoadError(f"model: MuJoCo could not compile the model: {exc}") from exc
+
+
+def with_sensors(
+    source: mujoco.MjSpec | mujoco.MjModel, requests: Sequence[Any], timestep: float | None = None
+) -> mujoco.MjModel:
+    """A compiled copy of ``source`` that has the sensors a cost requests.
+
+    Args:
+        source: A spec (the sensors are added to a copy of it) or a compiled model (which
+            must already have them).
+        requests: :class:`~mpcbox.core.cost.SensorRequest` items (name, type, objtype,
+            objname).
+        timestep: A timestep for the copy (default: the source's).
+
+    Raises:
+        ModelLoadError: If a compiled model lacks a requested sensor.
+    """
+    if isinstance(source, mujoco.MjModel):
+        missing = [
+            r.name
+            for r in requests
+            if mujoco.mj_name2id(source, mujoco.mjtObj.mjOBJ_SENSOR, r.name) < 0
+        ]
+        if missing:
+            raise ModelLoadError(
+                f"model: the cost needs sensors {missing} that a compiled MjModel cannot "
+                "receive; pass an MJCF path, XML string or MjSpec instead"
+            )
+        model = copy.copy(source)
+    else:
+        spec = source.copy()
+        for req in requests:
+            spec.add_sensor(name=req.name, type=req.type, objtype=req.objtype, objname=req.objname)
+        if timestep is not None:
+            spec.option.timestep = positive("planning_timestep", timestep)
+        model = compile_spec(spec)
+    if timestep is not None:
+        model.opt.timestep = positive("planning_timestep", timestep)
+    return model
+
+
+def build_planning_model(
+    model: mujoco.MjModel,
+    spec: mujoco.MjSpec | None,
+    requests: Sequence[Any],
+    source: ModelSource | None = None,
+    timestep: float | None = None,
+) -> mujoco.MjModel:
+    """The model to plan with, next to a simulation model.
+
+    Args:
+        model: The simulation model (with the cost's sensors).
+        spec: The spec ``model`` was compiled from, if any.
+        requests: The cost's :class:`~mpcbox.core.cost.SensorRequest` items.
+        source: A separate source for the planning model.
+        timestep: A planning timestep.
+
+    Returns:
+        ``source`` compiled with the sensors, else a copy of ``model`` with ``timestep``,
+        else ``model`` itself.
+
+    Raises:
+        ShapeError: If ``source`` has other ``nq``, ``nv``, ``nu`` or ``na`` than ``model``.
+    """
+    if source is not None:
+        planning = with_sensors(
+            source if isinstance(source, mujoco.MjModel) else load_spec(source), requests, timestep
+        )
+        check_model(planning, "planning_model")
+    elif timestep is None:
+        return model
+    elif spec is None:
+        planning = copy.copy(model)
+        planning.opt.timestep = positive("planning_timestep", timestep)
+    else:
+        planning = with_sensors(spec, requests, timestep)
+    sizes = (model.nq, model.nv, model.nu, model.na)
+    if (planning.nq, planning.nv, planning.nu, planning.na) != sizes:
+        raise ShapeError(
+            "planning_model must have the same nq, nv, nu, na as model: got "
+            f"{(planning.nq, planning.nv, planning.nu, planning.na)}, expected {sizes}"
+        )
+    if planning.nsensordata != model.nsensordata:
+        raise ShapeError("planning_model and model must have the same sensors")
+    return planning
+
+
+def check_model(model: mujoco.MjModel, name: str = "model") -> None:
+    """Reject a model that mpcbox cannot control or whose numbers are broken.
+
+    Args:
+        model: The compiled model.
+        name: How the model is called in error messages.
+
+    Raises:
+        InvalidArgumentError: If the model has no degree of freedom or no actuator, or,
+            naming the field, a timestep that is not positive and finite, non-finite
+            gravity, a non-finite or negative body mass, non-finite body inertia, actuator
+            gains, biases or gears.
+    """
+    if model.nv == 0:
+        raise InvalidArgumentError(
+            f"{name} has no degrees of freedom (nv = 0): a Problem needs at least one joint "
+            "or free body to predict and control"
+        )
+    if model.nu == 0:
+        raise InvalidArgumentError(
+            f"{name} has no actuators (nu = 0): mpcbox controls a model through its "
+            "actuators, so it needs at least one (add an <actuator> element)"
+        )
+    timestep = float(model.opt.timestep)
+    if not (np.isfinite(timestep) and timestep > 0.0):
+        raise InvalidArgumentError(
+            f"{name}: opt.timestep must be positive and finite, got {timestep}"
+        )
+    if not np.all(np.isfinite(model.opt.gravity)):
+        raise InvalidArgumentError(
+            f"{name}: opt.gravity must be finite, got {model.opt.gravity.tolist()}"
+        )
+    for field in _FINITE_FIELDS:
+        values = getattr(model, field)
+        bad = np.flatnonzero(~np.isfinite(values).all(axis=tuple(range(1, values.ndim))))
+        if bad.size:
+            raise InvalidArgumentError(
+                f"{name}: {field} must be finite; non-finite at {_ids(model, field, bad)}"
+            )
+    negative = np.flatnonzero(model.body_mass < 0.0)
+    if negative.size:
+        raise InvalidArgumentError(
+            f"{name}: body_mass must be >= 0; negative at {_ids(model, 'body_mass', negative)}"
+        )
+
+
+def _ids(model: mujoco.MjModel, field: str, ids: np.ndarray) -> str:
+    """``"body 1 ('torso'), body 3"``: the objects of ``field`` at ``ids``, with their names."""
+    kind = "body" if field.startswith("body") else "actuator"
+    shown = []
+    for i in ids:
+        label = mujoco.mj_id2name(model, _OBJ_KINDS[kind], int(i))
+        shown.append(f"{kind} {i}" + (f" ({label!r})" if label else ""))
+    return ", ".join(shown)
+
+
+def plannable(model: mujoco.MjModel, owner: str) -> mujoco.MjModel:
+    """``model``, or a copy using :data:`PLANNING_INTEGRATOR` when it uses RK4.
+
+    MuJoCo's ``mjd_transitionFD`` cannot differentiate an RK4 step; planning on a copy with
+    another integrator keeps linearization-based controllers working. The replacement is
+    announced with a :class:`~mpcbox.errors.PlanningModelWarning`.
+
+    Args:
+        model: A planning model.
+        owner: Who plans with it, for the warning (e.g. ``"Problem"``).
+    """
+    if model.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4:
+        return model
+    warnings.warn(
+        PlanningModelWarning(
+            f"{owner}: the model uses the RK4 integrator, which mujoco.mjd_transitionFD "
+            "cannot differentiate; planning uses a copy with the implicitfast integrator "
+            "(the simulation model keeps RK4)"
+        ),
+        stacklevel=3,
+    )
+    model = copy.copy(model)
+    model.opt.integrator = PLANNING_INTEGRATOR
+    return model
 
 
 def names(model: mujoco.MjModel, kind: str) -> list[str]:

@@ -1,74 +1,55 @@
-r"""The :class:`Problem`: a MuJoCo model, its cost, and finite-difference derivatives.
+r"""The :class:`Problem`: a MuJoCo model, its references and cost, and its state algebra.
 
 State conventions (``nq`` positions, ``nv`` velocities, ``na`` actuator activations):
 
 * a *state* ``x`` is the physical state ``[qpos (nq), qvel (nv), act (na)]``;
 * a *state deviation* ``dx`` lives in the tangent space, ``[dq (nv), dv (nv), da (na)]``, with
-  ``dq`` from :func:`mujoco.mj_differentiatePos`, so free and ball joints are handled;
+  ``dq`` as from :func:`mujoco.mj_differentiatePos`, so free and ball joints are handled;
 * linearizations map deviations: :math:`dx_{t+1} = A\,dx_t + B\,du_t` with
   ``A`` of shape ``(nx, nx)``, ``B`` of shape ``(nx, nu)`` and ``nx = 2 nv + na``.
+
+The Problem checks its arguments and delegates the work: stepping, rollouts and
+linearization to :mod:`mpcbox.core.dynamics`, cost evaluation and quadratization to
+:mod:`mpcbox.core.derivatives`.
 """
 
 from __future__ import annotations
 
+import copy
 import os
-import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
-from typing import NamedTuple
+from typing import Any
 
 import mujoco
 import numpy as np
 
+from mpcbox.core import derivatives
 from mpcbox.core.cost import ControlCost, Cost, Features, StateCost
-from mpcbox.core.model import ModelSource, compile_spec, frame_object, load_spec, object_id
+from mpcbox.core.derivatives import Quadratization
+from mpcbox.core.dynamics import Dynamics, Linearization, Rollout, mujoco_errors
+from mpcbox.core.dynamics import read_state as _read_state
+from mpcbox.core.dynamics import write_state as _write_state
+from mpcbox.core.model import (
+    ModelSource,
+    build_planning_model,
+    check_model,
+    compile_spec,
+    load_spec,
+    object_id,
+    plannable,
+    with_sensors,
+)
 from mpcbox.core.tangent import TangentSpace
-from mpcbox.errors import DivergenceError, InvalidArgumentError, ModelLoadError, ShapeError
+from mpcbox.errors import (
+    DivergenceError,
+    InvalidArgumentError,
+    ModelLoadError,
+    ShapeError,
+)
 from mpcbox.validation import as_array, positive, positive_int
 
-
-class Linearization(NamedTuple):
-    """Discrete-time Jacobians ``A`` ``(..., nx, nx)`` and ``B`` ``(..., nx, nu)``."""
-
-    A: np.ndarray
-    B: np.ndarray
-
-
-class Quadratization(NamedTuple):
-    """Second-order (Gauss-Newton) model of a cost about ``(x, u)``.
-
-    Attributes:
-        value: Cost value(s), shape ``(...)``.
-        lx: Gradient in the state deviation, ``(..., nx)``.
-        lu: Gradient in the control, ``(..., nu)``.
-        lxx: Hessian block, ``(..., nx, nx)``.
-        luu: Hessian block, ``(..., nu, nu)``.
-        lux: Hessian block, ``(..., nu, nx)``.
-    """
-
-    value: np.ndarray
-    lx: np.ndarray
-    lu: np.ndarray
-    lxx: np.ndarray
-    luu: np.ndarray
-    lux: np.ndarray
-
-
-class Rollout(NamedTuple):
-    """Open-loop rollouts from one start state.
-
-    Attributes:
-        states: ``(B, T + 1, nstate)`` states, ``states[:, 0]`` the start state.
-        sensordata: ``(B, T + 1, nsensordata)``; row ``t`` is computed at ``states[:, t]``.
-        ctrls: ``(B, T, nu)`` the controls that were applied (clamped to ctrlrange).
-    """
-
-    states: np.ndarray
-    sensordata: np.ndarray
-    ctrls: np.ndarray
-
-
-_FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+__all__ = ["Linearization", "Problem", "Quadratization", "Rollout"]
 
 
 class Problem:
@@ -78,8 +59,13 @@ class Problem:
     model and ``planning_model`` the one controllers predict with (by default identical; a
     coarser ``planning_timestep`` makes planning cheaper). It also owns the :class:`Cost`.
 
+    An RK4 model is planned with ``implicitfast`` (MuJoCo cannot differentiate an RK4 step),
+    said by a :class:`~mpcbox.errors.PlanningModelWarning` and the repr; it simulates in RK4.
+
     Subclasses typically override :meth:`build_cost` (and :meth:`prepare` to compute a
-    reference posture before the cost is built) and :meth:`failure` (what counts as a fall).
+    reference posture before the cost is built) and :meth:`failure` (what counts as a fall);
+    tasks may also declare :meth:`measures` (reported by :func:`~mpcbox.simulate`), a
+    :meth:`noise` model and :attr:`contacts`.
 
     Args:
         model: MJCF path, XML string, :class:`mujoco.MjSpec`, or compiled
@@ -97,9 +83,18 @@ class Problem:
         fd_centered: Centered (True) or forward (False) differences by default.
         threads: Threads for batched linearization (default: all cores).
         name: Label used in tables.
+
+    Raises:
+        InvalidArgumentError: If the model has no joint or no actuator, or a broken field
+            (non-positive timestep, non-finite gravity, negative mass, ...); the message
+            names the field.
     """
 
     name: str = "problem"
+    #: Contact geoms, bodies or sites (names, optionally prefixed ``"geom:"``, ``"body:"`` or
+    #: ``"site:"``; see :func:`~mpcbox.core.contact.contact_points`) that contact-aware
+    #: controllers (:class:`~mpcbox.QPMPC`) use when given none; empty: they find their own.
+    contacts: tuple[str, ...] = ()
 
     def __init__(
         self,
@@ -126,11 +121,7 @@ class Problem:
 
         spec = None if isinstance(model, mujoco.MjModel) else load_spec(model)
         base = model if isinstance(model, mujoco.MjModel) else compile_spec(spec)
-        if base.nv == 0:
-            raise InvalidArgumentError(
-                "model has no degrees of freedom (nv = 0): a Problem needs at least one joint "
-                "or free body to predict and control"
-            )
+        check_model(base)
         self.nq, self.nv, self.nu, self.na = base.nq, base.nv, base.nu, base.na
         self.nx = 2 * self.nv + self.na
         self.nstate = self.nq + self.nv + self.na
@@ -156,38 +147,16 @@ class Problem:
                 f"cost must be an mpcbox.Cost, got {type(self.cost).__name__}"
             )
         requests = self.cost.sensors(base)
-        self.model = self._with_sensors(spec, base, requests, None)
-        if planning_model is not None:
-            pspec = (
-                None if isinstance(planning_model, mujoco.MjModel) else load_spec(planning_model)
-            )
-            pbase = planning_model if isinstance(planning_model, mujoco.MjModel) else None
-            self.planning_model = self._with_sensors(pspec, pbase, requests, planning_timestep)
-        elif planning_timestep is not None:
-            if spec is None:
-                self.planning_model = _copy_model(self.model)
-                self.planning_model.opt.timestep = positive("planning_timestep", planning_timestep)
-            else:
-                self.planning_model = self._with_sensors(spec, None, requests, planning_timestep)
-        else:
-            self.planning_model = self.model
-        pm = self.planning_model
-        if (pm.nq, pm.nv, pm.nu, pm.na) != (self.nq, self.nv, self.nu, self.na):
-            raise ShapeError(
-                "planning_model must have the same nq, nv, nu, na as model: "
-                f"got {(pm.nq, pm.nv, pm.nu, pm.na)}, "
-                f"expected {(self.nq, self.nv, self.nu, self.na)}"
-            )
+        self.model = with_sensors(base if spec is None else spec, requests)
+        pm = build_planning_model(self.model, spec, requests, planning_model, planning_timestep)
+        self.planning_model = plannable(pm, type(self).__name__)
+        #: The simulation integrator that planning replaced (``"RK4"``), else ``None``.
+        self.replaced_integrator = None if self.planning_model is pm else "RK4"
         self.cost.bind(self.planning_model)
-        if self.model.nsensordata != pm.nsensordata:
-            raise ShapeError("planning_model and model must have the same sensors")
-        self.ctrl_low = np.where(pm.actuator_ctrllimited, pm.actuator_ctrlrange[:, 0], -np.inf)
-        self.ctrl_high = np.where(pm.actuator_ctrllimited, pm.actuator_ctrlrange[:, 1], np.inf)
-
-        self._local = threading.local()
-        self._pool: ThreadPoolExecutor | None = None
-        full = mujoco.mj_stateSize(self.planning_model, _FULL)
-        self._full_size = full
+        limited, ctrlrange = pm.actuator_ctrllimited, pm.actuator_ctrlrange  # same in the copy
+        self.ctrl_low = np.where(limited, ctrlrange[:, 0], -np.inf)
+        self.ctrl_high = np.where(limited, ctrlrange[:, 1], np.inf)
+        self.dynamics = Dynamics(self.planning_model, self.threads)
 
     # ------------------------------------------------------------------ construction hooks
     def prepare(self, model: mujoco.MjModel) -> None:
@@ -210,33 +179,6 @@ class Problem:
             ]
         )
 
-    @staticmethod
-    def _with_sensors(spec, base, requests, timestep) -> mujoco.MjModel:
-        if spec is None:
-            missing = [
-                r.name
-                for r in requests
-                if mujoco.mj_name2id(base, mujoco.mjtObj.mjOBJ_SENSOR, r.name) < 0
-            ]
-            if missing:
-                raise ModelLoadError(
-                    f"model: the cost needs sensors {missing} that a compiled MjModel cannot "
-                    "receive; pass an MJCF path, XML string or MjSpec instead"
-                )
-            model = _copy_model(base)
-        else:
-            spec = spec.copy()
-            for req in requests:
-                spec.add_sensor(
-                    name=req.name, type=req.type, objtype=req.objtype, objname=req.objname
-                )
-            if timestep is not None:
-                spec.option.timestep = positive("planning_timestep", timestep)
-            model = compile_spec(spec)
-        if timestep is not None:
-            model.opt.timestep = positive("planning_timestep", timestep)
-        return model
-
     # ------------------------------------------------------------------ states
     @property
     def dt(self) -> float:
@@ -253,24 +195,24 @@ class Problem:
 
     def get_state(self, data: mujoco.MjData) -> np.ndarray:
         """The state ``[qpos, qvel, act]`` held in ``data``."""
-        return np.concatenate([data.qpos, data.qvel, data.act])
+        return _read_state(data)
 
     def set_state(self, data: mujoco.MjData, state: np.ndarray) -> None:
         """Write a state ``(nstate,)`` into ``data``."""
-        state = self.check_state(state)
-        data.qpos[:] = state[: self.nq]
-        data.qvel[:] = state[self.nq : self.nq + self.nv]
-        data.act[:] = state[self.nq + self.nv :]
+        _write_state(data, self.check_state(state))
 
-    def state_difference(self, state: np.ndarray, state_ref: np.ndarray) -> np.ndarray:
+    def state_difference(
+        self, state: np.ndarray, state_ref: np.ndarray, out: np.ndarray | None = None
+    ) -> np.ndarray:
         """Tangent-space deviation ``dx = state ⊖ state_ref``.
 
         Args:
             state: States, shape ``(..., nstate)``.
             state_ref: Reference state(s), shape ``(nstate,)`` or ``(..., nstate)``.
+            out: Optional preallocated float64 output ``(..., nx)`` (e.g. in a loop).
 
         Returns:
-            Deviations, shape ``(..., nx)``.
+            Deviations, shape ``(..., nx)`` (``out`` when given).
         """
         state = np.asarray(state, dtype=np.float64)
         state_ref = np.asarray(state_ref, dtype=np.float64)
@@ -279,22 +221,15 @@ class Problem:
                 f"state and state_ref must end in nstate={self.nstate}, "
                 f"got {state.shape} and {state_ref.shape}"
             )
-        nq = self.nq
-        dq = self.tangent.difference(
-            state[..., :nq], np.broadcast_to(state_ref[..., :nq], state[..., :nq].shape)
-        )
-        return np.concatenate([dq, state[..., nq:] - state_ref[..., nq:]], axis=-1)
+        if out is not None and out.shape != (*state.shape[:-1], self.nx):
+            raise ShapeError(f"out must have shape {(*state.shape[:-1], self.nx)}, got {out.shape}")
+        return self.tangent.state_difference(state, state_ref, out)
 
     def state_add(self, state: np.ndarray, dx: np.ndarray) -> np.ndarray:
         """Move one ``state`` by a tangent deviation ``dx`` of shape ``(nx,)``."""
         state = self.check_state(state)
         dx = as_array("dx", dx, (self.nx,))
-        out = state.copy()
-        out[: self.nq] = self.tangent.integrate(
-            self.planning_model, state[: self.nq], dx[: self.nv]
-        )
-        out[self.nq :] += dx[self.nv :]
-        return out
+        return self.tangent.state_add(self.planning_model, state, dx)
 
     def clip_ctrl(self, ctrl: np.ndarray) -> np.ndarray:
         """Clamp controls to the actuators' ``ctrlrange`` (where limited)."""
@@ -326,46 +261,22 @@ class Problem:
             raise DivergenceError(f"{name} holds non-finite values (NaN or inf)")
         return ctrl
 
-    # ------------------------------------------------------------------ per-thread data
-    def _data(self) -> mujoco.MjData:
-        data = getattr(self._local, "data", None)
-        if data is None:
-            data = mujoco.MjData(self.planning_model)
-            self._local.data = data
-        return data
+    # ------------------------------------------------------------------ dynamics
+    def scratch_data(self) -> mujoco.MjData:
+        """The calling thread's ``MjData`` of the planning model, for controllers' own loops.
+
+        The same object comes back on every call from one thread, holding what its last user
+        left: write the state and ``ctrl`` before stepping it.
+        """
+        return self.dynamics.scratch_data()
 
     def executor(self) -> ThreadPoolExecutor:
         """The Problem's persistent thread pool (``threads`` workers)."""
-        if self._pool is None:
-            self._pool = ThreadPoolExecutor(max_workers=self.threads, thread_name_prefix="mpcbox")
-        return self._pool
+        return self.dynamics.executor()
 
-    def _map(self, fn: Callable[[int], object], count: int, threads: int | None) -> list:
-        """``[fn(i) for i in range(count)]`` on contiguous chunks, one chunk per thread."""
-        threads = self.threads if threads is None else positive_int("threads", threads)
-        threads = min(threads, count)
-        if threads <= 1:
-            return [fn(i) for i in range(count)]
-        bounds = np.linspace(0, count, threads + 1).astype(int)
-
-        def chunk(j: int) -> list:
-            return [fn(i) for i in range(bounds[j], bounds[j + 1])]
-
-        if threads <= self.threads:
-            parts = list(self.executor().map(chunk, range(threads)))
-        else:
-            with ThreadPoolExecutor(max_workers=threads) as pool:
-                parts = list(pool.map(chunk, range(threads)))
-        return [item for part in parts for item in part]
-
-    # ------------------------------------------------------------------ dynamics
     def step(self, state: np.ndarray, ctrl: np.ndarray) -> np.ndarray:
-        """One step of the planning model from ``state`` under ``ctrl``."""
-        data = self._data()
-        self.set_state(data, state)
-        data.ctrl[:] = self.check_ctrl(ctrl)
-        mujoco.mj_step(self.planning_model, data)
-        return self.get_state(data)
+        """One step of the planning model from ``state`` ``(nstate,)`` under ``ctrl`` ``(nu,)``."""
+        return self.dynamics.step(self.check_state(state), self.check_ctrl(ctrl))
 
     def linearize(
         self,
@@ -375,38 +286,13 @@ class Problem:
         eps: float | None = None,
         centered: bool | None = None,
     ) -> Linearization:
-        """Finite-difference Jacobians of one planning-model step (``mjd_transitionFD``).
+        """Jacobians ``A`` ``(nx, nx)``, ``B`` ``(nx, nu)`` of one planning step at a state.
 
-        Args:
-            state: State ``(nstate,)``.
-            ctrl: Control ``(nu,)``.
-            eps: Finite-difference step (default ``fd_eps``).
-            centered: Centered differences (default ``fd_centered``).
-
-        Returns:
-            ``A`` ``(nx, nx)`` and ``B`` ``(nx, nu)``.
+        Finite differences of ``mjd_transitionFD`` with step ``eps`` (default ``fd_eps``),
+        centered or not (default ``fd_centered``); see :meth:`Dynamics.linearize`.
         """
-        state = self.check_state(state)
-        ctrl = self.check_ctrl(ctrl)
-        return self._linearize_one(state, ctrl, eps, centered)
-
-    def _linearize_one(self, state, ctrl, eps, centered) -> Linearization:
-        data = self._data()
-        self.set_state(data, state)
-        data.ctrl[:] = ctrl
-        A = np.zeros((self.nx, self.nx))
-        B = np.zeros((self.nx, self.nu))
-        mujoco.mjd_transitionFD(
-            self.planning_model,
-            data,
-            self.fd_eps if eps is None else positive("eps", eps),
-            self.fd_centered if centered is None else bool(centered),
-            A,
-            B,
-            None,
-            None,
-        )
-        return Linearization(A, B)
+        state, ctrl = self.check_state(state), self.check_ctrl(ctrl)
+        return self.dynamics.linearize(state, ctrl, *self._fd_options(eps, centered))
 
     def linearize_trajectory(
         self,
@@ -417,26 +303,21 @@ class Problem:
         centered: bool | None = None,
         threads: int | None = None,
     ) -> Linearization:
-        """Linearize many knots in parallel (one MjData per thread; MuJoCo drops the GIL).
+        """:meth:`linearize` at ``T`` knots in parallel (``threads``, default the Problem's).
 
-        Args:
-            states: States ``(T, nstate)``.
-            ctrls: Controls ``(T, nu)``.
-            eps: Finite-difference step.
-            centered: Centered differences.
-            threads: Worker threads (default: the Problem's).
-
-        Returns:
-            ``A`` ``(T, nx, nx)`` and ``B`` ``(T, nx, nu)``.
+        Args ``states`` ``(T, nstate)`` and ``ctrls`` ``(T, nu)`` give ``A`` ``(T, nx, nx)`` and
+        ``B`` ``(T, nx, nu)``; MuJoCo drops the GIL, each thread has its own ``MjData``.
         """
         states = as_array("states", states, (None, self.nstate))
         ctrls = as_array("ctrls", ctrls, (states.shape[0], self.nu))
         if not (np.all(np.isfinite(states)) and np.all(np.isfinite(ctrls))):
             raise DivergenceError("states or ctrls hold non-finite values")
-        out = self._map(
-            lambda i: self._linearize_one(states[i], ctrls[i], eps, centered), len(states), threads
-        )
-        return Linearization(np.stack([o.A for o in out]), np.stack([o.B for o in out]))
+        eps, centered = self._fd_options(eps, centered)
+        return self.dynamics.linearize_trajectory(states, ctrls, eps, centered, threads)
+
+    def _fd_options(self, eps: float | None, centered: bool | None) -> tuple[float, bool]:
+        eps = self.fd_eps if eps is None else positive("eps", eps)
+        return eps, self.fd_centered if centered is None else bool(centered)
 
     def rollout(
         self,
@@ -445,20 +326,13 @@ class Problem:
         *,
         model: mujoco.MjModel | Sequence[mujoco.MjModel] | None = None,
     ) -> Rollout:
-        """Roll out control sequences on the planning model with :func:`mujoco.rollout.rollout`.
+        """Roll out controls ``(T, nu)`` or ``(B, T, nu)`` from ``state`` on the planning model.
 
-        Args:
-            state: Start state ``(nstate,)``.
-            ctrls: Controls ``(T, nu)`` or a batch ``(B, T, nu)``.
-            model: A model (or one per batch row) to use instead of the planning model, for
-                example with randomized parameters.
-
-        Returns:
-            A :class:`Rollout` with a leading batch axis (``B = 1`` for a single sequence).
-            A rollout that diverged (MuJoCo reset it) holds NaN from that step on.
+        Controls are clamped to the control range; ``model`` (one, or one per batch row)
+        replaces the planning model, e.g. with randomized parameters. The :class:`Rollout`
+        has a leading batch axis; a rollout that diverged holds NaN from that step on (see
+        :meth:`Dynamics.rollout`).
         """
-        from mujoco import rollout as mj_rollout
-
         state = self.check_state(state)
         ctrls = np.asarray(ctrls, dtype=np.float64)
         if ctrls.ndim == 2:
@@ -467,64 +341,18 @@ class Problem:
             raise ShapeError(
                 f"ctrls must have shape (T, {self.nu}) or (B, T, {self.nu}), got {ctrls.shape}"
             )
-        nbatch, horizon = ctrls.shape[:2]
-        ctrls = self.clip_ctrl(ctrls)
-        padded = np.concatenate([ctrls, ctrls[:, -1:]], axis=1)
-        init = self.full_physics_state(state)
-        datas = self._rollout_datas()
-        models = self.planning_model if model is None else model
-        out_state, out_sens = mj_rollout.rollout(
-            models, datas, np.tile(init, (nbatch, 1)), padded, persistent_pool=True
-        )
-        qa = 1
-        cols = slice(qa, qa + self.nstate)
-        states = np.empty((nbatch, horizon + 1, self.nstate))
-        states[:, 0] = state
-        states[:, 1:] = out_state[:, :horizon, cols]
-        # MuJoCo resets a diverged simulation (warning mjWARN_BADQACC) and carries on from the
-        # model's reference pose, time 0: the time column then steps back. Mark those
-        # rollouts non-finite from the reset on, so that no one scores the reset pose.
-        times = np.concatenate([np.full((nbatch, 1), init[0]), out_state[:, :, 0]], axis=1)
-        stepped_back = np.diff(times, axis=1) <= 0.0  # (B, T + 1)
-        if stepped_back.any():
-            after = np.cumsum(stepped_back, axis=1) > 0
-            states[:, 1:][after[:, :horizon]] = np.nan
-            out_sens = np.array(out_sens)
-            out_sens[after] = np.nan
-        return Rollout(states, out_sens, ctrls)
-
-    def _rollout_datas(self) -> list[mujoco.MjData]:
-        datas = getattr(self, "_rollout_data_list", None)
-        if datas is None:
-            datas = [mujoco.MjData(self.planning_model) for _ in range(self.threads)]
-            self._rollout_data_list = datas
-        return datas
+        return self.dynamics.rollout(state, self.clip_ctrl(ctrls), model)
 
     def full_physics_state(self, state: np.ndarray) -> np.ndarray:
         """``mjSTATE_FULLPHYSICS`` vector (time, qpos, qvel, act, ...) for a state."""
-        data = self._data()
-        mujoco.mj_resetData(self.planning_model, data)
-        self.set_state(data, state)
-        full = np.zeros(self._full_size)
-        mujoco.mj_getState(self.planning_model, data, full, _FULL)
-        return full
+        return self.dynamics.full_physics_state(self.check_state(state))
 
     # ------------------------------------------------------------------ costs
     def features(self, state: np.ndarray, ctrl: np.ndarray | None = None) -> Features:
         """Cost features of one state (after ``mj_forward`` on the planning model)."""
-        data = self._data()
-        self.set_state(data, self.check_state(state))
-        data.ctrl[:] = self.ctrl_ref if ctrl is None else self.check_ctrl(ctrl)
-        mujoco.mj_forward(self.planning_model, data)
-        return self._features_of(data)
-
-    def _features_of(self, data: mujoco.MjData) -> Features:
-        return Features(
-            data.qpos[None].copy(),
-            data.qvel[None].copy(),
-            data.ctrl[None].copy(),
-            data.sensordata[None].copy(),
-        )
+        state = self.check_state(state)
+        ctrl = self.ctrl_ref if ctrl is None else self.check_ctrl(ctrl)
+        return derivatives.evaluate_features(self.dynamics, state, ctrl)
 
     def running_cost(self, state: np.ndarray, ctrl: np.ndarray) -> float:
         """Running cost ``l(x, u)`` of one knot."""
@@ -535,173 +363,37 @@ class Problem:
         return float(self.cost.terminal_value(self.features(state))[0])
 
     def rollout_cost(self, rollout: Rollout) -> np.ndarray:
-        """Total cost of each rollout: running costs over ``T`` knots plus the terminal cost.
-
-        Returns:
-            Costs ``(B,)``.
-        """
-        states, sens, ctrls = rollout.states, rollout.sensordata, rollout.ctrls
-        nb, horizon = ctrls.shape[:2]
-        nq, nv = self.nq, self.nv
-        flat = Features(
-            states[:, :horizon, :nq].reshape(-1, nq),
-            states[:, :horizon, nq : nq + nv].reshape(-1, nv),
-            ctrls.reshape(-1, self.nu),
-            sens[:, :horizon].reshape(nb * horizon, -1),
-        )
-        running = self.cost.running_value(flat).reshape(nb, horizon).sum(axis=1)
-        last = Features(
-            states[:, horizon, :nq],
-            states[:, horizon, nq : nq + nv],
-            ctrls[:, -1],
-            sens[:, horizon],
-        )
-        return running + self.cost.terminal_value(last)
+        """Total cost ``(B,)`` of each rollout: ``T`` running costs plus the terminal cost."""
+        return derivatives.rollout_cost(self.cost, rollout, self.nq, self.nv)
 
     def quadratize(
         self, state: np.ndarray, ctrl: np.ndarray, *, terminal: bool = False
     ) -> Quadratization:
-        r"""Gauss-Newton quadratization of the running (or terminal) cost.
+        r"""Gauss-Newton quadratization of the running (or terminal) cost at one knot.
 
-        With residual Jacobians :math:`J_x, J_u` and weights :math:`W`:
-        :math:`\ell_x = J_x^T W r`, :math:`\ell_{xx} = J_x^T W J_x`,
-        :math:`\ell_{ux} = J_u^T W J_x`.
-        Terms without an analytic :meth:`~mpcbox.core.cost.CostTerm.jacobian` are differentiated by
-        finite differences in the tangent space.
+        :math:`\ell_x = J_x^T W r`, :math:`\ell_{xx} = J_x^T W J_x`, ... with the residual
+        Jacobians :math:`J_x, J_u` (see :mod:`mpcbox.core.derivatives`).
         """
-        state = self.check_state(state)
-        ctrl = self.check_ctrl(ctrl)
-        return self._quadratize_one(state, ctrl, terminal)
-
-    def _quadratize_one(self, state, ctrl, terminal) -> Quadratization:
-        out = self._quadratize_batch(state[None], ctrl[None], terminal)
-        return Quadratization(*(getattr(out, f)[0] for f in Quadratization._fields))
-
-    def _quadratize_batch(self, states, ctrls, terminal) -> Quadratization:
-        """Gauss-Newton quadratization of ``B`` knots (one term type at a time, vectorized).
-
-        Terms whose Jacobian does not depend on the state (``constant_jacobian``) contribute
-        the same Hessian blocks at every knot, computed once; the others are evaluated per
-        knot (analytically, or by finite differences).
-        """
+        state, ctrl = self.check_state(state), self.check_ctrl(ctrl)
         terms = self.cost.terminal if terminal else self.cost.running
-        nx, nu, nv = self.nx, self.nu, self.nv
-        nb = len(states)
-        value = np.zeros(nb)
-        lx, lu = np.zeros((nb, nx)), np.zeros((nb, nu))
-        lxx, luu, lux = np.zeros((nb, nx, nx)), np.zeros((nb, nu, nu)), np.zeros((nb, nu, nx))
-        if not terms:
-            return Quadratization(value, lx, lu, lxx, luu, lux)
-        m = self.planning_model
-        data = self._data()
-        varying = [t for t in terms if not t.constant_jacobian]
-        sens = np.empty((nb, m.nsensordata))
-        jacs: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {id(t): [] for t in varying}
-        for b in range(nb):
-            self.set_state(data, states[b])
-            data.ctrl[:] = ctrls[b]
-            mujoco.mj_forward(m, data)
-            sens[b] = data.sensordata
-            for term in varying:
-                jacs[id(term)].append(self._term_jacobian(term, data, states[b], ctrls[b]))
-        feats = Features(states[:, : self.nq], states[:, self.nq : self.nq + nv], ctrls, sens)
-        for term in terms:
-            r = term.residual(feats)
-            w = term.weight
-            wr = w * r
-            value += 0.5 * np.sum(wr * r, axis=1)
-            if term.constant_jacobian:
-                jx, ju = self._term_jacobian(term, data, states[-1], ctrls[-1])
-                lx += wr @ jx
-                lu += wr @ ju
-                wjx = jx * w[:, None]
-                lxx += jx.T @ wjx
-                luu += ju.T @ (ju * w[:, None])
-                lux += ju.T @ wjx
-            else:
-                jx = np.stack([j[0] for j in jacs[id(term)]])
-                ju = np.stack([j[1] for j in jacs[id(term)]])
-                lx += np.einsum("bk,bkn->bn", wr, jx)
-                lu += np.einsum("bk,bkn->bn", wr, ju)
-                wjx = jx * w[None, :, None]
-                lxx += np.einsum("bki,bkj->bij", jx, wjx)
-                luu += np.einsum("bki,bkj->bij", ju, ju * w[None, :, None])
-                lux += np.einsum("bki,bkj->bij", ju, wjx)
-        lxx = 0.5 * (lxx + lxx.transpose(0, 2, 1))
-        luu = 0.5 * (luu + luu.transpose(0, 2, 1))
-        return Quadratization(value, lx, lu, lxx, luu, lux)
-
-    def _term_jacobian(self, term, data, state, ctrl) -> tuple[np.ndarray, np.ndarray]:
-        """``(dr/dx (k, nx), dr/du (k, nu))`` of one term at the state held in ``data``."""
-        jac = term.jacobian(self.planning_model, data)
-        if jac is None:
-            feats = self._features_of(data)
-            r0 = term.residual(feats)[0]
-            jx, ju = self._residual_fd(term, state, ctrl, r0)
-            self.set_state(data, state)
-            data.ctrl[:] = ctrl
-            mujoco.mj_forward(self.planning_model, data)
-            return jx, ju
-        jx = np.zeros((jac.dq.shape[0], self.nx))
-        jx[:, : self.nv] = jac.dq
-        jx[:, self.nv : 2 * self.nv] = jac.dv
-        return jx, jac.du
-
-    def _residual_fd(self, term, state, ctrl, r0) -> tuple[np.ndarray, np.ndarray]:
-        eps = self.fd_eps
-        m = self.planning_model
-        data = self._data()
-        jx = np.zeros((len(r0), self.nx))
-        ju = np.zeros((len(r0), self.nu))
-
-        def eval_at(x, u):
-            self.set_state(data, x)
-            data.ctrl[:] = u
-            mujoco.mj_forward(m, data)
-            return term.residual(self._features_of(data))[0]
-
-        for i in range(self.nx):
-            dx = np.zeros(self.nx)
-            dx[i] = eps
-            jx[:, i] = (eval_at(self.state_add(state, dx), ctrl) - r0) / eps
-        for i in range(self.nu):
-            du = np.zeros(self.nu)
-            du[i] = eps
-            ju[:, i] = (eval_at(state, ctrl + du) - r0) / eps
-        return jx, ju
+        out = derivatives.quadratize_knots(
+            self.dynamics, self.tangent, terms, state[None], ctrl[None], self.fd_eps
+        )
+        return Quadratization(*(value[0] for value in out))
 
     def quadratize_trajectory(
         self, states: np.ndarray, ctrls: np.ndarray, *, threads: int | None = None
     ) -> Quadratization:
-        """Quadratize the running cost at ``T`` knots and the terminal cost at the last state.
+        """Running cost at ``T`` knots and terminal cost at the last of ``T + 1`` states.
 
-        Args:
-            states: ``(T + 1, nstate)``.
-            ctrls: ``(T, nu)``.
-
-        Returns:
-            Stacked arrays with leading size ``T + 1`` (the last row is the terminal cost;
-            its control blocks are zero).
+        ``states`` ``(T + 1, nstate)`` and ``ctrls`` ``(T, nu)`` give arrays with leading size
+        ``T + 1`` (see :func:`~mpcbox.core.derivatives.quadratize_trajectory`).
         """
         states = as_array("states", states, (None, self.nstate))
         ctrls = as_array("ctrls", ctrls, (states.shape[0] - 1, self.nu))
-        horizon = len(ctrls)
-        threads = self.threads if threads is None else positive_int("threads", threads)
-        # Chunks of knots: the C calls drop the GIL, the vectorized numpy work is per chunk.
-        bounds = np.linspace(0, horizon, min(threads, horizon) + 1).astype(int)
-        parts = self._map(
-            lambda j: self._quadratize_batch(
-                states[bounds[j] : bounds[j + 1]], ctrls[bounds[j] : bounds[j + 1]], False
-            ),
-            len(bounds) - 1,
-            threads,
-        )
-        last = self._quadratize_batch(states[-1:], ctrls[-1:], True)
-        return Quadratization(
-            *(
-                np.concatenate([getattr(q, f) for q in [*parts, last]])
-                for f in Quadratization._fields
-            )
+        threads = None if threads is None else positive_int("threads", threads)
+        return derivatives.quadratize_trajectory(
+            self.dynamics, self.tangent, self.cost, states, ctrls, self.fd_eps, threads
         )
 
     # ------------------------------------------------------------------ equilibrium
@@ -709,7 +401,8 @@ class Problem:
         """Control that holds a posture, from inverse dynamics (see :func:`find_equilibrium`)."""
         from mpcbox.core.equilibrium import find_equilibrium
 
-        return find_equilibrium(self.model, self.qpos_ref if qpos is None else qpos, **kwargs)
+        with mujoco_errors("find_equilibrium"):
+            return find_equilibrium(self.model, self.qpos_ref if qpos is None else qpos, **kwargs)
 
     # ------------------------------------------------------------------ monitoring
     def failure(self, model: mujoco.MjModel, data: mujoco.MjData) -> str | None:
@@ -721,36 +414,40 @@ class Problem:
             return "non-finite state"
         return None
 
-    def support_point(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray | None:
-        """Horizontal point the center of mass should stay above (``None``: initial COM)."""
-        return None
+    def measures(self) -> Sequence[Any]:
+        """The task's own measures, sampled at every step of a closed-loop run.
 
-    def tilt_body(self) -> int:
-        """Body whose tilt is reported (default: body 1)."""
-        return 1
+        :func:`mpcbox.simulate` samples each one after every step and summarizes it in
+        :attr:`Metrics.measures <mpcbox.Metrics>`; comparison tables show a column per
+        summary. The base class declares none; the humanoid tasks report the center of mass
+        over the support and the torso tilt (:mod:`mpcbox.tasks.humanoid.measures`).
 
-    def balance_measures(
-        self, model: mujoco.MjModel, data: mujoco.MjData, com_origin: np.ndarray
-    ) -> tuple[float, float]:
-        """Horizontal COM deviation (m) and tilt (deg) of ``data`` after kinematics.
+        Returns:
+            A sequence of :class:`mpcbox.sim.measures.Measure` with distinct names.
+        """
+        return ()
+
+    def noise(self, scale: float = 1.0) -> Any:
+        """The task's actuator-noise model at ``scale`` times its nominal level.
+
+        Scenarios of :func:`mpcbox.compare` that ask for noise without giving one use it.
+        The base class has none.
 
         Args:
-            model: The model of ``data``.
-            data: Data after ``mj_forward`` or a step.
-            com_origin: Horizontal COM at the start, used when there is no support point.
+            scale: Multiplier on the nominal standard deviations.
+
+        Returns:
+            A :class:`mpcbox.ActuatorNoise`.
+
+        Raises:
+            InvalidArgumentError: Always, in the base class: the task has no noise model.
         """
-        com = data.subtree_com[self.tilt_body()][:2]
-        support = self.support_point(model, data)
-        ref = com_origin if support is None else support
-        zaxis = data.xmat[self.tilt_body()].reshape(3, 3)[:, 2]
-        tilt = float(np.degrees(np.arccos(np.clip(zaxis[2], -1.0, 1.0))))
-        return float(np.linalg.norm(com - ref)), tilt
+        raise InvalidArgumentError(
+            f"task {self.name!r} ({type(self).__name__}) has no noise model: give an explicit "
+            "mpcbox.ActuatorNoise, or noise scale 0"
+        )
 
-    def frame_xy(self, model: mujoco.MjModel, data: mujoco.MjData, name: str) -> np.ndarray:
-        """Horizontal position of a site or body."""
-        kind, idx = frame_object(model, name)
-        return (data.site_xpos[idx] if kind == "site" else data.xpos[idx])[:2].copy()
-
+    # ------------------------------------------------------------------ copies
     def with_planning_timestep(self, timestep: float) -> Problem:
         """A shallow copy whose planning model takes steps of ``timestep`` seconds.
 
@@ -762,14 +459,10 @@ class Problem:
         Args:
             timestep: Planning timestep (s).
         """
-        import copy
-
         clone = copy.copy(self)
-        clone.planning_model = _copy_model(self.planning_model)
+        clone.planning_model = copy.copy(self.planning_model)
         clone.planning_model.opt.timestep = positive("timestep", timestep)
-        clone._local = threading.local()
-        clone._pool = None
-        clone.__dict__.pop("_rollout_data_list", None)
+        clone.dynamics = Dynamics(clone.planning_model, self.threads)
         return clone
 
     def with_cost(self, cost: Cost) -> Problem:
@@ -778,8 +471,6 @@ class Problem:
         The new cost may only use sensors the models already have. Controllers use this to add
         terms of their own, e.g. an LQR value function as terminal cost.
         """
-        import copy
-
         if not isinstance(cost, Cost):
             raise InvalidArgumentError(f"cost must be an mpcbox.Cost, got {type(cost).__name__}")
         missing = [
@@ -792,24 +483,18 @@ class Problem:
         clone = copy.copy(self)
         clone.cost = cost
         cost.bind(self.planning_model)
-        clone._local = threading.local()
-        clone._pool = None
+        clone.dynamics = Dynamics(self.planning_model, self.threads)
         return clone
 
     def close(self) -> None:
         """Shut down the thread pool."""
-        if self._pool is not None:
-            self._pool.shutdown(wait=False)
-            self._pool = None
+        self.dynamics.close()
 
     def __repr__(self) -> str:
+        replaced = ""
+        if self.replaced_integrator is not None:
+            replaced = f", planning_integrator='implicitfast' (model: {self.replaced_integrator})"
         return (
             f"{type(self).__name__}(name={self.name!r}, nq={self.nq}, nv={self.nv}, nu={self.nu}, "
-            f"dt_sim={self.model.opt.timestep}, dt_plan={self.dt})"
+            f"dt_sim={self.model.opt.timestep}, dt_plan={self.dt}{replaced})"
         )
-
-
-def _copy_model(model: mujoco.MjModel) -> mujoco.MjModel:
-    import copy
-
-    return copy.copy(model)

@@ -1,9 +1,12 @@
-"""Tangent-space arithmetic on joint positions, vectorized over a batch.
+"""Tangent-space arithmetic on joint positions and states, vectorized over a batch.
 
 Free and ball joints store orientations as unit quaternions (4 numbers) but move in a
 3-dimensional tangent space; :class:`TangentSpace` maps ``nq``-sized positions to
-``nv``-sized differences exactly like :func:`mujoco.mj_differentiatePos` (tested against it),
-but for a whole batch of positions at once.
+``nv``-sized differences like :func:`mujoco.mj_differentiatePos` (tested against it to
+round-off), but for a whole batch of positions at once.
+
+A state is ``[qpos (nq), qvel (nv), act (na)]`` and a state deviation
+``dx = [dq (nv), dv (nv), da (na)]``; only the positions need the tangent space.
 """
 
 from __future__ import annotations
@@ -14,17 +17,14 @@ import numpy as np
 
 def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product of quaternions ``(..., 4)`` in (w, x, y, z) order."""
-    aw, ax, ay, az = np.moveaxis(a, -1, 0)
-    bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        axis=-1,
-    )
+    aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = aw * bw - ax * bx - ay * by - az * bz
+    out[..., 1] = aw * bx + ax * bw + ay * bz - az * by
+    out[..., 2] = aw * by - ax * bz + ay * bw + az * bx
+    out[..., 3] = aw * bz + ax * by - ay * bx + az * bw
+    return out
 
 
 def quat_difference(q2: np.ndarray, q1: np.ndarray) -> np.ndarray:
@@ -81,7 +81,6 @@ class TangentSpace:
         self._scal_v = np.array(scal_v, dtype=int)
         self._quat_q = np.array(quat_q, dtype=int)
         self._quat_v = np.array(quat_v, dtype=int)
-        self.has_quaternions = len(quat_q) > 0
 
     @property
     def scalar_addresses(self) -> tuple[np.ndarray, np.ndarray]:
@@ -95,19 +94,23 @@ class TangentSpace:
         rotation), each ``(n,)``: four positions and three dofs from each address."""
         return self._quat_q, self._quat_v
 
-    def difference(self, qpos: np.ndarray, qpos_ref: np.ndarray) -> np.ndarray:
+    def difference(
+        self, qpos: np.ndarray, qpos_ref: np.ndarray, out: np.ndarray | None = None
+    ) -> np.ndarray:
         """Tangent vector ``dq`` such that integrating ``qpos_ref`` by ``dq`` gives ``qpos``.
 
         Args:
             qpos: Positions, shape ``(..., nq)``.
             qpos_ref: Reference positions, shape ``(nq,)`` or ``(..., nq)``.
+            out: Optional output ``(..., nv)`` to write into.
 
         Returns:
-            Differences, shape ``(..., nv)``.
+            Differences, shape ``(..., nv)`` (``out`` when given).
         """
         qpos = np.asarray(qpos, dtype=np.float64)
         qpos_ref = np.broadcast_to(np.asarray(qpos_ref, dtype=np.float64), qpos.shape)
-        out = np.empty((*qpos.shape[:-1], self.nv))
+        if out is None:
+            out = np.empty((*qpos.shape[:-1], self.nv))
         out[..., self._scal_v] = qpos[..., self._scal_q] - qpos_ref[..., self._scal_q]
         for qa, va in zip(self._quat_q, self._quat_v):
             out[..., va : va + 3] = quat_difference(
@@ -119,4 +122,31 @@ class TangentSpace:
         """``qpos`` moved by the tangent vector ``dq`` (one position, ``mj_integratePos``)."""
         out = np.array(qpos, dtype=np.float64)
         mujoco.mj_integratePos(model, out, np.asarray(dq, dtype=np.float64), 1.0)
+        return out
+
+    def state_difference(
+        self, state: np.ndarray, state_ref: np.ndarray, out: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Deviation ``dx = state ⊖ state_ref`` of states ``[qpos, qvel, act]``.
+
+        Args:
+            state: States, shape ``(..., nstate)``.
+            state_ref: Reference state(s), shape ``(nstate,)`` or ``(..., nstate)``.
+            out: Optional output ``(..., nx)`` to write into.
+
+        Returns:
+            Deviations ``[dq, dv, da]``, shape ``(..., nx)`` (``out`` when given).
+        """
+        nq, nv = self.nq, self.nv
+        if out is None:
+            out = np.empty((*state.shape[:-1], state.shape[-1] - nq + nv))
+        self.difference(state[..., :nq], state_ref[..., :nq], out[..., :nv])
+        np.subtract(state[..., nq:], state_ref[..., nq:], out=out[..., nv:])
+        return out
+
+    def state_add(self, model: mujoco.MjModel, state: np.ndarray, dx: np.ndarray) -> np.ndarray:
+        """One state ``(nstate,)`` moved by a deviation ``dx`` ``(nx,)`` (a new array)."""
+        out = np.array(state, dtype=np.float64)
+        out[: self.nq] = self.integrate(model, state[: self.nq], dx[: self.nv])
+        out[self.nq :] += dx[self.nv :]
         return out

@@ -54,39 +54,6 @@ class ActuatorNoise:
             smooth[:, i] = full[start : start + steps]
         return smooth * std * self.scale
 
-    @classmethod
-    def balance_recipe(
-        cls,
-        model: mujoco.MjModel,
-        *,
-        stance: str = "left",
-        scale: float = 1.0,
-        low: float = 0.01,
-        high: float = 0.08,
-    ) -> ActuatorNoise:
-        """The published one-leg balance recipe's per-actuator noise.
-
-        Actuators on the abdomen and stance-leg joints (hip, knee, ankle) whose names contain
-        no ``"z"`` get ``low``; every other actuator gets ``high``.
-
-        Args:
-            model: The model whose actuator (joint) names are read.
-            stance: ``"left"`` or ``"right"``.
-            scale: Noise scale.
-            low: Standard deviation on the balance joints.
-            high: Standard deviation on the others.
-        """
-        if stance not in ("left", "right"):
-            raise InvalidArgumentError(f"stance must be 'left' or 'right', got {stance!r}")
-        std = np.full(model.nu, high)
-        for i in range(model.nu):
-            jnt = model.actuator_trnid[i, 0]
-            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, jnt) or ""
-            leg = stance in name and any(k in name for k in ("hip", "knee", "ankle"))
-            if ("abdomen" in name or leg) and "z" not in name:
-                std[i] = low
-        return cls(std=std, scale=scale)
-
 
 @dataclass(frozen=True, kw_only=True)
 class Push:

@@ -1,4 +1,9 @@
-"""Closed-loop simulation of a Problem under a Controller, with disturbances and metrics."""
+"""Closed-loop simulation of a Problem under a Controller, with disturbances and metrics.
+
+:func:`simulate` reports what every run has (survival, cost, control effort, compute time,
+controller statistics) in :class:`Metrics`, plus the task's own measures
+(:meth:`~mpcbox.Problem.measures`, :mod:`mpcbox.sim.measures`) sampled at every step.
+"""
 
 from __future__ import annotations
 
@@ -16,51 +21,69 @@ from mpcbox.core.model import object_id
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, MpcboxError
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
+from mpcbox.sim.measures import Measure, check_measures
 from mpcbox.validation import as_array, positive
 
 
 class Metrics(NamedTuple):
-    """Summary of one closed-loop run.
+    r"""Summary of one closed-loop run.
 
     Attributes:
         survived: No failure (fall, non-finite state) before the end.
         time_to_fall: Time of the failure, or the duration when the run survived (s).
-        com_deviation_rms: RMS horizontal distance of the COM from the support point (m).
-        tilt_rms_deg: RMS tilt of the root body from vertical (deg).
+        cost: Mean running cost :math:`\frac1N \sum_k \ell(x_k, u_k)` of the task's cost
+            over the ``N`` applied controls (NaN when a state is not finite).
         control_effort: RMS of the applied controls over time and actuators.
         compute_mean_ms: Mean controller time per call (ms).
         compute_p50_ms: Median controller time per call (ms).
         compute_p99_ms: 99th percentile controller time per call (ms).
         realtime_factor: Simulated seconds per wall-clock second (controller included).
         fallbacks: Controller fallbacks (failed solves, divergences), from its ``stats``.
+        measures: Summaries of the task's measures over the run, by
+            :meth:`~mpcbox.sim.measures.Measure.key` (e.g. ``"tilt_rms_deg"``), in their
+            units; empty when the task declares none.
     """
 
     survived: bool
     time_to_fall: float
-    com_deviation_rms: float
-    tilt_rms_deg: float
+    cost: float
     control_effort: float
     compute_mean_ms: float
     compute_p50_ms: float
     compute_p99_ms: float
     realtime_factor: float
     fallbacks: int
+    measures: dict[str, float]
 
 
 @dataclass
 class SimulationResult:
-    """Time series and metrics of one closed-loop run (arrays have one row per step)."""
+    """Time series and metrics of one closed-loop run (``T`` recorded steps).
+
+    Attributes:
+        problem: Problem name.
+        controller: Controller name.
+        time: Times ``(T,)`` (s).
+        states: States ``(T, nstate)``.
+        ctrls: Applied controls ``(T, nu)``; the last row holds no applied control.
+        compute_times: Controller time per call ``(calls,)`` (s).
+        failure: Why the run stopped early, or ``None``.
+        metrics: The run's :class:`Metrics`.
+        series: Samples ``(T,)`` of each task measure, by measure name, in its unit.
+        measures: The task's measures (:meth:`~mpcbox.Problem.measures`).
+        controller_stats: The controller's ``stats`` after the run.
+    """
 
     problem: str
     controller: str
     time: np.ndarray
     states: np.ndarray
     ctrls: np.ndarray
-    com_deviation: np.ndarray
-    tilt_deg: np.ndarray
     compute_times: np.ndarray
     failure: str | None
     metrics: Metrics
+    series: dict[str, np.ndarray] = field(default_factory=dict)
+    measures: tuple[Measure, ...] = ()
     controller_stats: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -118,6 +141,7 @@ def simulate(
     problem.set_state(data, state0)
     mujoco.mj_forward(model, data)
     push_ids = [object_id(model, "body", p.body) for p in pushes]
+    measures = check_measures(problem.measures(), type(problem).__name__)
 
     period = getattr(controller, "period", None)
     every = 1 if period is None else max(1, round(positive("controller.period", period) / dt))
@@ -132,10 +156,8 @@ def simulate(
     times = np.empty(steps + 1)
     states = np.empty((steps + 1, problem.nstate))
     ctrls = np.zeros((steps + 1, problem.nu))
-    com_dev = np.empty(steps + 1)
-    tilt = np.empty(steps + 1)
+    samples = np.empty((len(measures), steps + 1))
     compute: list[float] = []
-    com_origin = data.subtree_com[problem.tilt_body()][:2].copy()
     failure: str | None = None
     fail_time = duration
     ctrl = problem.ctrl_ref.copy()
@@ -144,7 +166,8 @@ def simulate(
     for k in range(steps + 1):
         times[k] = data.time
         states[k] = problem.get_state(data)
-        com_dev[k], tilt[k] = problem.balance_measures(model, data, com_origin)
+        for i, measure in enumerate(measures):
+            samples[i, k] = measure.sample(model, data)
         reason = problem.failure(model, data)
         if reason is not None:
             failure, fail_time = reason, float(data.time)
@@ -181,21 +204,26 @@ def simulate(
     wall = _time.perf_counter() - wall0
 
     n = last + 1
-    times, states, ctrls, com_dev, tilt = times[:n], states[:n], ctrls[:n], com_dev[:n], tilt[:n]
+    times, states, ctrls, samples = times[:n], states[:n], ctrls[:n], samples[:, :n]
+    series = {m.name: samples[i] for i, m in enumerate(measures)}
+    summaries: dict[str, float] = {}
+    for measure in measures:
+        summaries.update(measure.summarize(series[measure.name]))
     ctimes = np.asarray(compute)
     stats = dict(getattr(controller, "stats", {}) or {})
     sim_time = float(times[-1]) if n else 0.0
+    applied = max(1, n - 1)
     metrics = Metrics(
         survived=failure is None,
         time_to_fall=fail_time if failure is not None else duration,
-        com_deviation_rms=float(np.sqrt(np.mean(com_dev**2))),
-        tilt_rms_deg=float(np.sqrt(np.mean(tilt**2))),
-        control_effort=float(np.sqrt(np.mean(ctrls[: max(1, n - 1)] ** 2))),
+        cost=_mean_cost(problem, states[:applied], ctrls[:applied]),
+        control_effort=float(np.sqrt(np.mean(ctrls[:applied] ** 2))),
         compute_mean_ms=float(ctimes.mean() * 1e3) if ctimes.size else 0.0,
         compute_p50_ms=float(np.percentile(ctimes, 50) * 1e3) if ctimes.size else 0.0,
         compute_p99_ms=float(np.percentile(ctimes, 99) * 1e3) if ctimes.size else 0.0,
         realtime_factor=sim_time / wall if wall > 0 else float("inf"),
         fallbacks=round(stats.get("fallbacks", 0)),
+        measures=summaries,
     )
     return SimulationResult(
         problem=problem.name,
@@ -203,10 +231,21 @@ def simulate(
         time=times,
         states=states,
         ctrls=ctrls,
-        com_deviation=com_dev,
-        tilt_deg=tilt,
         compute_times=ctimes,
         failure=failure,
         metrics=metrics,
+        series=series,
+        measures=measures,
         controller_stats=stats,
     )
+
+
+def _mean_cost(problem: Problem, states: np.ndarray, ctrls: np.ndarray) -> float:
+    """Mean running cost over the rows of ``states`` ``(N, nstate)`` and ``ctrls`` ``(N, nu)``.
+
+    Each row is evaluated on the planning model (``mj_forward``, then the cost's features);
+    NaN when a row is not finite.
+    """
+    if not (np.all(np.isfinite(states)) and np.all(np.isfinite(ctrls))):
+        return float("nan")
+    return float(np.mean([problem.running_cost(x, u) for x, u in zip(states, ctrls)]))

@@ -88,7 +88,7 @@ class StateCost(CostTerm):
     def casadi_residual(self, qpos: Any, qvel: Any, ctrl: Any) -> Any:
         """``[q - q_ref, v - v_ref]``, for models without quaternions (``nq == nv``)."""
         assert self._tangent is not None, "bind() first"
-        if self._tangent.has_quaternions:
+        if self._tangent.quaternion_addresses[0].size:
             raise UnsupportedCostTermError(
                 f"cost term {self.name!r} of type StateCost has no CasADi form on a model with "
                 "free or ball joints; the IPOPT reference needs nq == nv"

@@ -6,7 +6,6 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 import mujoco
-import numpy as np
 
 from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, StateCost
 from mpcbox.core.model import ModelSource, frame_object, object_id
@@ -159,8 +158,9 @@ class HumanoidBalance(HumanoidProblem):
             ]
         )
 
-    def support_point(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
-        return self.frame_xy(model, data, self.foot(self.leg))
+    def support_frames(self) -> tuple[str, ...]:
+        """The stance foot."""
+        return (self.foot(self.leg),)
 
 
 def classic_humanoid_path() -> Path | None:

@@ -1,4 +1,4 @@
-"""What the humanoid tasks share: the equilibrium reference, falls, tilt and the noise recipe."""
+"""What the humanoid tasks share: equilibrium reference, falls, measures and noise recipe."""
 
 from __future__ import annotations
 
@@ -11,6 +11,9 @@ from mpcbox.core.equilibrium import Equilibrium, find_equilibrium
 from mpcbox.core.model import object_id
 from mpcbox.core.problem import Problem
 from mpcbox.sim.disturbances import ActuatorNoise
+from mpcbox.sim.measures import Measure
+from mpcbox.tasks.humanoid.measures import balance_measures
+from mpcbox.tasks.humanoid.noise import balance_noise
 
 
 class HumanoidProblem(Problem):
@@ -18,8 +21,11 @@ class HumanoidProblem(Problem):
 
     :meth:`prepare` moves the reference posture's root until the contacts carry the weight
     and takes the holding control from inverse dynamics (:func:`~mpcbox.find_equilibrium`);
-    a run fails when the ``torso`` body drops below ``fall_height``; the tilt reported is
-    the torso's. Subclasses set ``fall_height`` before calling ``Problem.__init__``.
+    a run fails when the ``torso`` body drops below ``fall_height``. The measures reported
+    are the whole-body center of mass over the :meth:`support_frames` and the torso tilt
+    (:func:`~mpcbox.tasks.humanoid.measures.balance_measures`); the noise model is the
+    published recipe (:func:`~mpcbox.tasks.humanoid.noise.balance_noise`). Subclasses set
+    ``fall_height`` before calling ``Problem.__init__`` and define :meth:`support_frames`.
     """
 
     fall_height: float = 0.8
@@ -39,12 +45,17 @@ class HumanoidProblem(Problem):
             reason = f"fell: torso below {self.fall_height} m"
         return reason
 
-    def tilt_body(self) -> int:
-        return self._torso
+    def support_frames(self) -> tuple[str, ...]:
+        """Sites or bodies whose mean horizontal position the center of mass should be above."""
+        raise NotImplementedError(f"{type(self).__name__} must define support_frames()")
+
+    def measures(self) -> tuple[Measure, ...]:
+        """COM deviation from the support point (m) and torso tilt (deg)."""
+        return balance_measures(self.support_frames(), body="torso")
 
     def noise(self, scale: float = 1.0) -> ActuatorNoise:
         """The published actuator-noise recipe (low noise on the ``noise_stance`` leg)."""
-        return ActuatorNoise.balance_recipe(self.model, stance=self.noise_stance, scale=scale)
+        return balance_noise(self.model, stance=self.noise_stance, scale=scale)
 
 
 def balance_dofs(model: mujoco.MjModel, legs: Sequence[str]) -> np.ndarray:

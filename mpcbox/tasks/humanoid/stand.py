@@ -14,7 +14,7 @@ from mpcbox.tasks.humanoid.base import HumanoidProblem
 
 
 class HumanoidStand(HumanoidProblem):
-    r"""Keep a humanoid standing on both feet (keyframe ``stand`` of ``mpcbox/tasks/scenes/humanoid.xml``).
+    r"""Keep a humanoid standing on both feet (keyframe ``stand`` of the humanoid scene).
 
     The reference posture is the keyframe with the root height adjusted until the contacts
     carry the weight, and the reference control holds it (:func:`~mpcbox.find_equilibrium`).
@@ -147,8 +147,6 @@ class HumanoidStand(HumanoidProblem):
         running = [*self._terms(model, 1.0, ""), control]
         return Cost(running, self._terms(model, self.weights["terminal"], "_terminal"))
 
-    def support_point(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
-        """Midpoint of the two foot sites."""
-        return 0.5 * (
-            self.frame_xy(model, data, "foot_left") + self.frame_xy(model, data, "foot_right")
-        )
+    def support_frames(self) -> tuple[str, ...]:
+        """The two foot sites (their midpoint is the support point)."""
+        return ("foot_left", "foot_right")

@@ -5,7 +5,6 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import mujoco
-import numpy as np
 
 from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, StateCost
 from mpcbox.core.model import ModelSource, compile_spec, load_spec, object_id
@@ -50,7 +49,7 @@ class HumanoidTwoFeet(HumanoidProblem):
         },
     }
     #: Contact bodies for contact-aware controllers.
-    contacts = ("body:foot_left", "body:foot_right")
+    contacts: ClassVar[tuple[str, ...]] = ("body:foot_left", "body:foot_right")
 
     def __init__(
         self,
@@ -96,5 +95,6 @@ class HumanoidTwoFeet(HumanoidProblem):
             ]
         )
 
-    def support_point(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
-        return self.frame_xy(model, data, FEET_CENTER)
+    def support_frames(self) -> tuple[str, ...]:
+        """The site midway between the feet."""
+        return (FEET_CENTER,)

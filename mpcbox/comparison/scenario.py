@@ -1,0 +1,219 @@
+"""Test conditions of a comparison: closed-loop :class:`Scenario` and :class:`PushTest`."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from mpcbox.core.problem import Problem
+from mpcbox.errors import InvalidArgumentError
+from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
+from mpcbox.validation import positive
+
+
+def _check_noise_scale(value: float) -> None:
+    if not (math.isfinite(value) and value >= 0):
+        raise InvalidArgumentError(f"noise_scale must be finite and >= 0, got {value!r}")
+
+
+def task_noise(problem: Problem, scale: float) -> ActuatorNoise | None:
+    """The problem's noise model at ``scale`` (:meth:`~mpcbox.Problem.noise`); ``None`` at 0.
+
+    Raises:
+        InvalidArgumentError: When ``scale > 0`` and the task has no noise model.
+    """
+    return None if scale == 0 else problem.noise(scale)
+
+
+def has_noise_model(problem: Problem | type[Problem]) -> bool:
+    """Whether the task overrides :meth:`~mpcbox.Problem.noise` (the base class has none)."""
+    cls = problem if isinstance(problem, type) else type(problem)
+    return cls.noise is not Problem.noise
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scenario:
+    """One closed-loop test condition, run once per seed.
+
+    The actuator noise is ``noise`` scaled by ``noise_scale`` when ``noise`` is given, and
+    otherwise the task's own model ``problem.noise(noise_scale)``
+    (:meth:`~mpcbox.Problem.noise`, e.g. the humanoid recipe); asking a task without a noise
+    model for noise is an error. ``noise_scale = 0`` always means no noise.
+
+    Attributes:
+        name: Label in tables and file names (default: built from the settings).
+        duration: Simulated time per run (s).
+        noise_scale: Multiplier on the noise standard deviation.
+        noise: Explicit actuator noise (overrides the task's noise model).
+        pushes: Pushes applied in every run.
+        mismatch: Model mismatch of the simulated plant.
+    """
+
+    name: str = ""
+    duration: float = 10.0
+    noise_scale: float = 1.0
+    noise: ActuatorNoise | None = None
+    pushes: tuple[Push, ...] = ()
+    mismatch: ModelMismatch | None = None
+
+    def __post_init__(self) -> None:
+        positive("duration", self.duration)
+        _check_noise_scale(self.noise_scale)
+        object.__setattr__(self, "pushes", tuple(self.pushes))
+        for push in self.pushes:
+            if not isinstance(push, Push):
+                raise InvalidArgumentError(
+                    f"pushes must hold mpcbox.Push objects, got {type(push).__name__}"
+                )
+        if self.noise is not None and not isinstance(self.noise, ActuatorNoise):
+            raise InvalidArgumentError(
+                f"noise must be an mpcbox.ActuatorNoise, got {type(self.noise).__name__}"
+            )
+        if self.mismatch is not None and not isinstance(self.mismatch, ModelMismatch):
+            raise InvalidArgumentError(
+                f"mismatch must be an mpcbox.ModelMismatch, got {type(self.mismatch).__name__}"
+            )
+
+    @property
+    def label(self) -> str:
+        """``name``, or a short description such as ``"noise x1 push 30N mass x1.1"``."""
+        if self.name:
+            return self.name
+        parts = [f"noise x{self.noise_scale:g}"]
+        for push in self.pushes:
+            parts.append(f"push {np.linalg.norm(push.force):g}N@{push.start:g}s")
+        if self.mismatch is not None:
+            m = self.mismatch
+            if m.mass_scale != 1.0:
+                parts.append(f"mass x{m.mass_scale:g}")
+            if m.friction_scale != 1.0:
+                parts.append(f"friction x{m.friction_scale:g}")
+            for body, value in (m.body_mass_scale or {}).items():
+                parts.append(f"{body} mass x{value:g}")
+        return " ".join(parts)
+
+    @property
+    def uses_task_noise(self) -> bool:
+        """Whether the noise comes from the task's noise model (none given, scale > 0)."""
+        return self.noise is None and self.noise_scale > 0
+
+    def resolve_noise(self, problem: Problem) -> ActuatorNoise | None:
+        """The actuator noise of this scenario for ``problem`` (``None`` for none).
+
+        Raises:
+            InvalidArgumentError: When the scenario asks for the task's noise and the task
+                has none.
+        """
+        if self.noise_scale == 0:
+            return None
+        if self.noise is not None:
+            return replace(self.noise, scale=self.noise.scale * self.noise_scale)
+        return task_noise(problem, self.noise_scale)
+
+    @classmethod
+    def noise_sweep(cls, scales: Sequence[float], **kwargs: Any) -> list[Scenario]:
+        """One scenario per noise scale, the other settings shared (``kwargs``)."""
+        return [cls(noise_scale=float(s), **kwargs) for s in scales]
+
+
+@dataclass(frozen=True, kw_only=True)
+class PushTest:
+    """A push-recovery test: the push, and the bisection that finds the largest survived one.
+
+    Each trial starts from the initial state, pushes ``body`` with a constant force along
+    ``direction`` from ``start`` for ``duration`` seconds, and must stay up ``settle``
+    seconds after the push. :func:`~mpcbox.comparison.push_limits.largest_push` bisects the
+    force magnitude on ``[0, max_force]`` down to ``tolerance``;
+    :func:`~mpcbox.comparison.push_limits.push_grid` tries a grid of forces.
+    :func:`~mpcbox.compare` runs a push test once per controller (seed 0 of the noise), not
+    once per seed.
+
+    Attributes:
+        direction: Push direction ``(3,)`` (normalized for the force); ``(1, 0, 0)`` pushes
+            forward (sagittal).
+        duration: How long the force acts (s).
+        start: Push start (s).
+        settle: Time that must be survived after the push (s).
+        body: Pushed body.
+        max_force: Upper end of the search (N).
+        tolerance: Bracket width at which the bisection stops (N).
+        noise_scale: Scale of the task's noise model during the trials (0: none).
+        name: Column label (default: from the direction, e.g. ``"+x"``).
+    """
+
+    direction: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    duration: float = 0.1
+    start: float = 1.0
+    settle: float = 3.0
+    body: str = "torso"
+    max_force: float = 2000.0
+    tolerance: float = 1.0
+    noise_scale: float = 0.0
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        direction = tuple(float(d) for d in self.direction)
+        if len(direction) != 3 or not any(direction) or not all(map(math.isfinite, direction)):
+            raise InvalidArgumentError(
+                f"direction must be a finite non-zero 3-vector, got {direction}"
+            )
+        object.__setattr__(self, "direction", direction)
+        for name in ("duration", "settle", "max_force", "tolerance"):
+            positive(name, getattr(self, name))
+        _check_noise_scale(self.noise_scale)
+
+    @property
+    def label(self) -> str:
+        """``name``, or the dominant axis with its sign, e.g. ``"+x"`` or ``"-y"``."""
+        if self.name:
+            return self.name
+        axis = int(np.argmax(np.abs(self.direction)))
+        sign = "+" if self.direction[axis] > 0 else "-"
+        return f"{sign}{'xyz'[axis]}"
+
+    @property
+    def total_time(self) -> float:
+        """Simulated time of one trial: ``start + duration + settle`` (s)."""
+        return self.start + self.duration + self.settle
+
+    @property
+    def uses_task_noise(self) -> bool:
+        """Whether the trials use the task's noise model (``noise_scale > 0``)."""
+        return self.noise_scale > 0
+
+    def push(self, force: float) -> Push:
+        """The push of magnitude ``force`` (N) along the normalized ``direction``."""
+        direction = np.asarray(self.direction, dtype=np.float64)
+        return Push(
+            force=force * (direction / np.linalg.norm(direction)),
+            start=self.start,
+            duration=self.duration,
+            body=self.body,
+        )
+
+
+def check_noise_models(
+    problem: Problem | type[Problem], conditions: Sequence[Scenario | PushTest]
+) -> None:
+    """Fail early when a condition asks for the task's noise and the task has no noise model.
+
+    Args:
+        problem: The Problem or its class.
+        conditions: Scenarios and push tests.
+
+    Raises:
+        InvalidArgumentError: Naming the first such condition.
+    """
+    if has_noise_model(problem):
+        return
+    for condition in conditions:
+        if condition.uses_task_noise:
+            raise InvalidArgumentError(
+                f"task {problem.name!r} has no noise model, but {type(condition).__name__} "
+                f"{condition.label!r} asks for noise x{condition.noise_scale:g}: set "
+                "noise_scale=0 (--noise 0) or give an explicit mpcbox.ActuatorNoise"
+            )

@@ -1,0 +1,157 @@
+"""Keyword-only configuration of the iLQR solver and controller."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from mpcbox.errors import InvalidArgumentError
+from mpcbox.validation import one_of, positive, positive_int
+
+LineSearch = Literal["backtracking", "parallel"]
+TerminalValue = Literal["lqr"]
+#: Valid values of :attr:`ILQRConfig.line_search`.
+LINE_SEARCHES: tuple[str, ...] = ("backtracking", "parallel")
+#: Valid values of :attr:`ILQRConfig.terminal_value` besides ``None``.
+TERMINAL_VALUES: tuple[str, ...] = ("lqr",)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ILQRConfig:
+    r"""Options of :class:`~mpcbox.controllers.ilqr.controller.ILQR`.
+
+    Every field is also a keyword option of ``ILQR(problem, **options)``. The fields that do
+    not depend on the Problem are checked (and normalized: numbers to ``float``/``int``,
+    ``step_sizes`` to a tuple) when the config is built; the control bounds and the initial
+    guess, whose shapes depend on the Problem, are checked by the controller.
+
+    Attributes:
+        horizon: Number of knots ``T`` (controls); the plan spans ``T * dt`` seconds with
+            ``dt`` the planning timestep. The default, 50 knots, gives any Problem a working
+            iLQR; tasks tune it in their ``controller_options``.
+        max_iterations: Iteration cap of :meth:`~mpcbox.controllers.ilqr.solver.ILQRSolver.solve`.
+        tolerance: Converged when a full step lowers the cost by less than this fraction.
+        mpc_iterations: Iterations per replan in receding-horizon mode.
+        first_iterations: Iterations of the first replan after ``reset`` (no warm start
+            yet); default ``mpc_iterations``.
+        replan_period: Seconds between replans in receding-horizon mode.
+        feedback: Apply the feedback law between replans (the controller's ``period`` is then
+            ``None`` so that the simulation calls it every step); otherwise the control is
+            held for ``replan_period``.
+        regularization: Initial Levenberg-Marquardt term :math:`\mu \ge 0` added to the
+            diagonal of :math:`Q_{uu}`.
+        regularization_min: Below this, :math:`\mu` snaps to 0.
+        regularization_max: Give up (keep the current trajectory) above this.
+        regularization_factor: Multiplicative step of the :math:`\mu` schedule (> 1).
+        step_sizes: Line-search step sizes ``alpha`` in decreasing order, each in (0, 1].
+        line_search: ``"backtracking"`` (try step sizes in order, stop at the first accepted)
+            or ``"parallel"`` (roll all of them out on the Problem's thread pool and keep the
+            best).
+        armijo: Accept a step when the actual decrease is at least this fraction of the
+            predicted one, in [0, 1).
+        max_retries: Regularization increases (after a failed backward pass or line search)
+            allowed per iteration before giving up and keeping the current trajectory.
+        linearize_every: Linearize the dynamics at every ``linearize_every``-th knot (and the
+            last) and interpolate ``A``, ``B`` in between.
+        fd_centered: Centered finite differences for the dynamics (default: the Problem's).
+        ctrl_low: Lower control bounds ``(nu,)`` (default and outer limit: the Problem's).
+        ctrl_high: Upper control bounds ``(nu,)``.
+        ctrls_init: Initial control guess ``(T, nu)`` or ``(nu,)`` (default ``ctrl_ref``).
+        threads: Threads for derivatives and parallel line search (default: the Problem's).
+        planning_timestep: Plan on a copy of the Problem whose planning model has this
+            timestep (:meth:`~mpcbox.Problem.with_planning_timestep`); default: ``problem.dt``.
+        terminal_value: ``"lqr"`` adds the infinite-horizon LQR value function of the planning
+            model at the reference (:class:`~mpcbox.core.cost.QuadraticValue` with the Riccati
+            matrix ``P``) to the terminal cost, so a short horizon still sees the cost-to-go;
+            ``None`` keeps the Problem's terminal cost.
+
+    Raises:
+        InvalidArgumentError: Naming the field, if a value is out of range.
+    """
+
+    horizon: int = 50
+    max_iterations: int = 100
+    tolerance: float = 1e-6
+    mpc_iterations: int = 1
+    first_iterations: int | None = None
+    replan_period: float = 0.02
+    feedback: bool = True
+    regularization: float = 1e-6
+    regularization_min: float = 1e-8
+    regularization_max: float = 1e10
+    regularization_factor: float = 4.0
+    step_sizes: Sequence[float] = (1.0, 0.5, 0.25, 0.1, 0.03, 0.01)
+    line_search: LineSearch = "backtracking"
+    armijo: float = 1e-4
+    max_retries: int = 20
+    linearize_every: int = 1
+    fd_centered: bool | None = None
+    ctrl_low: np.ndarray | None = None
+    ctrl_high: np.ndarray | None = None
+    ctrls_init: np.ndarray | None = None
+    threads: int | None = None
+    planning_timestep: float | None = None
+    terminal_value: TerminalValue | None = None
+
+    def __post_init__(self) -> None:
+        def put(name: str, value: object) -> None:
+            object.__setattr__(self, name, value)
+
+        for name in ("horizon", "max_iterations", "mpc_iterations", "max_retries"):
+            put(name, positive_int(name, getattr(self, name)))
+        put("linearize_every", positive_int("linearize_every", self.linearize_every))
+        if self.first_iterations is not None:
+            put("first_iterations", positive_int("first_iterations", self.first_iterations))
+        if self.threads is not None:
+            put("threads", positive_int("threads", self.threads))
+        for name in ("tolerance", "replan_period", "regularization_min", "regularization_max"):
+            put(name, positive(name, getattr(self, name)))
+        if self.planning_timestep is not None:
+            put("planning_timestep", positive("planning_timestep", self.planning_timestep))
+        put("feedback", bool(self.feedback))
+        if self.fd_centered is not None:
+            put("fd_centered", bool(self.fd_centered))
+        self._check_regularization()
+        steps = np.asarray(self.step_sizes, dtype=np.float64).ravel()
+        if steps.size == 0 or not np.all((steps > 0) & (steps <= 1)):
+            raise InvalidArgumentError(
+                "step_sizes must be a non-empty sequence of numbers in (0, 1], "
+                f"got {self.step_sizes}"
+            )
+        put("step_sizes", tuple(float(s) for s in steps))
+        one_of("line_search", self.line_search, LINE_SEARCHES)
+        if not 0.0 <= self.armijo < 1.0:
+            raise InvalidArgumentError(f"armijo must be in [0, 1), got {self.armijo}")
+        put("armijo", float(self.armijo))
+        if self.terminal_value is not None and self.terminal_value not in TERMINAL_VALUES:
+            raise InvalidArgumentError(
+                f"terminal_value must be None or 'lqr', got {self.terminal_value!r}"
+            )
+
+    def _check_regularization(self) -> None:
+        reg = self.regularization
+        if isinstance(reg, bool) or not isinstance(reg, (int, float, np.number)):
+            raise InvalidArgumentError(f"regularization must be a number >= 0, got {reg!r}")
+        if not np.isfinite(reg) or reg < 0:
+            raise InvalidArgumentError(f"regularization must be a finite number >= 0, got {reg!r}")
+        object.__setattr__(self, "regularization", float(reg))
+        if self.regularization_max <= self.regularization_min:
+            raise InvalidArgumentError(
+                "regularization_max must exceed regularization_min, got "
+                f"{self.regularization_max} <= {self.regularization_min}"
+            )
+        factor = positive("regularization_factor", self.regularization_factor)
+        if factor <= 1.0:
+            raise InvalidArgumentError(f"regularization_factor must be > 1, got {factor}")
+        object.__setattr__(self, "regularization_factor", factor)
+
+    @property
+    def effective_first_iterations(self) -> int:
+        """``first_iterations``, or ``mpc_iterations`` when it is ``None``."""
+        return self.mpc_iterations if self.first_iterations is None else self.first_iterations
+
+
+__all__ = ["LINE_SEARCHES", "TERMINAL_VALUES", "ILQRConfig", "LineSearch", "TerminalValue"]

@@ -1,0 +1,330 @@
+r"""Offline iLQR: iterate backward and forward passes from a start state until a stop criterion.
+
+Each iteration linearizes the planning model and quadratizes the cost along the current
+trajectory, runs the :mod:`~mpcbox.controllers.ilqr.backward_pass` and then the line search of
+the :mod:`~mpcbox.controllers.ilqr.forward_pass`. The Levenberg-Marquardt term :math:`\mu` (the
+``regularization``) grows when the backward pass meets a non-definite :math:`Q_{uu}` or no
+step size works, and shrinks after each accepted full step; the result says why the
+iterations stopped (:class:`~mpcbox.controllers.ilqr.result.StopReason`).
+"""
+
+from __future__ import annotations
+
+import time as _time
+from typing import Any
+
+import numpy as np
+
+from mpcbox.config import resolve_config
+from mpcbox.controllers.base import check_problem
+from mpcbox.controllers.ilqr.backward_pass import backward_pass, interpolate_linearization
+from mpcbox.controllers.ilqr.config import ILQRConfig
+from mpcbox.controllers.ilqr.forward_pass import Candidate, ClosedLoopRollout, line_search
+from mpcbox.controllers.ilqr.result import ILQRResult, StopReason, Timing
+from mpcbox.core.problem import Linearization, Problem, Quadratization
+from mpcbox.errors import DivergenceError, InvalidArgumentError, SolverError
+from mpcbox.validation import as_array, positive_int
+
+
+class ILQRSolver:
+    """Control-limited iLQR on a Problem's planning model: offline trajectory optimization.
+
+    Args:
+        problem: The Problem; its planning model (timestep ``problem.dt``) is used.
+        config: An :class:`~mpcbox.controllers.ilqr.config.ILQRConfig` (default: its
+            defaults).
+        **options: Fields of :class:`~mpcbox.controllers.ilqr.config.ILQRConfig` that replace
+            those of ``config``, e.g. ``horizon=100``.
+
+    Attributes:
+        problem: The Problem planned on (a copy with another planning timestep or terminal
+            cost when ``planning_timestep`` or ``terminal_value`` ask for one).
+        config: The resolved config.
+        horizon: Number of knots ``T``.
+        ctrl_low: Lower control bounds ``(nu,)``, inside the Problem's.
+        ctrl_high: Upper control bounds ``(nu,)``.
+        ctrls_init: Default initial guess ``(T, nu)``.
+        threads: Threads for derivatives and the parallel line search.
+
+    Raises:
+        InvalidTypeError: If ``problem`` is not a Problem or ``config`` not an ILQRConfig.
+        UnknownOptionError: For an option that is not a config field; it lists the valid ones.
+        InvalidArgumentError: Naming the option, for a value out of range.
+        ShapeError: If ``ctrl_low``, ``ctrl_high`` or ``ctrls_init`` has the wrong shape.
+    """
+
+    #: The config dataclass of the options.
+    config_class: type | None = ILQRConfig
+
+    def __init__(self, problem: Problem, config: ILQRConfig | None = None, **options: Any) -> None:
+        owner = type(self).__name__
+        problem = check_problem(problem, owner)
+        cfg = resolve_config(ILQRConfig, config, options, owner)
+        if cfg.planning_timestep is not None and abs(cfg.planning_timestep - problem.dt) > 1e-12:
+            problem = problem.with_planning_timestep(cfg.planning_timestep)
+        if cfg.terminal_value == "lqr":
+            problem = _with_lqr_terminal_value(problem)
+        self.problem = problem
+        self.config = cfg
+        self.horizon = cfg.horizon
+        self.threads = problem.threads if cfg.threads is None else cfg.threads
+        self.ctrl_low, self.ctrl_high = _control_bounds(problem, cfg)
+        self.ctrls_init = self._initial_ctrls(cfg.ctrls_init)
+        self._rollout = ClosedLoopRollout(problem, self.ctrl_low, self.ctrl_high)
+        self._knots = np.unique(
+            np.r_[np.arange(0, self.horizon, cfg.linearize_every), self.horizon - 1]
+        )
+
+    # ------------------------------------------------------------------ helpers
+    def _initial_ctrls(self, ctrls: np.ndarray | None, name: str = "ctrls_init") -> np.ndarray:
+        nu, horizon = self.problem.nu, self.horizon
+        if ctrls is None:
+            ctrls = np.tile(self.problem.ctrl_ref, (horizon, 1))
+        else:
+            arr = np.asarray(ctrls, dtype=np.float64)
+            ctrls = (
+                np.tile(as_array(name, arr, (nu,)), (horizon, 1))
+                if arr.ndim == 1
+                else as_array(name, arr, (horizon, nu)).copy()
+            )
+        if not np.all(np.isfinite(ctrls)):
+            raise InvalidArgumentError(f"{name} must be finite")
+        return np.clip(ctrls, self.ctrl_low, self.ctrl_high)
+
+    def _forward(
+        self,
+        x0: np.ndarray,
+        states: np.ndarray,
+        ctrls: np.ndarray,
+        k: np.ndarray,
+        K: np.ndarray,
+        alpha: float,
+    ) -> Candidate:
+        """Closed-loop rollout with the iLQR update; returns (states, ctrls, cost)."""
+        return self._rollout(x0, states, ctrls, k, K, alpha)
+
+    def _initial_rollout(self, x0: np.ndarray, ctrls: np.ndarray) -> tuple[np.ndarray, float]:
+        roll = self.problem.rollout(x0, ctrls)
+        with np.errstate(all="ignore"):
+            cost = float(self.problem.rollout_cost(roll)[0])
+        if not (np.all(np.isfinite(roll.states)) and np.isfinite(cost)):
+            return roll.states[0], np.inf
+        return roll.states[0], cost
+
+    def _derivatives(
+        self, states: np.ndarray, ctrls: np.ndarray
+    ) -> tuple[Linearization, Quadratization]:
+        p, knots = self.problem, self._knots
+        lin = p.linearize_trajectory(
+            states[knots], ctrls[knots], centered=self.config.fd_centered, threads=self.threads
+        )
+        lin = interpolate_linearization(lin.A, lin.B, knots, self.horizon)
+        quad = p.quadratize_trajectory(states, ctrls, threads=self.threads)
+        return lin, quad
+
+    def _increase(self, regularization: float) -> float:
+        cfg = self.config
+        return max(cfg.regularization_min, regularization * cfg.regularization_factor)
+
+    def _decrease(self, regularization: float) -> float:
+        regularization /= self.config.regularization_factor
+        return regularization if regularization >= self.config.regularization_min else 0.0
+
+    # ------------------------------------------------------------------ offline solve
+    def solve(
+        self,
+        x0: np.ndarray,
+        ctrls_init: np.ndarray | None = None,
+        *,
+        max_iterations: int | None = None,
+        regularization: float | None = None,
+    ) -> ILQRResult:
+        """Optimize the ``horizon``-knot trajectory starting at ``x0``.
+
+        Args:
+            x0: Start state ``(nstate,)``.
+            ctrls_init: Initial controls ``(T, nu)`` or ``(nu,)`` (default: the config's
+                ``ctrls_init``, else ``ctrl_ref``).
+            max_iterations: Overrides the iteration cap.
+            regularization: Overrides the initial :math:`\\mu`.
+
+        Returns:
+            An :class:`~mpcbox.controllers.ilqr.result.ILQRResult`. It is returned (not
+            raised) when the solver stalls; ``stop_reason`` says why it stopped.
+
+        Raises:
+            ShapeError: If ``x0`` or ``ctrls_init`` has the wrong shape.
+            DivergenceError: If ``x0`` is not finite or even the initial guess and ``ctrl_ref``
+                roll out to non-finite states.
+        """
+        p = self.problem
+        x0 = as_array("x0", x0, (p.nstate,))
+        if not np.all(np.isfinite(x0)):
+            raise DivergenceError("x0 holds non-finite values (NaN or inf)")
+        ctrls = self.ctrls_init.copy() if ctrls_init is None else self._initial_ctrls(ctrls_init)
+        iters = (
+            self.config.max_iterations
+            if max_iterations is None
+            else positive_int("max_iterations", max_iterations)
+        )
+        reg = self.config.regularization if regularization is None else float(regularization)
+        return self._optimize(x0, ctrls, iters, reg, None)
+
+    def _optimize(
+        self, x0: np.ndarray, ctrls: np.ndarray, iters: int, reg: float, k_warm: np.ndarray | None
+    ) -> ILQRResult:
+        p, cfg = self.problem, self.config
+        t_start = _time.perf_counter()
+        t_der = t_back = t_roll = 0.0
+        divergences = 0
+
+        t0 = _time.perf_counter()
+        states, cost = self._initial_rollout(x0, ctrls)
+        if not np.isfinite(cost):
+            divergences += 1
+            ctrls = np.tile(np.clip(p.ctrl_ref, self.ctrl_low, self.ctrl_high), (self.horizon, 1))
+            states, cost = self._initial_rollout(x0, ctrls)
+            if not np.isfinite(cost):
+                raise DivergenceError(
+                    "the initial guess and ctrl_ref both roll out to non-finite states or cost"
+                )
+        t_roll += _time.perf_counter() - t0
+
+        costs = [cost]
+        k = np.zeros((self.horizon, p.nu)) if k_warm is None else k_warm
+        K = np.zeros((self.horizon, p.nu, p.nx))
+        reason, status = StopReason.ITERATION_LIMIT, "iteration limit"
+        iteration = 0
+        need_derivatives = True
+        lin = quad = None
+        retries = 0
+        pool = p.executor() if cfg.line_search == "parallel" and self.threads != 1 else None
+        full_step = max(cfg.step_sizes)
+        while True:
+            if need_derivatives:
+                if iteration >= iters:
+                    break
+                retries = 0
+                t0 = _time.perf_counter()
+                lin, quad = self._derivatives(states, ctrls)
+                t_der += _time.perf_counter() - t0
+                need_derivatives = False
+                iteration += 1
+            t0 = _time.perf_counter()
+            try:
+                bp = backward_pass(lin, quad, ctrls, self.ctrl_low, self.ctrl_high, reg, k)
+            except SolverError:
+                t_back += _time.perf_counter() - t0
+                reg = self._increase(reg)
+                retries += 1
+                if reg > cfg.regularization_max or retries > cfg.max_retries:
+                    reason = self._stall_reason(reg, diverged=False)
+                    status = f"{reason.value} (backward pass)"
+                    break
+                continue
+            t_back += _time.perf_counter() - t0
+            k, K = bp.k, bp.K
+            dv1, dv2 = bp.expected
+            if -(dv1 + dv2) <= 1e-12 * max(1.0, abs(cost)):
+                reason = StopReason.NO_PREDICTED_DECREASE
+                status = "converged (no predicted decrease)"
+                break
+
+            t0 = _time.perf_counter()
+            ls = line_search(
+                lambda a: self._forward(x0, states, ctrls, k, K, a),  # noqa: B023
+                cfg.step_sizes,
+                cost,
+                bp.expected,
+                cfg.armijo,
+                pool,
+            )
+            t_roll += _time.perf_counter() - t0
+            divergences += ls.divergences
+            if ls.candidate is None:
+                reg = self._increase(reg)
+                retries += 1
+                if reg > cfg.regularization_max or retries > cfg.max_retries:
+                    reason = self._stall_reason(reg, diverged=ls.all_diverged)
+                    status = f"{reason.value} (line search)"
+                    break
+                continue
+            new_states, new_ctrls, new_cost = ls.candidate
+            decrease = cost - new_cost
+            states, ctrls, cost = new_states, new_ctrls, new_cost
+            costs.append(cost)
+            need_derivatives = True
+            # Trust the quadratic model more after full steps and less after short ones.
+            if ls.alpha >= 0.5:
+                reg = self._decrease(reg)
+            elif ls.alpha < 0.2:
+                reg = self._increase(reg)
+            if decrease < cfg.tolerance * max(abs(cost), 1e-12):
+                if ls.alpha >= full_step:
+                    reason, status = StopReason.COST_CHANGE, "converged (relative decrease)"
+                else:
+                    reason = StopReason.SHORT_STEP
+                    status = f"short step (relative decrease below tolerance at alpha={ls.alpha})"
+                break
+        total = _time.perf_counter() - t_start
+        return ILQRResult(
+            states=states,
+            ctrls=ctrls,
+            k=k,
+            K=K,
+            cost=float(cost),
+            costs=np.asarray(costs),
+            iterations=iteration,
+            converged=reason.converged,
+            regularization=float(reg),
+            divergences=divergences,
+            timing=Timing(t_der, t_back, t_roll, total),
+            status=status,
+            stop_reason=reason,
+        )
+
+    def _stall_reason(self, regularization: float, diverged: bool) -> StopReason:
+        if diverged:
+            return StopReason.DIVERGED
+        if regularization > self.config.regularization_max:
+            return StopReason.REGULARIZATION_LIMIT
+        return StopReason.RETRY_LIMIT
+
+
+def _control_bounds(problem: Problem, cfg: ILQRConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The config's control bounds, checked and intersected with the Problem's."""
+    nu = problem.nu
+    low = problem.ctrl_low if cfg.ctrl_low is None else as_array("ctrl_low", cfg.ctrl_low, (nu,))
+    high = problem.ctrl_high
+    if cfg.ctrl_high is not None:
+        high = as_array("ctrl_high", cfg.ctrl_high, (nu,))
+    if np.any(np.isnan(low)) or np.any(np.isnan(high)):
+        raise InvalidArgumentError("ctrl_low and ctrl_high must not hold NaN")
+    if np.any(low > high):
+        bad = np.flatnonzero(low > high)
+        raise InvalidArgumentError(
+            f"ctrl_low must be <= ctrl_high; inverted at actuators {bad.tolist()}: "
+            f"ctrl_low={low[bad]}, ctrl_high={high[bad]}"
+        )
+    low, high = np.maximum(low, problem.ctrl_low), np.minimum(high, problem.ctrl_high)
+    if np.any(low > high):
+        raise InvalidArgumentError(
+            "ctrl_low/ctrl_high do not overlap the model's ctrlrange "
+            f"[{problem.ctrl_low}, {problem.ctrl_high}]"
+        )
+    return low, high
+
+
+def _with_lqr_terminal_value(problem: Problem) -> Problem:
+    """``problem`` with the LQR value function at its reference added to the terminal cost."""
+    from mpcbox.controllers.lqr import LQR, nearest_psd
+    from mpcbox.core.cost import Cost, QuadraticValue
+
+    lqr = LQR(problem)
+    value = QuadraticValue(
+        problem.qpos_ref, problem.qvel_ref, P=nearest_psd(lqr.P), name="lqr_value"
+    )
+    return problem.with_cost(Cost(problem.cost.running, [*problem.cost.terminal, value]))
+
+
+__all__ = ["ILQRSolver"]

@@ -1,0 +1,147 @@
+"""Options of the contact-force QP-MPC, as one frozen keyword-only dataclass."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from mpcbox.controllers.qp_mpc.solvers import check_backend
+from mpcbox.errors import InvalidArgumentError
+from mpcbox.validation import one_of, positive, positive_int
+
+StanceModelName = Literal["soft", "rigid"]
+Fallback = Literal["lqr", "plan"]
+#: Names of the terminal costs (an ``(nx, nx)`` matrix is accepted too).
+TERMINALS: tuple[str, ...] = ("stance", "lqr", "cost")
+STANCE_MODELS: tuple[str, ...] = ("soft", "rigid")
+FALLBACKS: tuple[str, ...] = ("lqr", "plan")
+
+
+@dataclass(frozen=True, kw_only=True)
+class QPMPCConfig:
+    r"""Options of :class:`~mpcbox.controllers.qp_mpc.controller.QPMPC`.
+
+    Every field is checked when the config is built; an error names the field.
+
+    Attributes:
+        horizon: Number of QP steps ``N`` (>= 1).
+        dt: QP step (s).
+        contacts: Geom, site or body names of the contact points (see
+            :func:`~mpcbox.core.contact.contact_points`; prefix ``"geom:"``, ``"body:"`` or
+            ``"site:"`` to pick one kind). Default: the Problem's ``contacts`` attribute if
+            it has one, else the bodies touching the ground at its reference state.
+        friction: Friction coefficient :math:`\mu` of the pyramid (> 0).
+        facets: Facets of the friction pyramid (an even integer >= 4; 4 or 8 in practice).
+        f_max: Largest normal force per point (N); default twice the body weight.
+        relinearize: Relinearize about the measured state and the last control every tick
+            (otherwise once, about the reference).
+        solver: ``"osqp"`` (persistent OSQP solver) or a ``qpsolvers`` backend name.
+        force_weight: Weight :math:`w_f` of the force regularization (forces in body
+            weights).
+        terminal: ``"stance"`` (Riccati matrix of the prediction model with the forces as
+            inputs and the stance constraint as a penalty), ``"lqr"`` (Riccati matrix of the
+            soft-contact model at ``dt``, composed of substeps; the default), ``"cost"``
+            (the running ``Q``), or an ``(nx, nx)`` matrix.
+        terminal_scale: Multiplier on the terminal matrix (> 0).
+        drift_gain: Fraction :math:`\alpha` in ``[0, 1]`` of the stance pose error removed
+            in one step (rigid stance).
+        stance_weight: Weight of slack variables that soften the stance rows (keeps the QP
+            feasible when the feet cannot be held); ``None`` for hard stance rows (rigid
+            stance only).
+        contact_margin: A point higher than this above the lowest reference point is
+            lifted (m).
+        joint_limits: Add the joints' ranges as constraints.
+        cost_gradient: Keep the cost gradient at the reference (default: regulate to the
+            reference, dropping it, as LQR does).
+        warm_start: Warm-start OSQP from the shifted previous solution (else cold start).
+        period: Seconds between calls (default ``dt``).
+        fd_centered: Centered finite differences for the contact-free linearization.
+        substeps: Planning-model steps per QP step (default ``round(dt / h)`` with ``h``
+            the planning model's timestep).
+        stance_model: ``"soft"`` (default): predict with the soft-contact model and tie the
+            explicit forces to its linearized contact-force law
+            (:class:`~mpcbox.controllers.qp_mpc.prediction.SoftStance`); ``"rigid"``:
+            contact-free prediction with the stance feet held still
+            (:class:`~mpcbox.controllers.qp_mpc.prediction.RigidStance`).
+        osqp_settings: OSQP settings overriding
+            :data:`~mpcbox.controllers.qp_mpc.solvers.OSQP_DEFAULTS`.
+        export_dir: When set, every tick's QP is written there as ``tick_00000.npz`` ...
+        fallback: What a failed solve (its status counted in ``stats``) does: ``"lqr"``
+            (default) applies the LQR about the reference; ``"plan"`` replays the last
+            accepted plan open loop while it lasts, then LQR. On two feet after a forward
+            push, ``"plan"`` fell at 97.5 N and 100 N yet survived 105 N, because the
+            open-loop replay runs just when the state leaves the plan. ``"lqr"`` survived
+            every push up to 100 N (``README.md``).
+    """
+
+    horizon: int = 10
+    dt: float = 0.02
+    contacts: Sequence[str] | str | None = None
+    friction: float = 0.7
+    facets: int = 4
+    f_max: float | None = None
+    relinearize: bool = False
+    solver: str = "osqp"
+    force_weight: float = 1.0
+    terminal: str | np.ndarray = "lqr"
+    terminal_scale: float = 1.0
+    drift_gain: float = 0.2
+    stance_weight: float | None = 1e4
+    contact_margin: float = 0.01
+    joint_limits: bool = False
+    cost_gradient: bool = False
+    warm_start: bool = True
+    period: float | None = None
+    fd_centered: bool = False
+    substeps: int | None = None
+    stance_model: StanceModelName = "soft"
+    osqp_settings: Mapping[str, Any] | None = None
+    export_dir: str | Path | None = None
+    fallback: Fallback = "lqr"
+
+    def __post_init__(self) -> None:
+        def put(name: str, value: Any) -> None:
+            object.__setattr__(self, name, value)
+
+        put("horizon", positive_int("horizon", self.horizon))
+        put("dt", positive("dt", self.dt))
+        if self.contacts is not None and not isinstance(self.contacts, str):
+            put("contacts", tuple(self.contacts))
+        put("friction", positive("friction", self.friction))
+        facets = positive_int("facets", self.facets)
+        if facets < 4 or facets % 2:
+            raise InvalidArgumentError(f"facets must be an even integer >= 4, got {facets}")
+        put("facets", facets)
+        if self.f_max is not None:
+            put("f_max", positive("f_max", self.f_max))
+        check_backend(self.solver)
+        put("force_weight", positive("force_weight", self.force_weight))
+        if isinstance(self.terminal, str) and self.terminal not in TERMINALS:
+            raise InvalidArgumentError(
+                "terminal must be 'stance', 'lqr', 'cost' or an (nx, nx) matrix, "
+                f"got {self.terminal!r}"
+            )
+        put("terminal_scale", positive("terminal_scale", self.terminal_scale))
+        if self.stance_weight is not None:
+            put("stance_weight", positive("stance_weight", self.stance_weight))
+        drift = float(self.drift_gain)
+        if not 0.0 <= drift <= 1.0:
+            raise InvalidArgumentError(f"drift_gain must be in [0, 1], got {self.drift_gain!r}")
+        put("drift_gain", drift)
+        put("contact_margin", positive("contact_margin", self.contact_margin))
+        if self.period is not None:
+            put("period", positive("period", self.period))
+        if self.substeps is not None:
+            put("substeps", positive_int("substeps", self.substeps))
+        one_of("stance_model", self.stance_model, STANCE_MODELS)
+        if self.stance_model == "soft" and self.stance_weight is None:
+            raise InvalidArgumentError("stance_model='soft' needs a finite stance_weight")
+        if self.export_dir is not None:
+            put("export_dir", Path(self.export_dir))
+        one_of("fallback", self.fallback, FALLBACKS)
+        for name in ("relinearize", "joint_limits", "cost_gradient", "warm_start", "fd_centered"):
+            put(name, bool(getattr(self, name)))

@@ -1,0 +1,265 @@
+r"""Stepping, rollouts and finite-difference linearization of a planning model.
+
+:class:`Dynamics` owns a compiled MuJoCo model and the scratch memory that predicting with it
+needs: one :class:`mujoco.MjData` per calling thread, the ``MjData`` list of
+:func:`mujoco.rollout.rollout`, and a persistent thread pool. Its methods trust their inputs
+(:class:`~mpcbox.core.problem.Problem` checks shapes and finiteness before calling them).
+
+A state is ``[qpos (nq), qvel (nv), act (na)]``; a linearization maps tangent-space deviations
+``dx = [dq (nv), dv (nv), da (na)]`` of one step: :math:`dx_{t+1} = A\,dx_t + B\,du_t`.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+from typing import NamedTuple, TypeVar
+
+import mujoco
+import numpy as np
+
+from mpcbox.errors import MujocoError, UnsupportedModelError
+from mpcbox.validation import positive_int
+
+_FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+_RK4 = mujoco.mjtIntegrator.mjINT_RK4
+
+T = TypeVar("T")
+
+
+class Linearization(NamedTuple):
+    """Discrete-time Jacobians ``A`` ``(..., nx, nx)`` and ``B`` ``(..., nx, nu)``."""
+
+    A: np.ndarray
+    B: np.ndarray
+
+
+class Rollout(NamedTuple):
+    """Open-loop rollouts from one start state.
+
+    Attributes:
+        states: ``(B, T + 1, nstate)`` states, ``states[:, 0]`` the start state.
+        sensordata: ``(B, T + 1, nsensordata)``; row ``t`` is computed at ``states[:, t]``.
+        ctrls: ``(B, T, nu)`` the controls that were applied (clamped to ctrlrange).
+    """
+
+    states: np.ndarray
+    sensordata: np.ndarray
+    ctrls: np.ndarray
+
+
+def read_state(data: mujoco.MjData) -> np.ndarray:
+    """The state ``[qpos, qvel, act]`` held in ``data``, shape ``(nstate,)``."""
+    return np.concatenate([data.qpos, data.qvel, data.act])
+
+
+def write_state(data: mujoco.MjData, state: np.ndarray) -> None:
+    """Write a state ``[qpos, qvel, act]`` into ``data`` (sizes taken from ``data``)."""
+    nq, nv = data.qpos.size, data.qvel.size
+    data.qpos[:] = state[:nq]
+    data.qvel[:] = state[nq : nq + nv]
+    data.act[:] = state[nq + nv :]
+
+
+@contextmanager
+def mujoco_errors(what: str) -> Iterator[None]:
+    """Turn a :class:`mujoco.FatalError` raised inside the block into :class:`MujocoError`.
+
+    Args:
+        what: The operation, for the message (e.g. ``"linearize"``).
+    """
+    try:
+        yield
+    except mujoco.FatalError as exc:
+        raise MujocoError(f"{what}: MuJoCo stopped with a fatal error: {exc}") from exc
+
+
+class Dynamics:
+    """One model's step, rollouts and linearizations, with per-thread scratch data.
+
+    Args:
+        model: The model to predict with (a Problem's planning model).
+        threads: Worker threads for batched work, and ``MjData`` objects for rollouts.
+    """
+
+    def __init__(self, model: mujoco.MjModel, threads: int) -> None:
+        self.model = model
+        self.threads = threads
+        self.nq, self.nv, self.nu, self.na = model.nq, model.nv, model.nu, model.na
+        self.nx = 2 * self.nv + self.na
+        self.nstate = self.nq + self.nv + self.na
+        self._local = threading.local()
+        self._pool: ThreadPoolExecutor | None = None
+        self._rollout_datas: list[mujoco.MjData] | None = None
+        self._full_size = mujoco.mj_stateSize(model, _FULL)
+
+    # ------------------------------------------------------------------ scratch memory
+    def scratch_data(self) -> mujoco.MjData:
+        """An ``MjData`` of :attr:`model` that belongs to the calling thread.
+
+        The same object is returned on every call from one thread; it holds whatever the
+        last user left in it, so write the full state (and ``ctrl``) before using it.
+        """
+        data = getattr(self._local, "data", None)
+        if data is None:
+            data = mujoco.MjData(self.model)
+            self._local.data = data
+        return data
+
+    def executor(self) -> ThreadPoolExecutor:
+        """The persistent thread pool (``threads`` workers), created on first use."""
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=self.threads, thread_name_prefix="mpcbox")
+        return self._pool
+
+    def map(self, fn: Callable[[int], T], count: int, threads: int | None = None) -> list[T]:
+        """``[fn(i) for i in range(count)]`` on contiguous chunks, one chunk per thread.
+
+        Args:
+            fn: Work item; MuJoCo calls inside it drop the GIL.
+            count: Number of items.
+            threads: Threads to use (default :attr:`threads`); more than :attr:`threads`
+                uses a temporary pool.
+        """
+        threads = self.threads if threads is None else positive_int("threads", threads)
+        threads = min(threads, count)
+        if threads <= 1:
+            return [fn(i) for i in range(count)]
+        bounds = np.linspace(0, count, threads + 1).astype(int)
+
+        def chunk(j: int) -> list[T]:
+            return [fn(i) for i in range(bounds[j], bounds[j + 1])]
+
+        if threads <= self.threads:
+            parts = list(self.executor().map(chunk, range(threads)))
+        else:
+            with ThreadPoolExecutor(max_workers=threads) as pool:
+                parts = list(pool.map(chunk, range(threads)))
+        return [item for part in parts for item in part]
+
+    def close(self) -> None:
+        """Shut down the thread pool."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=False)
+            self._pool = None
+
+    # ------------------------------------------------------------------ prediction
+    def step(self, state: np.ndarray, ctrl: np.ndarray) -> np.ndarray:
+        """The state after one ``mj_step`` from ``state`` under ``ctrl``."""
+        data = self.scratch_data()
+        write_state(data, state)
+        data.ctrl[:] = ctrl
+        with mujoco_errors("step"):
+            mujoco.mj_step(self.model, data)
+        return read_state(data)
+
+    def linearize(
+        self, state: np.ndarray, ctrl: np.ndarray, eps: float, centered: bool
+    ) -> Linearization:
+        """Jacobians ``A`` ``(nx, nx)``, ``B`` ``(nx, nu)`` of one step (``mjd_transitionFD``).
+
+        Args:
+            state: State ``(nstate,)``.
+            ctrl: Control ``(nu,)``.
+            eps: Finite-difference step.
+            centered: Centered (True) or forward (False) differences.
+        """
+        self._check_differentiable()
+        with mujoco_errors("linearize"):
+            return self._linearize(state, ctrl, eps, centered)
+
+    def _linearize(self, state, ctrl, eps, centered) -> Linearization:
+        data = self.scratch_data()
+        write_state(data, state)
+        data.ctrl[:] = ctrl
+        A = np.zeros((self.nx, self.nx))
+        B = np.zeros((self.nx, self.nu))
+        mujoco.mjd_transitionFD(self.model, data, eps, centered, A, B, None, None)
+        return Linearization(A, B)
+
+    def linearize_trajectory(
+        self,
+        states: np.ndarray,
+        ctrls: np.ndarray,
+        eps: float,
+        centered: bool,
+        threads: int | None = None,
+    ) -> Linearization:
+        """:meth:`linearize` at ``T`` knots ``(T, nstate)``, ``(T, nu)`` in parallel.
+
+        Returns:
+            ``A`` ``(T, nx, nx)`` and ``B`` ``(T, nx, nu)``.
+        """
+        self._check_differentiable()
+        with mujoco_errors("linearize_trajectory"):
+            out = self.map(
+                lambda i: self._linearize(states[i], ctrls[i], eps, centered), len(states), threads
+            )
+        return Linearization(np.stack([o.A for o in out]), np.stack([o.B for o in out]))
+
+    def _check_differentiable(self) -> None:
+        if self.model.opt.integrator == _RK4:
+            raise UnsupportedModelError(
+                "linearize: mujoco.mjd_transitionFD does not support the RK4 integrator; set "
+                "the planning model's opt.integrator to implicitfast, implicit or Euler"
+            )
+
+    def rollout(
+        self,
+        state: np.ndarray,
+        ctrls: np.ndarray,
+        model: mujoco.MjModel | Sequence[mujoco.MjModel] | None = None,
+    ) -> Rollout:
+        """Roll out control sequences ``(B, T, nu)`` from ``state`` (:func:`mujoco.rollout`).
+
+        Args:
+            state: Start state ``(nstate,)``.
+            ctrls: Controls ``(B, T, nu)``, already inside the control range.
+            model: A model, or one per batch row, to use instead of :attr:`model`.
+
+        Returns:
+            The :class:`Rollout`; a rollout that MuJoCo reset after diverging holds NaN from
+            the reset on.
+        """
+        from mujoco import rollout as mj_rollout
+
+        nbatch, horizon = ctrls.shape[:2]
+        padded = np.concatenate([ctrls, ctrls[:, -1:]], axis=1)
+        init = self.full_physics_state(state)
+        if self._rollout_datas is None:
+            self._rollout_datas = [mujoco.MjData(self.model) for _ in range(self.threads)]
+        models = self.model if model is None else model
+        with mujoco_errors("rollout"):
+            out_state, out_sens = mj_rollout.rollout(
+                models,
+                self._rollout_datas,
+                np.tile(init, (nbatch, 1)),
+                padded,
+                persistent_pool=True,
+            )
+        cols = slice(1, 1 + self.nstate)  # the full-physics state starts with the time
+        states = np.empty((nbatch, horizon + 1, self.nstate))
+        states[:, 0] = state
+        states[:, 1:] = out_state[:, :horizon, cols]
+        # MuJoCo resets a diverged simulation (warning mjWARN_BADQACC) and carries on from the
+        # model's reference pose, time 0: the time column then steps back. Mark those
+        # rollouts non-finite from the reset on, so that no one scores the reset pose.
+        times = np.concatenate([np.full((nbatch, 1), init[0]), out_state[:, :, 0]], axis=1)
+        stepped_back = np.diff(times, axis=1) <= 0.0  # (B, T + 1)
+        if stepped_back.any():
+            after = np.cumsum(stepped_back, axis=1) > 0
+            states[:, 1:][after[:, :horizon]] = np.nan
+            out_sens = np.array(out_sens)
+            out_sens[after] = np.nan
+        return Rollout(states, out_sens, ctrls)
+
+    def full_physics_state(self, state: np.ndarray) -> np.ndarray:
+        """The ``mjSTATE_FULLPHYSICS`` vector (time, qpos, qvel, act, ...) of a state."""
+        data = self.scratch_data()
+        mujoco.mj_resetData(self.model, data)
+        write_state(data, state)
+        full = np.zeros(self._full_size)
+        mujoco.mj_getState(self.model, data, full, _FULL)
+        return full

@@ -1,0 +1,82 @@
+"""Balance measures of the humanoid tasks: the center of mass over the support, and tilt."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from mpcbox.core.model import frame_object, object_id
+from mpcbox.errors import InvalidArgumentError
+from mpcbox.sim.measures import Measure
+
+
+@dataclass(frozen=True, kw_only=True)
+class ComDeviation(Measure):
+    r"""Horizontal distance of a subtree's center of mass from the support point (m).
+
+    .. math:: y = \lVert c_{xy} - \bar p_{xy} \rVert ,
+
+    where :math:`c` is the center of mass of ``body``'s subtree (the whole robot for the
+    root body) and :math:`\bar p` the mean position of the ``support`` frames (sites, or
+    bodies when no site has the name). Shown in centimeters.
+
+    Attributes:
+        body: Body whose subtree's center of mass is measured.
+        support: Names of the frames whose mean horizontal position is the support point.
+    """
+
+    name: str = "com_deviation"
+    unit: str = "m"
+    label: str = "COM dev"
+    display_unit: str = "cm"
+    display_scale: float = 100.0
+    body: str = "torso"
+    support: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        object.__setattr__(self, "support", tuple(self.support))
+        if not self.support:
+            raise InvalidArgumentError("support must name at least one site or body")
+
+    def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> float:
+        com = data.subtree_com[object_id(model, "body", self.body)][:2]
+        points = [_frame_xy(model, data, name) for name in self.support]
+        support = points[0] if len(points) == 1 else np.mean(points, axis=0)
+        return float(np.linalg.norm(com - support))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Tilt(Measure):
+    """Angle between a body's z axis and the vertical (deg).
+
+    Attributes:
+        body: The body.
+    """
+
+    name: str = "tilt"
+    unit: str = "deg"
+    label: str = "tilt"
+    body: str = "torso"
+
+    def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> float:
+        zaxis = data.xmat[object_id(model, "body", self.body)].reshape(3, 3)[:, 2]
+        return float(np.degrees(np.arccos(np.clip(zaxis[2], -1.0, 1.0))))
+
+
+def balance_measures(support: tuple[str, ...], body: str = "torso") -> tuple[Measure, ...]:
+    """The humanoid tasks' measures: :class:`ComDeviation` over ``support`` and :class:`Tilt`.
+
+    Args:
+        support: Frames whose mean horizontal position is the support point.
+        body: Root body (its subtree's center of mass and its tilt are measured).
+    """
+    return (ComDeviation(body=body, support=support), Tilt(body=body))
+
+
+def _frame_xy(model: mujoco.MjModel, data: mujoco.MjData, name: str) -> np.ndarray:
+    """Horizontal position ``(2,)`` of a site or body."""
+    kind, idx = frame_object(model, name)
+    return (data.site_xpos[idx] if kind == "site" else data.xpos[idx])[:2]
