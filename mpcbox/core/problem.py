@@ -17,8 +17,9 @@ from __future__ import annotations
 
 import copy
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from types import MappingProxyType
 from typing import Any
 
 import mujoco
@@ -95,6 +96,10 @@ class Problem:
     #: ``"site:"``; see :func:`~mpcbox.core.contact.contact_points`) that contact-aware
     #: controllers (:class:`~mpcbox.QPMPC`) use when given none; empty: they find their own.
     contacts: tuple[str, ...] = ()
+    #: Tuned settings per controller name, as config objects (``{"ilqr": ILQRConfig(...)}``),
+    #: used by :func:`mpcbox.make_controller`; their keys are the controllers a comparison
+    #: runs by default.
+    controller_configs: Mapping[str, Any] = MappingProxyType({})
 
     def __init__(
         self,
