@@ -39,7 +39,7 @@ def test_qp_mpc_on_a_problem_without_ground_contact_names_the_option(plain_pendu
 
 @pytest.mark.parametrize("name", sorted(set(CONTROLLERS) - {"ipopt"}))
 def test_unknown_option_is_a_type_error_listing_the_valid_ones(plain_pendulum, name) -> None:
-    with pytest.raises(UnknownOptionError, match="bogus_option.*valid options") as info:
+    with pytest.raises(UnknownOptionError, match=r"bogus_option.*valid options") as info:
         make_controller(name, plain_pendulum, bogus_option=1)
     assert isinstance(info.value, TypeError) and isinstance(info.value, InvalidArgumentError)
     assert info.value.valid  # the valid options are listed
