@@ -92,13 +92,11 @@ class Problem:
     """
 
     name: str = "problem"
-    #: Contact geoms, bodies or sites (names, optionally prefixed ``"geom:"``, ``"body:"`` or
-    #: ``"site:"``; see :func:`~mpcbox.core.contact.contact_points`) that contact-aware
-    #: controllers (:class:`~mpcbox.QPMPC`) use when given none; empty: they find their own.
+    #: Contact geoms, bodies or sites (``"body:foot"``, ...; see
+    #: :func:`~mpcbox.core.contact.contact_points`) for :class:`~mpcbox.QPMPC`; empty: found.
     contacts: tuple[str, ...] = ()
-    #: Tuned settings per controller name, as config objects (``{"ilqr": ILQRConfig(...)}``),
-    #: used by :func:`mpcbox.make_controller`; their keys are the controllers a comparison
-    #: runs by default.
+    #: Tuned config objects per controller name (``{"ilqr": ILQRConfig(...)}``) that
+    #: :func:`mpcbox.make_controller` uses; a comparison runs these controllers by default.
     controller_configs: Mapping[str, Any] = MappingProxyType({})
 
     def __init__(
