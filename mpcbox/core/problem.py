@@ -161,7 +161,6 @@ class Problem:
         self.ctrl_high = np.where(limited, ctrlrange[:, 1], np.inf)
         self.dynamics = Dynamics(self.planning_model, self.threads)
 
-    # ------------------------------------------------------------------ construction hooks
     def prepare(self, model: mujoco.MjModel) -> None:
         """Hook run before the cost is built: set ``qpos_ref`` / ``ctrl_ref`` here.
 
@@ -399,7 +398,6 @@ class Problem:
             self.dynamics, self.tangent, self.cost, states, ctrls, self.fd_eps, threads
         )
 
-    # ------------------------------------------------------------------ equilibrium
     def find_equilibrium(self, qpos: np.ndarray | None = None, **kwargs):
         """Control that holds a posture, from inverse dynamics (see :func:`find_equilibrium`)."""
         from mpcbox.core.equilibrium import find_equilibrium
@@ -450,7 +448,6 @@ class Problem:
             "mpcbox.ActuatorNoise, or noise scale 0"
         )
 
-    # ------------------------------------------------------------------ copies
     def with_planning_timestep(self, timestep: float) -> Problem:
         """A shallow copy whose planning model takes steps of ``timestep`` seconds.
 
