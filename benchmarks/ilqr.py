@@ -17,6 +17,7 @@ import time
 import numpy as np
 
 import mpcbox
+from mpcbox.config import config_options
 from mpcbox.controllers.ilqr.controller import ILQR
 from mpcbox.tasks.humanoid.balance import HumanoidBalance
 
@@ -31,7 +32,7 @@ def main() -> None:
     args = parser.parse_args()
 
     problem = HumanoidBalance()
-    options = dict(HumanoidBalance.controller_options.get("ilqr", {}))
+    options = config_options(HumanoidBalance.controller_configs["ilqr"])
     options["planning_timestep"] = args.planning_timestep
     options["horizon"] = round(args.horizon_seconds / args.planning_timestep)
     if args.linearize_every is not None:

@@ -30,13 +30,14 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np
 
 from mpcbox.comparison.scenario import PushTest
+from mpcbox.config import config_options
 from mpcbox.tasks.humanoid.balance import HumanoidBalance
 
-#: Controller name and keyword overrides on top of the task's ``controller_options``. The
+#: Controller name and keyword overrides on top of the task's ``controller_configs``. The
 #: nonlinear reference, iLQR-MPC, takes the one-leg task's tuning (0.35 s horizon, 50 Hz).
 VARIANTS: dict[str, tuple[str, dict]] = {
     "lqr": ("lqr", {}),
-    "ilqr": ("ilqr", dict(HumanoidBalance.controller_options["ilqr"])),
+    "ilqr": ("ilqr", config_options(HumanoidBalance.controller_configs["ilqr"])),
     "qp": ("qp", {}),
     "qp_long": ("qp", {"horizon": 15, "dt": 0.04}),
     "qp_relinearize": ("qp", {"relinearize": True}),

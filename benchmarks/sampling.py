@@ -14,7 +14,7 @@ stopping the run. Measured:
 * ``sweep``: for the humanoid and the cart-pole, ticks/s and world-steps/s of the full tick
   (noise sampling, upload, graph replay, read-back, update) and of the backend alone, against
   ``N``, with ``T = 32`` planning steps. ``humanoid`` plans on the planning model of the
-  humanoid's tuned MPPI/CEM (``HumanoidStand.controller_options``: Euler, one solver
+  humanoid's tuned MPPI/CEM (``HumanoidStand.controller_configs``: Euler, one solver
   iteration), ``humanoid_full`` on the full simulation model; ``cartpole_coarse`` covers the
   cart-pole's horizon on a 0.02 s planning model;
 * ``raw``: MJWarp step throughput on the controller's planning model for the same ``N`` (a
@@ -24,7 +24,7 @@ stopping the run. Measured:
 * ``cpu_rollout``: :func:`mujoco.rollout` on all host cores (the CPU backend, full model)
   for the same candidates and horizon, and the speed-ups of the warp tick on the task's
   planning model and on the full model;
-* ``closed_loop``: the tasks' tuned sampling controllers (``controller_options``) on the
+* ``closed_loop``: the tasks' tuned sampling controllers (``controller_configs``) on the
   humanoid standing (MPPI and CEM three seeds, predictive sampling two) and on one leg under
   the published actuator-noise recipe, 10 s each.
 """
@@ -44,6 +44,8 @@ from typing import Any
 
 import numpy as np
 
+from mpcbox.config import config_options
+
 _T0 = time.perf_counter()
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -54,10 +56,10 @@ HUMANOID_PLANNING_KEYS = ("planning_integrator", "solver_iterations")
 
 
 def humanoid_planning() -> dict[str, Any]:
-    """The planning model of ``HumanoidStand.controller_options["mppi"]``."""
+    """The planning model of ``HumanoidStand.controller_configs["mppi"]``."""
     from mpcbox.tasks.humanoid.stand import HumanoidStand
 
-    opts = HumanoidStand.controller_options["mppi"]
+    opts = config_options(HumanoidStand.controller_configs["mppi"])
     return {k: opts[k] for k in HUMANOID_PLANNING_KEYS if k in opts}
 
 
@@ -323,7 +325,7 @@ def agreement(out: dict) -> None:
 
 
 def closed_loop(out: dict, duration: float) -> None:
-    """The tasks' tuned sampling controllers (``controller_options``) under the recipe."""
+    """The tasks' tuned sampling controllers (``controller_configs``) under the recipe."""
     import mpcbox
     from mpcbox.tasks.humanoid.balance import HumanoidBalance
     from mpcbox.tasks.humanoid.stand import HumanoidStand
@@ -342,7 +344,11 @@ def closed_loop(out: dict, duration: float) -> None:
         ("humanoid_balance", balance, "ps", {}, 0),
     ]
     for task, problem, name, extra, seed in cases:
-        opts = dict(problem.controller_options.get(name, {}))
+        opts = dict(
+            config_options(problem.controller_configs[name])
+            if name in problem.controller_configs
+            else {}
+        )
         opts.update(backend="warp", **extra)
         try:
             ctrl = mpcbox.make_controller(name, problem, **opts)

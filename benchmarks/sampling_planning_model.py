@@ -13,7 +13,7 @@ of implicitfast. For each variant this prints (and writes to
 * how well the variant ranks candidates: the rank correlation of 64 candidates' costs with
   those of the full simulation model (CPU backend, float64);
 * closed loop (``--closed-loop variant:controller:seed,...``): the controller with
-  ``HumanoidStand.controller_options`` plus the variant, 10 s under the published
+  ``HumanoidStand.controller_configs`` plus the variant, 10 s under the published
   actuator-noise recipe.
 
 Variant keys: ``solver_iterations`` (cap), ``conditional`` (keep the conditional while node
@@ -32,6 +32,8 @@ import traceback
 from pathlib import Path
 
 import numpy as np
+
+from mpcbox.config import config_options
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -163,7 +165,7 @@ def closed_loop(name: str, spec: dict, seed: int, quick: bool, out: dict, contro
     task = spec.get("task", "humanoid")
     base = _problem(task)
     p = variant_problem(base, spec)
-    opts = dict(base.controller_options[controller], backend="warp", seed=seed)
+    opts = dict(config_options(base.controller_configs[controller]), backend="warp", seed=seed)
     opts.update(controller_options(spec))
     if task == "cartpole":
         opts["num_samples"] = 16 if quick else 1024

@@ -75,3 +75,11 @@ def describe_config(config_class: type) -> list[OptionInfo]:
             default = dataclasses.MISSING
         out.append(OptionInfo(field.name, default, str(field.type)))
     return out
+
+
+def config_options(config: Any) -> dict[str, Any]:
+    """The fields of a config object as keyword options (a shallow copy: nested configs stay
+    objects), e.g. to pass a task's tuned config on with a few changes."""
+    if not dataclasses.is_dataclass(config) or isinstance(config, type):
+        raise InvalidTypeError(f"config must be a config dataclass instance, got {config!r}")
+    return {f.name: getattr(config, f.name) for f in dataclasses.fields(config)}

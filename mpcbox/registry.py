@@ -12,8 +12,8 @@ from typing import Any
 
 from mpcbox.errors import UnknownNameError
 
-#: Controller name -> class. Each class is built as ``cls(problem, **options)``, with options
-#: taken from the task's ``controller_options``.
+#: Controller name -> class. Each class is built as ``cls(problem, config, **options)``, with
+#: ``config`` taken from the task's ``controller_configs``.
 CONTROLLERS: dict[str, str] = {
     "lqr": "mpcbox.controllers.lqr:LQR",
     "ilqr": "mpcbox.controllers.ilqr.controller:ILQR",
@@ -59,29 +59,33 @@ def task_class(name: str) -> type:
 
 
 def make_controller(name: str, problem: Any, **overrides: Any):
-    """Build controller ``name`` for ``problem`` with the task's tuned options.
+    """Build controller ``name`` for ``problem`` with the task's tuned config.
 
     Args:
         name: A key of :data:`CONTROLLERS`.
-        problem: The Problem; its ``controller_options`` (if any) supply keyword arguments.
-        **overrides: Keyword arguments that replace the task's options.
+        problem: The Problem; its ``controller_configs[name]`` (when present) is the config,
+            otherwise the controller's documented defaults apply.
+        **overrides: Options that replace fields of that config.
+
+    Raises:
+        UnknownNameError: If ``name`` is not registered (lists the registered names).
+        UnknownOptionError: If an override is not an option of the controller (lists them).
     """
     cls = controller_class(name)
-    options = dict(getattr(problem, "controller_options", {}).get(name, {}))
-    options.update(overrides)
-    controller = cls(problem, **options)
+    config = problem.controller_configs.get(name)
+    controller = cls(problem, config, **overrides)
     controller.name = name
     return controller
 
 
 def available_controllers(problem: Any) -> list[str]:
-    """Controllers tuned for ``problem`` (keys of its ``controller_options``) that import here.
+    """Controllers tuned for ``problem`` (keys of its ``controller_configs``) that import here.
 
     A controller whose optional dependency is missing (CasADi, MJWarp) is left out.
     """
     names = []
     for name in CONTROLLERS:
-        if name not in getattr(problem, "controller_options", {}):
+        if name not in problem.controller_configs:
             continue
         if any(importlib.util.find_spec(m) is None for m in OPTIONAL_DEPENDENCIES.get(name, ())):
             continue

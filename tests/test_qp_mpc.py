@@ -155,7 +155,7 @@ def test_survives_a_moderate_push(one_leg, two_feet):
     enough to see the slow drift that follows the push)."""
     for problem, force in ((one_leg, 20.0), (two_feet, 80.0)):
         push = [Push(force=(force, 0.0, 0.0), start=0.5, duration=0.1)]
-        ctl = QPMPC(problem, **problem.controller_options["qp"])
+        ctl = QPMPC(problem, problem.controller_configs["qp"])
         res = simulate(problem, ctl, 4.0, pushes=push)
         assert res.survived and res.metrics.fallbacks == 0, problem.name
 
@@ -167,7 +167,7 @@ def test_push_limit_at_least_lqr(one_leg):
 
     test = PushTest(tolerance=4.0, max_force=96.0, settle=2.5)
     lqr = largest_push(one_leg, LQR(one_leg), test)
-    qp = largest_push(one_leg, QPMPC(one_leg, **one_leg.controller_options["qp"]), test)
+    qp = largest_push(one_leg, QPMPC(one_leg, one_leg.controller_configs["qp"]), test)
     print(f"largest push: QP-MPC {qp.force:.1f} N, LQR {lqr.force:.1f} N")
     assert qp.force >= 1.4 * lqr.force
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import mpcbox
+from mpcbox.config import config_options
 from mpcbox.controllers.sampling import MPPI, PredictiveSampling, Randomization
 
 pytest.importorskip("mujoco_warp")
@@ -117,7 +118,9 @@ def test_gpu_closed_loop_cartpole_swingup():
     from mpcbox.tasks.swingup import CartpoleSwingup
 
     problem = CartpoleSwingup()
-    opts = dict(problem.controller_options["mppi"], num_samples=1024, backend="warp")
+    opts = dict(
+        config_options(problem.controller_configs["mppi"]), num_samples=1024, backend="warp"
+    )
     ctrl = MPPI(problem, **opts)
     res = mpcbox.simulate(problem, ctrl, 8.0)
     err = np.array([problem.upright_error(s) for s in res.states])

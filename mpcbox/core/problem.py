@@ -17,8 +17,9 @@ from __future__ import annotations
 
 import copy
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from types import MappingProxyType
 from typing import Any
 
 import mujoco
@@ -91,10 +92,12 @@ class Problem:
     """
 
     name: str = "problem"
-    #: Contact geoms, bodies or sites (names, optionally prefixed ``"geom:"``, ``"body:"`` or
-    #: ``"site:"``; see :func:`~mpcbox.core.contact.contact_points`) that contact-aware
-    #: controllers (:class:`~mpcbox.QPMPC`) use when given none; empty: they find their own.
+    #: Contact geoms, bodies or sites (``"body:foot"``, ...; see
+    #: :func:`~mpcbox.core.contact.contact_points`) for :class:`~mpcbox.QPMPC`; empty: found.
     contacts: tuple[str, ...] = ()
+    #: Tuned config objects per controller name (``{"ilqr": ILQRConfig(...)}``) that
+    #: :func:`mpcbox.make_controller` uses; a comparison runs these controllers by default.
+    controller_configs: Mapping[str, Any] = MappingProxyType({})
 
     def __init__(
         self,
@@ -158,7 +161,6 @@ class Problem:
         self.ctrl_high = np.where(limited, ctrlrange[:, 1], np.inf)
         self.dynamics = Dynamics(self.planning_model, self.threads)
 
-    # ------------------------------------------------------------------ construction hooks
     def prepare(self, model: mujoco.MjModel) -> None:
         """Hook run before the cost is built: set ``qpos_ref`` / ``ctrl_ref`` here.
 
@@ -396,7 +398,6 @@ class Problem:
             self.dynamics, self.tangent, self.cost, states, ctrls, self.fd_eps, threads
         )
 
-    # ------------------------------------------------------------------ equilibrium
     def find_equilibrium(self, qpos: np.ndarray | None = None, **kwargs):
         """Control that holds a posture, from inverse dynamics (see :func:`find_equilibrium`)."""
         from mpcbox.core.equilibrium import find_equilibrium
@@ -447,7 +448,6 @@ class Problem:
             "mpcbox.ActuatorNoise, or noise scale 0"
         )
 
-    # ------------------------------------------------------------------ copies
     def with_planning_timestep(self, timestep: float) -> Problem:
         """A shallow copy whose planning model takes steps of ``timestep`` seconds.
 

@@ -13,6 +13,9 @@ from typing import Any, ClassVar
 import mujoco
 import numpy as np
 
+from mpcbox.controllers.ilqr.config import ILQRConfig
+from mpcbox.controllers.ipopt_controller import IpoptConfig
+from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, PredictiveSamplingConfig
 from mpcbox.core.cost import ControlCost, Cost, StateCost, WrappedAngle
 from mpcbox.core.problem import Problem
 from mpcbox.tasks import scene_path
@@ -30,22 +33,22 @@ class PendulumSwingup(Problem):
 
     name = "pendulum_swingup"
     #: Keyword arguments for controllers built by :func:`mpcbox.make_controller`.
-    controller_options: ClassVar[dict[str, dict[str, Any]]] = {
-        "ilqr": {
-            "horizon": 100,
-            "planning_timestep": 0.02,
-            "first_iterations": 100,
-            "mpc_iterations": 2,
-            "replan_period": 0.02,
-            "ctrls_init": np.array([0.5]),
-            "threads": 1,
-        },
-        "ipopt": {
-            "horizon": 150,
-            "planning_timestep": 0.02,
-            "tolerance": 1e-6,
-            "ctrls_init": np.array([0.5]),
-        },
+    controller_configs: ClassVar[dict[str, Any]] = {
+        "ilqr": ILQRConfig(
+            horizon=100,
+            planning_timestep=0.02,
+            first_iterations=100,
+            mpc_iterations=2,
+            replan_period=0.02,
+            ctrls_init=np.array([0.5]),
+            threads=1,
+        ),
+        "ipopt": IpoptConfig(
+            horizon=150,
+            planning_timestep=0.02,
+            tolerance=1e-6,
+            ctrls_init=np.array([0.5]),
+        ),
     }
 
     def __init__(self, **kwargs: Any) -> None:
@@ -88,51 +91,51 @@ class CartpoleSwingup(Problem):
 
     name = "cartpole_swingup"
     #: Keyword arguments for controllers built by :func:`mpcbox.make_controller`.
-    controller_options: ClassVar[dict[str, dict[str, Any]]] = {
-        "ilqr": {
-            "horizon": 75,
-            "planning_timestep": 0.02,
-            "first_iterations": 50,
-            "mpc_iterations": 1,
-            "replan_period": 0.02,
-            "ctrls_init": np.array([0.1]),
-            "threads": 1,
-        },
-        "ipopt": {
-            "horizon": 150,
-            "planning_timestep": 0.02,
-            "tolerance": 1e-6,
-            "ctrls_init": np.array([0.1]),
-        },
+    controller_configs: ClassVar[dict[str, Any]] = {
+        "ilqr": ILQRConfig(
+            horizon=75,
+            planning_timestep=0.02,
+            first_iterations=50,
+            mpc_iterations=1,
+            replan_period=0.02,
+            ctrls_init=np.array([0.1]),
+            threads=1,
+        ),
+        "ipopt": IpoptConfig(
+            horizon=150,
+            planning_timestep=0.02,
+            tolerance=1e-6,
+            ctrls_init=np.array([0.1]),
+        ),
         # Sampling MPC (issue #5, mpcbox.controllers.sampling), tuned on the CPU backend; a 0.02 s
         # planning model halves the steps per rollout (50 over the 1 s horizon).
-        "ps": {
-            "num_samples": 128,
-            "horizon": 1.0,
-            "planning_timestep": 0.02,
-            "num_knots": 5,
-            "noise_scale": 0.5,
-            "period": 0.01,
-        },
-        "mppi": {
-            "num_samples": 128,
-            "horizon": 1.0,
-            "planning_timestep": 0.02,
-            "num_knots": 5,
-            "noise_scale": 0.3,
-            "temperature": 0.1,
-            "period": 0.01,
-        },
-        "cem": {
-            "num_samples": 128,
-            "horizon": 1.0,
-            "planning_timestep": 0.02,
-            "num_knots": 5,
-            "noise_scale": 0.4,
-            "num_elites": 16,
-            "std_min": 0.05,
-            "period": 0.01,
-        },
+        "ps": PredictiveSamplingConfig(
+            num_samples=128,
+            horizon=1.0,
+            planning_timestep=0.02,
+            num_knots=5,
+            noise_scale=0.5,
+            period=0.01,
+        ),
+        "mppi": MPPIConfig(
+            num_samples=128,
+            horizon=1.0,
+            planning_timestep=0.02,
+            num_knots=5,
+            noise_scale=0.3,
+            temperature=0.1,
+            period=0.01,
+        ),
+        "cem": CEMConfig(
+            num_samples=128,
+            horizon=1.0,
+            planning_timestep=0.02,
+            num_knots=5,
+            noise_scale=0.4,
+            num_elites=16,
+            std_min=0.05,
+            period=0.01,
+        ),
     }
 
     def __init__(self, **kwargs: Any) -> None:

@@ -31,7 +31,7 @@ class ILQRConfig:
     Attributes:
         horizon: Number of knots ``T`` (controls); the plan spans ``T * dt`` seconds with
             ``dt`` the planning timestep. The default, 50 knots, gives any Problem a working
-            iLQR; tasks tune it in their ``controller_options``.
+            iLQR; tasks tune it in their ``controller_configs``.
         max_iterations: Iteration cap of :meth:`~mpcbox.controllers.ilqr.solver.ILQRSolver.solve`.
         tolerance: Converged when a full step lowers the cost by less than this fraction.
         mpc_iterations: Iterations per replan in receding-horizon mode.

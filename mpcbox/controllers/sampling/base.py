@@ -94,7 +94,7 @@ class SamplingController(Controller):
         problem: The Problem (model, cost, control limits).
         config: Options; a default config of the subclass's type when omitted.
         **options: Fields of the config that replace those of ``config`` (this is how
-            :func:`mpcbox.make_controller` passes a task's ``controller_options``).
+            :func:`mpcbox.make_controller` passes a task's ``controller_configs``).
 
     Attributes:
         knots: Nominal knots ``(K, nu)`` (``None`` before the first tick).

@@ -7,6 +7,10 @@ from typing import Any, ClassVar
 
 import mujoco
 
+from mpcbox.controllers.ilqr.config import ILQRConfig
+from mpcbox.controllers.lqr import LQRConfig
+from mpcbox.controllers.qp_mpc.config import QPMPCConfig
+from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, PredictiveSamplingConfig
 from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, StateCost
 from mpcbox.core.model import ModelSource, frame_object, object_id
 from mpcbox.errors import InvalidArgumentError
@@ -43,14 +47,14 @@ class HumanoidBalance(HumanoidProblem):
 
     name = "humanoid_balance"
     #: Keyword arguments for each controller built by :func:`mpcbox.make_controller`.
-    controller_options: ClassVar[dict[str, dict[str, Any]]] = {
-        "lqr": {},
+    controller_configs: ClassVar[dict[str, Any]] = {
+        "lqr": LQRConfig(),
         # Contact-force QP-MPC (issue #4): 10 steps of 0.02 s, stance-foot capsule ends.
-        "qp": dict(
+        "qp": QPMPCConfig(
             horizon=10, dt=0.02, contacts=("body:foot_left",), stance_weight=1e5, terminal_scale=5.0
         ),
         # iLQR-MPC (issue #3): 0.35 s horizon on a 0.015 s planning model, 50 Hz replanning.
-        "ilqr": dict(
+        "ilqr": ILQRConfig(
             horizon=23,
             planning_timestep=0.015,
             replan_period=0.02,
@@ -63,7 +67,7 @@ class HumanoidBalance(HumanoidProblem):
         ),
         # Sampling MPC (issue #5), sized for the warp backend on one GPU (H200 results under
         # the noise recipe in benchmarks/results/sampling_gpu.json).
-        "ps": dict(
+        "ps": PredictiveSamplingConfig(
             num_samples=2048,
             horizon=0.5,
             num_knots=6,
@@ -71,7 +75,7 @@ class HumanoidBalance(HumanoidProblem):
             planning_timestep=0.01,
             period=0.02,
         ),
-        "mppi": dict(
+        "mppi": MPPIConfig(
             num_samples=2048,
             horizon=0.8,
             num_knots=8,
@@ -80,7 +84,7 @@ class HumanoidBalance(HumanoidProblem):
             planning_timestep=0.02,
             period=0.02,
         ),
-        "cem": dict(
+        "cem": CEMConfig(
             num_samples=2048,
             horizon=0.5,
             num_knots=6,

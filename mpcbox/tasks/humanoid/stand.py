@@ -7,6 +7,7 @@ from typing import Any, ClassVar
 import mujoco
 import numpy as np
 
+from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, PredictiveSamplingConfig
 from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, FrameHeight, StateCost, Upright
 from mpcbox.core.model import ModelSource
 from mpcbox.tasks import scene_path
@@ -50,24 +51,24 @@ class HumanoidStand(HumanoidProblem):
 
     name = "humanoid_stand"
     #: Keyword arguments for controllers built by :func:`mpcbox.make_controller`.
-    controller_options: ClassVar[dict[str, dict[str, Any]]] = {
+    controller_configs: ClassVar[dict[str, Any]] = {
         # Sampling MPC (issue #5), sized for the warp backend on one GPU: a 0.5 s horizon on
         # a 0.01 s planning model (50 steps), six knots, replanning at 50 Hz. The planning
         # model integrates with Euler and caps the constraint solver (MPPI and CEM at one
         # Newton iteration, predictive sampling at two), about 1.5x faster per tick than the
         # full model (benchmarks/sampling_planning_model.py). Survives 10 s of the published
         # actuator noise on an H200 (benchmarks/sampling.py, closed_loop).
-        "ps": dict(
+        "ps": PredictiveSamplingConfig(
             num_samples=2048, horizon=0.5, num_knots=6, noise_scale=0.2,
             planning_timestep=0.01, period=0.02, planning_integrator="euler",
             solver_iterations=2,
         ),
-        "mppi": dict(
+        "mppi": MPPIConfig(
             num_samples=2048, horizon=0.5, num_knots=6, noise_scale=0.2, temperature=0.1,
             planning_timestep=0.01, period=0.02, planning_integrator="euler",
             solver_iterations=1,
         ),
-        "cem": dict(
+        "cem": CEMConfig(
             num_samples=2048, horizon=0.5, num_knots=6, noise_scale=0.2, num_elites=64,
             std_min=0.05, planning_timestep=0.01, period=0.02, planning_integrator="euler",
             solver_iterations=1,

@@ -6,6 +6,8 @@ from typing import Any, ClassVar
 
 import mujoco
 
+from mpcbox.controllers.lqr import LQRConfig
+from mpcbox.controllers.qp_mpc.config import QPMPCConfig
 from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, StateCost
 from mpcbox.core.model import ModelSource, compile_spec, load_spec, object_id
 from mpcbox.tasks import scene_path
@@ -40,13 +42,13 @@ class HumanoidTwoFeet(HumanoidProblem):
 
     name = "humanoid_two_feet"
     #: Keyword arguments for each controller built by :func:`mpcbox.make_controller`.
-    controller_options: ClassVar[dict[str, dict[str, Any]]] = {
-        "lqr": {},
-        "qp": {
-            "contacts": ("body:foot_left", "body:foot_right"),
-            "period": 0.02,
-            "stance_weight": 1e5,
-        },
+    controller_configs: ClassVar[dict[str, Any]] = {
+        "lqr": LQRConfig(),
+        "qp": QPMPCConfig(
+            contacts=("body:foot_left", "body:foot_right"),
+            period=0.02,
+            stance_weight=1e5,
+        ),
     }
     #: Contact bodies for contact-aware controllers.
     contacts: ClassVar[tuple[str, ...]] = ("body:foot_left", "body:foot_right")

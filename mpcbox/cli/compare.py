@@ -1,4 +1,4 @@
-"""The ``mpcbox`` command line, and the shared entry point of the ``problems/*.py`` scripts.
+"""``mpcbox compare``, ``mpcbox simulate``, and the shared entry point of ``problems/*.py``.
 
 Commands::
 
@@ -28,6 +28,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from mpcbox.cli.checks import check_arguments, check_options, check_output_folder
 from mpcbox.errors import MpcboxError, UnknownNameError
 
 #: Defaults of ``mpcbox compare``; :func:`run_task_script` takes overrides by these names.
@@ -36,7 +37,7 @@ DEFAULTS: dict[str, Any] = {
     "seeds": 5,
     "seed": 0,
     "duration": 10.0,
-    "noise": "1",
+    "noise": None,
     "push": 0.0,
     "push_time": 2.0,
     "push_duration": 0.1,
@@ -66,6 +67,16 @@ def _task_parameters(task: str) -> dict[str, inspect.Parameter]:
         if isinstance(param.default, _SIMPLE):
             params[name] = param
     return params
+
+
+def _default_noise(task: str | None) -> str:
+    """``"1"`` for a task with a noise model, ``"0"`` for one without (or no task yet)."""
+    if task is None:
+        return "1"
+    from mpcbox.comparison.scenario import has_noise_model
+    from mpcbox.registry import task_class
+
+    return "1" if has_noise_model(task_class(task)) else "0"
 
 
 def _flag(name: str) -> str:
@@ -106,8 +117,9 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
     add("--duration", type=float, default=d["duration"], help="simulated seconds per run")
     add(
         "--noise",
-        default=d["noise"],
-        help="noise scale(s) on the task's noise recipe, comma-separated for a sweep",
+        default=d["noise"] if d["noise"] is not None else _default_noise(task),
+        help="noise scale(s) on the task's noise recipe, comma-separated for a sweep "
+        "(default: 1 for tasks with a noise model, 0 for the others)",
     )
     add("--push", type=float, default=d["push"], help="forward push force (N), 0 for none")
     add("--push-time", type=float, default=d["push_time"], help="push start (s)")
@@ -235,9 +247,12 @@ def run_comparison(
     from mpcbox.registry import task_class
 
     stream = stream or sys.stdout
+    out = check_output_folder(args.out)
+    check_arguments(args)
     chosen = list(resolve_controllers(task_class(task), args.controllers or None))
     overrides = {k: dict(v) for k, v in (controller_defaults or {}).items() if k in chosen}
     for name, options in _parse_sets(args.set).items():
+        check_options(name, options, chosen)
         overrides.setdefault(name, {}).update(options)
     task_options = {name: getattr(args, name) for name in _task_parameters(task)}
     push_tests = ()
@@ -253,8 +268,6 @@ def run_comparison(
             PushTest(direction=(1.0, 0.0, 0.0), name="forward", **common),
             PushTest(direction=(-1.0, 0.0, 0.0), name="backward", **common),
         )
-    if args.seeds < 1:
-        raise MpcboxError(f"--seeds must be >= 1, got {args.seeds}")
     seeds = range(args.seed, args.seed + args.seeds)
     t0 = time.perf_counter()
     result = compare(
@@ -279,8 +292,6 @@ def run_comparison(
     )
     table = result.to_markdown()
     print(table, file=stream)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     (out / "results.md").write_text(table + "\n")
     result.to_csv(out / "results.csv")
     written = [out / "results.md", out / "results.csv"]
@@ -334,69 +345,6 @@ def run_task_script(
     args = parser.parse_args(None if argv is None else list(argv))
     try:
         return run_comparison(task, args, controller_defaults=controller_options)
-    except (MpcboxError, ImportError) as exc:
+    except (MpcboxError, ImportError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-
-
-def _list(stream) -> int:
-    from mpcbox.registry import CONTROLLERS, TASKS, available_controllers, task_class
-
-    print("tasks (controllers tuned for each; others can be named explicitly):", file=stream)
-    for name in TASKS:
-        try:
-            tuned = ", ".join(available_controllers(task_class(name))) or "-"
-        except ImportError as exc:
-            tuned = f"unavailable ({exc})"
-        print(f"  {name}: {tuned}", file=stream)
-    print("controllers: " + ", ".join(CONTROLLERS), file=stream)
-    return 0
-
-
-USAGE = """usage: mpcbox {list,compare} ...
-
-  mpcbox list                      tasks and controllers
-  mpcbox compare TASK [options]    compare controllers on a task (--help for the options)
-"""
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """The ``mpcbox`` console command.
-
-    Args:
-        argv: Arguments without the program name (default: ``sys.argv[1:]``).
-
-    Returns:
-        The exit status: 0 on success, 2 for bad arguments or names.
-    """
-    from mpcbox.registry import TASKS
-
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv or argv[0] in ("-h", "--help"):
-        print(USAGE)
-        return 0 if argv else 2
-    command, rest = argv[0], argv[1:]
-    if command == "list":
-        return _list(sys.stdout)
-    if command != "compare":
-        print(
-            f"error: {UnknownNameError('command', command, ['list', 'compare'])}", file=sys.stderr
-        )
-        return 2
-    if not rest or rest[0].startswith("-"):
-        build_parser(None, prog="mpcbox compare").parse_args(rest)  # prints help or the error
-        return 2
-    task = rest[0]
-    if task not in TASKS:
-        print(f"error: {UnknownNameError('task', task, TASKS)}", file=sys.stderr)
-        return 2
-    try:
-        args = build_parser(task, prog=f"mpcbox compare {task}").parse_args(rest[1:])
-        return run_comparison(task, args, controller_defaults=quick_sampling_options())
-    except (MpcboxError, ImportError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-
-
-if __name__ == "__main__":
-    sys.exit(main())

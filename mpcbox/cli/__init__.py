@@ -1,0 +1,147 @@
+"""The ``mpcbox`` command line.
+
+Commands::
+
+    mpcbox list                                   tasks and controllers
+    mpcbox compare TASK [options]                 compare controllers on a task
+    mpcbox simulate TASK --controller NAME [...]  one controller, one seed, its measures
+    mpcbox options CONTROLLER                     a controller's options and their defaults
+    mpcbox --version
+
+``mpcbox compare TASK --help`` lists every option, the task's own ones included (for example
+``--leg`` of ``humanoid_balance``). A user error (a bad name, value or folder) prints one line
+starting with ``error:`` and exits with status 2, never a traceback.
+
+A problem script is one call, e.g. ``problems/pendulum_swingup.py``::
+
+    import sys
+    from mpcbox.cli import run_task_script
+
+    if __name__ == "__main__":
+        sys.exit(run_task_script("pendulum_swingup", duration=5.0))
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+
+from mpcbox.cli.compare import (
+    DEFAULTS,
+    build_parser,
+    quick_sampling_options,
+    run_comparison,
+    run_task_script,
+)
+from mpcbox.errors import MpcboxError, UnknownNameError
+
+__all__ = [
+    "DEFAULTS",
+    "build_parser",
+    "main",
+    "quick_sampling_options",
+    "run_comparison",
+    "run_task_script",
+]
+
+COMMANDS = ("list", "compare", "simulate", "options")
+USAGE = """usage: mpcbox {list,compare,simulate,options} ... | --version
+
+  mpcbox list                                   tasks and controllers
+  mpcbox compare TASK [options]                 compare controllers on a task (--help)
+  mpcbox simulate TASK --controller NAME [...]  one run of one controller (--help)
+  mpcbox options CONTROLLER                     a controller's options and defaults
+"""
+
+
+def _list(stream) -> int:
+    from mpcbox.registry import CONTROLLERS, TASKS, available_controllers, task_class
+
+    print("tasks (controllers tuned for each; others can be named explicitly):", file=stream)
+    for name in TASKS:
+        try:
+            tuned = ", ".join(available_controllers(task_class(name))) or "-"
+        except ImportError as exc:
+            tuned = f"unavailable ({exc})"
+        print(f"  {name}: {tuned}", file=stream)
+    print("controllers: " + ", ".join(CONTROLLERS), file=stream)
+    return 0
+
+
+def _options(rest: Sequence[str], stream) -> int:
+    from mpcbox.config import describe_config
+    from mpcbox.registry import CONTROLLERS, controller_class
+
+    if len(rest) != 1:
+        raise UnknownNameError("controller", " ".join(rest) or "(none)", CONTROLLERS)
+    cls = controller_class(rest[0])
+    print(
+        f"{rest[0]}: {cls.__module__}.{cls.__name__}, config {cls.config_class.__name__}",
+        file=stream,
+    )
+    for info in describe_config(cls.config_class):
+        print(f"  {info.name} = {info.default!r}", file=stream)
+    return 0
+
+
+def _simulate(rest: Sequence[str]) -> int:
+    import argparse
+
+    from mpcbox.registry import TASKS
+
+    pre = argparse.ArgumentParser(prog="mpcbox simulate", add_help=False)
+    pre.add_argument("task")
+    pre.add_argument("--controller", required=True)
+    if not rest or rest[0].startswith("-"):
+        pre.print_usage(sys.stderr)
+        return 2
+    known, remaining = pre.parse_known_args(list(rest))
+    if known.task not in TASKS:
+        raise UnknownNameError("task", known.task, TASKS)
+    parser = build_parser(known.task, prog=f"mpcbox simulate {known.task}", seeds=1)
+    args = parser.parse_args(remaining)
+    args.controllers = known.controller
+    return run_comparison(known.task, args, controller_defaults=quick_sampling_options())
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """The ``mpcbox`` console command.
+
+    Args:
+        argv: Arguments without the program name (default: ``sys.argv[1:]``).
+
+    Returns:
+        The exit status: 0 on success, 2 for bad arguments, names, values or folders.
+    """
+    from mpcbox.registry import TASKS
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help"):
+        print(USAGE)
+        return 0 if argv else 2
+    if argv[0] == "--version":
+        from mpcbox import __version__
+
+        print(f"mpcbox {__version__}")
+        return 0
+    command, rest = argv[0], argv[1:]
+    try:
+        if command == "list":
+            return _list(sys.stdout)
+        if command == "options":
+            return _options(rest, sys.stdout)
+        if command == "simulate":
+            return _simulate(rest)
+        if command != "compare":
+            raise UnknownNameError("command", command, COMMANDS)
+        if not rest or rest[0].startswith("-"):
+            build_parser(None, prog="mpcbox compare").parse_args(rest)  # help or the error
+            return 2
+        task = rest[0]
+        if task not in TASKS:
+            raise UnknownNameError("task", task, TASKS)
+        args = build_parser(task, prog=f"mpcbox compare {task}").parse_args(rest[1:])
+        return run_comparison(task, args, controller_defaults=quick_sampling_options())
+    except (MpcboxError, ImportError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2

@@ -1,0 +1,95 @@
+"""Checks of the command line's arguments, run before any simulation starts.
+
+A bad value is an :class:`~mpcbox.errors.InvalidArgumentError` naming the flag and what it
+expects; the command prints it and exits with status 2 (no traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import tempfile
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+from mpcbox.errors import InvalidArgumentError, UnknownNameError, UnknownOptionError
+
+#: Smallest bisection tolerance of ``--push-tolerance`` (N): below it a bisection over forces
+#: of hundreds of newtons would run into the float resolution.
+MIN_PUSH_TOLERANCE = 1e-3
+
+
+def _finite(flag: str, value: float, *, low: float | None = None, strict: bool = True) -> None:
+    if not math.isfinite(value):
+        raise InvalidArgumentError(f"{flag} must be a finite number, got {value!r}")
+    if low is not None and (value <= low if strict else value < low):
+        sign = ">" if strict else ">="
+        raise InvalidArgumentError(f"{flag} must be {sign} {low:g}, got {value!r}")
+
+
+def check_arguments(args: argparse.Namespace) -> None:
+    """Check the numbers of ``mpcbox compare`` (seeds, duration, pushes, scales, ...).
+
+    Raises:
+        InvalidArgumentError: Naming the first flag with a bad value.
+    """
+    if args.seeds < 1:
+        raise InvalidArgumentError(f"--seeds must be >= 1, got {args.seeds}")
+    if args.seed < 0:
+        raise InvalidArgumentError(f"--seed must be >= 0 (NumPy seeds), got {args.seed}")
+    if args.workers < 0:
+        raise InvalidArgumentError(f"--workers must be >= 0 (0: one per core), got {args.workers}")
+    _finite("--duration", args.duration, low=0.0)
+    _finite("--push", args.push, low=0.0, strict=False)
+    _finite("--push-time", args.push_time, low=0.0, strict=False)
+    _finite("--push-duration", args.push_duration, low=0.0)
+    _finite("--mass-scale", args.mass_scale, low=0.0)
+    _finite("--friction-scale", args.friction_scale, low=0.0)
+    _finite("--push-tolerance", args.push_tolerance, low=MIN_PUSH_TOLERANCE, strict=False)
+    for part in str(args.noise).split(","):
+        if not part.strip():
+            continue
+        try:
+            value = float(part)
+        except ValueError:
+            raise InvalidArgumentError(
+                f"--noise must be numbers separated by commas, got {args.noise!r}"
+            ) from None
+        _finite("--noise", value, low=0.0, strict=False)
+
+
+def check_output_folder(folder: str | Path) -> Path:
+    """Create ``--out`` and check that a file can be written there, before anything runs.
+
+    Raises:
+        InvalidArgumentError: If the folder cannot be created or written.
+    """
+    path = Path(folder)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path):
+            pass
+    except OSError as exc:
+        raise InvalidArgumentError(f"--out {str(path)!r} is not a writable folder: {exc}") from exc
+    return path
+
+
+def check_options(name: str, options: Mapping[str, Any], chosen: Iterable[str]) -> None:
+    """Check a ``--set NAME.OPTION=VALUE`` group against the controller's config fields.
+
+    Raises:
+        UnknownNameError: If ``name`` is not one of the chosen controllers.
+        UnknownOptionError: If an option is not a field of the controller's config.
+    """
+    from mpcbox.registry import controller_class
+
+    chosen = list(chosen)
+    if name not in chosen:
+        raise UnknownNameError("controller in --set (not among the chosen ones)", name, chosen)
+    config_class = controller_class(name).config_class
+    valid = {f.name for f in dataclasses.fields(config_class)} if config_class else set()
+    unknown = set(options) - valid
+    if unknown:
+        raise UnknownOptionError(f"--set {name}", unknown, valid)

@@ -1,0 +1,50 @@
+"""The registry: tasks' tuned configs, controllers built by name, unknown options named."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import mpcbox
+from mpcbox.errors import InvalidArgumentError, UnknownOptionError
+from mpcbox.registry import CONTROLLERS, TASKS, controller_class, make_controller, task_class
+from mpcbox.tasks import scene_path
+
+
+@pytest.mark.parametrize("task", sorted(TASKS))
+def test_task_configs_are_config_objects_of_their_controller(task: str) -> None:
+    configs = task_class(task).controller_configs
+    assert configs, f"{task} tunes no controller"
+    for name, config in configs.items():
+        cls = controller_class(name)
+        assert isinstance(config, cls.config_class), (task, name, type(config))
+
+
+@pytest.fixture(scope="module")
+def plain_pendulum() -> mpcbox.Problem:
+    return mpcbox.Problem(str(scene_path("pendulum.xml")), qpos_ref=np.array([np.pi]))
+
+
+@pytest.mark.parametrize("name", ["lqr", "ilqr", "ps", "mppi", "cem"])
+def test_every_controller_builds_on_a_plain_problem_with_defaults(plain_pendulum, name) -> None:
+    controller = make_controller(name, plain_pendulum)
+    u = controller(plain_pendulum.reference_state(), 0.0)
+    assert u.shape == (plain_pendulum.nu,) and np.all(np.isfinite(u))
+
+
+def test_qp_mpc_on_a_problem_without_ground_contact_names_the_option(plain_pendulum) -> None:
+    with pytest.raises(InvalidArgumentError, match="contacts"):
+        make_controller("qp", plain_pendulum)
+
+
+@pytest.mark.parametrize("name", sorted(set(CONTROLLERS) - {"ipopt"}))
+def test_unknown_option_is_a_type_error_listing_the_valid_ones(plain_pendulum, name) -> None:
+    with pytest.raises(UnknownOptionError, match=r"bogus_option.*valid options") as info:
+        make_controller(name, plain_pendulum, bogus_option=1)
+    assert isinstance(info.value, TypeError) and isinstance(info.value, InvalidArgumentError)
+    assert info.value.valid  # the valid options are listed
+
+
+def test_wrong_config_type_is_rejected(plain_pendulum) -> None:
+    with pytest.raises(TypeError, match="ILQRConfig"):
+        mpcbox.ILQR(plain_pendulum, mpcbox.LQRConfig())
