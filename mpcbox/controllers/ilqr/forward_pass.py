@@ -12,7 +12,6 @@ least ``armijo`` times the decrease that the backward pass predicts,
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
 from typing import NamedTuple
@@ -32,9 +31,11 @@ class ClosedLoopRollout:
 
     :meth:`mpcbox.Problem.rollout` rolls out open-loop control sequences; here every control
     depends on the state just reached, so the steps are taken one by one on a scratch
-    ``MjData`` of the planning model, one per thread (the parallel line search rolls out
-    several step sizes at once), with the tangent deviation written into a preallocated
-    buffer in the inner loop.
+    ``MjData`` of the planning model (:meth:`~mpcbox.Problem.scratch_data`, one per thread: the
+    parallel line search rolls out several step sizes at once), with the tangent deviation
+    written into a preallocated buffer in the inner loop (``mj_differentiatePos``, which
+    allocates nothing, where :meth:`~mpcbox.Problem.state_difference` is vectorized for
+    batches).
 
     Args:
         problem: The Problem whose planning model is rolled out.
@@ -47,15 +48,6 @@ class ClosedLoopRollout:
         self.ctrl_low = ctrl_low
         self.ctrl_high = ctrl_high
         self._model = problem.planning_model
-        self._local = threading.local()
-
-    def _data(self) -> mujoco.MjData:
-        # Kept here until Problem exposes its per-thread scratch data publicly.
-        data = getattr(self._local, "data", None)
-        if data is None:
-            data = mujoco.MjData(self._model)
-            self._local.data = data
-        return data
 
     def deviation(self, state: np.ndarray, nominal: np.ndarray, out: np.ndarray) -> None:
         """Write ``state ⊖ nominal`` ``(nx,)`` into ``out``.
@@ -90,7 +82,7 @@ class ClosedLoopRollout:
             New states, controls and cost; the cost is ``inf`` if the rollout diverged.
         """
         p, m = self.problem, self._model
-        d = self._data()
+        d = p.scratch_data()  # the thread's own MjData, reset below
         nq, nv, horizon = p.nq, p.nv, len(ctrls)
         mujoco.mj_resetData(m, d)
         new_states = np.empty_like(states)
