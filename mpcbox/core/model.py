@@ -315,3 +315,12 @@ def frame_object(model: mujoco.MjModel, name: str) -> tuple[str, int]:
     if bid >= 0:
         return "body", bid
     raise UnknownNameError("site or body", name, names(model, "site") + names(model, "body"))
+
+
+def frame_position(model: mujoco.MjModel, data: mujoco.MjData, name: str) -> np.ndarray:
+    """World position ``(3,)`` of a site or body frame (see :func:`frame_object`), a copy.
+
+    ``data`` must hold kinematics (after ``mj_kinematics``, ``mj_forward`` or a step).
+    """
+    kind, idx = frame_object(model, name)
+    return (data.site_xpos[idx] if kind == "site" else data.xpos[idx]).copy()

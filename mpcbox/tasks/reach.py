@@ -15,7 +15,7 @@ import numpy as np
 
 from mpcbox.core.cost import ControlCost, Cost, FramePosition, StateCost
 from mpcbox.core.equilibrium import find_equilibrium
-from mpcbox.core.model import ModelSource, frame_object, object_id
+from mpcbox.core.model import ModelSource, frame_position, object_id
 from mpcbox.core.posture import reach_posture
 from mpcbox.core.problem import Problem
 from mpcbox.validation import as_array, positive
@@ -90,7 +90,6 @@ class ArmReach(Problem):
 
     # ------------------------------------------------------------------ construction
     def prepare(self, model: mujoco.MjModel) -> None:
-        frame_object(model, self.frame)  # a clear error naming the valid frames
         if self._start_key is not None:
             key = object_id(model, "keyframe", self._start_key)
             self.start_qpos = model.key_qpos[key].copy()
@@ -101,7 +100,7 @@ class ArmReach(Problem):
         data = mujoco.MjData(model)
         data.qpos[:] = self.start_qpos
         mujoco.mj_forward(model, data)
-        self.start_position = self._position(model, data)
+        self.start_position = frame_position(model, data, self.frame)
         self.target = (
             self.start_position + self.target_input if self.relative else self.target_input
         )
@@ -149,16 +148,12 @@ class ArmReach(Problem):
         return state
 
     # ------------------------------------------------------------------ measures
-    def _position(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
-        kind, idx = frame_object(model, self.frame)
-        return (data.site_xpos[idx] if kind == "site" else data.xpos[idx]).copy()
-
     def frame_position(self, state: np.ndarray) -> np.ndarray:
         """The end effector's world position ``(3,)`` at ``state``."""
         data = mujoco.MjData(self.model)
         self.set_state(data, state)
         mujoco.mj_kinematics(self.model, data)
-        return self._position(self.model, data)
+        return frame_position(self.model, data, self.frame)
 
     def reach_error(self, state: np.ndarray) -> float:
         """Distance (m) from the end effector to the target at ``state``."""

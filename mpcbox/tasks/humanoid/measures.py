@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from mpcbox.core.model import frame_object, object_id
+from mpcbox.core.model import frame_position, object_id
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.sim.measures import Measure
 
@@ -43,7 +43,7 @@ class ComDeviation(Measure):
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> float:
         com = data.subtree_com[object_id(model, "body", self.body)][:2]
-        points = [_frame_xy(model, data, name) for name in self.support]
+        points = [frame_position(model, data, name)[:2] for name in self.support]
         support = points[0] if len(points) == 1 else np.mean(points, axis=0)
         return float(np.linalg.norm(com - support))
 
@@ -74,9 +74,3 @@ def balance_measures(support: tuple[str, ...], body: str = "torso") -> tuple[Mea
         body: Root body (its subtree's center of mass and its tilt are measured).
     """
     return (ComDeviation(body=body, support=support), Tilt(body=body))
-
-
-def _frame_xy(model: mujoco.MjModel, data: mujoco.MjData, name: str) -> np.ndarray:
-    """Horizontal position ``(2,)`` of a site or body."""
-    kind, idx = frame_object(model, name)
-    return (data.site_xpos[idx] if kind == "site" else data.xpos[idx])[:2]
