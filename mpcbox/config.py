@@ -9,7 +9,7 @@ unknown names and lists the valid ones.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from typing import Any, NamedTuple, TypeVar
 
 from mpcbox.errors import InvalidTypeError, UnknownOptionError
@@ -29,6 +29,21 @@ class OptionInfo(NamedTuple):
     name: str
     default: Any
     type: str
+
+
+def check_option_names(config_class: type, options: Iterable[str], owner: str) -> None:
+    """Raise :class:`UnknownOptionError` (listing the valid fields) for an option that is not
+    a field of ``config_class``.
+
+    Args:
+        config_class: A config dataclass.
+        options: Option names.
+        owner: Name used in the message (``"ILQR"``, ``"--set ilqr"``).
+    """
+    valid = {f.name for f in dataclasses.fields(config_class)}
+    unknown = set(options) - valid
+    if unknown:
+        raise UnknownOptionError(owner, unknown, valid)
 
 
 def resolve_config(
@@ -56,10 +71,7 @@ def resolve_config(
         raise InvalidTypeError(
             f"config of {owner} must be a {config_class.__name__}, got {type(config).__name__}"
         )
-    valid = {f.name for f in dataclasses.fields(config_class)}  # type: ignore[arg-type]
-    unknown = set(options) - valid
-    if unknown:
-        raise UnknownOptionError(owner, unknown, valid)
+    check_option_names(config_class, options, owner)
     return dataclasses.replace(config, **options) if options else config  # type: ignore[type-var]
 
 

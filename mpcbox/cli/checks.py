@@ -7,14 +7,14 @@ expects; the command prints it and exits with status 2 (no traceback).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 import tempfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from mpcbox.errors import InvalidArgumentError, UnknownNameError, UnknownOptionError
+from mpcbox.config import check_option_names
+from mpcbox.errors import InvalidArgumentError, UnknownNameError
 
 #: Smallest bisection tolerance of ``--push-tolerance`` (N): below it a bisection over forces
 #: of hundreds of newtons would run into the float resolution.
@@ -88,8 +88,4 @@ def check_options(name: str, options: Mapping[str, Any], chosen: Iterable[str]) 
     chosen = list(chosen)
     if name not in chosen:
         raise UnknownNameError("controller in --set (not among the chosen ones)", name, chosen)
-    config_class = controller_class(name).config_class
-    valid = {f.name for f in dataclasses.fields(config_class)} if config_class else set()
-    unknown = set(options) - valid
-    if unknown:
-        raise UnknownOptionError(f"--set {name}", unknown, valid)
+    check_option_names(controller_class(name).config_class, options, f"--set {name}")
