@@ -24,10 +24,6 @@ CONTROLLERS: dict[str, str] = {
     "cem": "mpcbox.controllers.sampling:CEM",
 }
 
-#: Controller name -> the optional modules it needs at construction (imported lazily by the
-#: controller, so importing its class succeeds without them).
-OPTIONAL_DEPENDENCIES: dict[str, tuple[str, ...]] = {"ipopt": ("casadi",)}
-
 #: Task name -> Problem subclass with a no-argument constructor.
 TASKS: dict[str, str] = {
     "humanoid_balance": "mpcbox.tasks.humanoid.balance:HumanoidBalance",
@@ -87,11 +83,11 @@ def available_controllers(problem: Any) -> list[str]:
     for name in CONTROLLERS:
         if name not in problem.controller_configs:
             continue
-        if any(importlib.util.find_spec(m) is None for m in OPTIONAL_DEPENDENCIES.get(name, ())):
-            continue
         try:
-            controller_class(name)
+            cls = controller_class(name)
         except ImportError:
+            continue
+        if any(importlib.util.find_spec(module) is None for module in cls.requires):
             continue
         names.append(name)
     return names

@@ -48,3 +48,14 @@ def test_unknown_option_is_a_type_error_listing_the_valid_ones(plain_pendulum, n
 def test_wrong_config_type_is_rejected(plain_pendulum) -> None:
     with pytest.raises(TypeError, match="ILQRConfig"):
         mpcbox.ILQR(plain_pendulum, mpcbox.LQRConfig())
+
+
+def test_controller_with_a_missing_optional_module_is_left_out(monkeypatch) -> None:
+    from mpcbox.controllers.lqr import LQR
+    from mpcbox.registry import available_controllers
+
+    problem = task_class("humanoid_two_feet")
+    assert "lqr" in available_controllers(problem)
+    monkeypatch.setattr(LQR, "requires", ("mpcbox_no_such_module",))
+    assert "lqr" not in available_controllers(problem)
+    assert "qp" in available_controllers(problem)

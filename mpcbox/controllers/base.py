@@ -44,6 +44,9 @@ class Controller(abc.ABC):
     period: float | None = None
     #: The keyword-only config dataclass the controller takes (``None``: no options).
     config_class: type | None = None
+    #: Optional modules the controller imports when built (not when its class is imported);
+    #: :func:`mpcbox.registry.available_controllers` leaves it out when one is missing.
+    requires: tuple[str, ...] = ()
 
     def reset(self) -> None:  # noqa: B027 - optional hook
         """Forget internal state (warm starts, filters) before a new simulation."""

@@ -95,6 +95,7 @@ class IpoptController(Controller):
 
     name = "ipopt"
     period = None
+    requires = ("casadi",)
     config_class = IpoptConfig
 
     def __init__(self, problem: Problem, config: IpoptConfig | None = None, **options: Any) -> None:
