@@ -46,7 +46,7 @@ class HumanoidBalance(HumanoidProblem):
     """
 
     name = "humanoid_balance"
-    #: Keyword arguments for each controller built by :func:`mpcbox.make_controller`.
+    #: Tuned config of each controller that :func:`mpcbox.make_controller` builds.
     controller_configs: ClassVar[dict[str, Any]] = {
         "lqr": LQRConfig(),
         # Contact-force QP-MPC (issue #4): 10 steps of 0.02 s, stance-foot capsule ends.

@@ -41,7 +41,7 @@ class HumanoidTwoFeet(HumanoidProblem):
     """
 
     name = "humanoid_two_feet"
-    #: Keyword arguments for each controller built by :func:`mpcbox.make_controller`.
+    #: Tuned config of each controller that :func:`mpcbox.make_controller` builds.
     controller_configs: ClassVar[dict[str, Any]] = {
         "lqr": LQRConfig(),
         "qp": QPMPCConfig(
