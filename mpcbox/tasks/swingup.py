@@ -32,7 +32,7 @@ class PendulumSwingup(Problem):
     """
 
     name = "pendulum_swingup"
-    #: Keyword arguments for controllers built by :func:`mpcbox.make_controller`.
+    #: Tuned config of each controller that :func:`mpcbox.make_controller` builds.
     controller_configs: ClassVar[dict[str, Any]] = {
         "ilqr": ILQRConfig(
             horizon=100,
@@ -90,7 +90,7 @@ class CartpoleSwingup(Problem):
     """
 
     name = "cartpole_swingup"
-    #: Keyword arguments for controllers built by :func:`mpcbox.make_controller`.
+    #: Tuned config of each controller that :func:`mpcbox.make_controller` builds.
     controller_configs: ClassVar[dict[str, Any]] = {
         "ilqr": ILQRConfig(
             horizon=75,

@@ -50,7 +50,7 @@ class HumanoidStand(HumanoidProblem):
     """
 
     name = "humanoid_stand"
-    #: Keyword arguments for controllers built by :func:`mpcbox.make_controller`.
+    #: Tuned config of each controller that :func:`mpcbox.make_controller` builds.
     controller_configs: ClassVar[dict[str, Any]] = {
         # Sampling MPC (issue #5), sized for the warp backend on one GPU: a 0.5 s horizon on
         # a 0.01 s planning model (50 steps), six knots, replanning at 50 Hz. The planning
