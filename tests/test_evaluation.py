@@ -65,3 +65,26 @@ def test_push_grid_argument_errors(two_feet):
         push_grid(two_feet, lqr, [10.0], PushTest(direction=(0.0, 0.0, 0.0)))
     with pytest.raises(InvalidArgumentError, match="settle"):
         push_grid(two_feet, lqr, [10.0], PushTest(settle=0.0))
+
+
+def test_bisection_below_float_resolution_ends(monkeypatch) -> None:
+    """A tolerance the floats cannot resolve ends at the resolution instead of looping."""
+    from types import SimpleNamespace
+
+    from mpcbox.comparison import push_limits
+
+    limit = 37.3
+    calls = []
+
+    def fake_trial(problem, controller, test, seed):
+        def trial(force: float):
+            calls.append(force)
+            return SimpleNamespace(survived=force <= limit)
+
+        return trial
+
+    monkeypatch.setattr(push_limits, "_push_trial", fake_trial)
+    result = largest_push(None, None, PushTest(max_force=400.0, tolerance=1e-300))
+    assert result.force <= limit < result.smallest_failed
+    assert result.smallest_failed - result.force <= 2 * np.spacing(limit)
+    assert len(calls) < 100  # about 60 halvings of 400 N down to the spacing near 37 N

@@ -248,6 +248,8 @@ def largest_push(
     lo, hi = 0.0, max_force
     while hi - lo > test.tolerance:
         mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:  # the bracket is at float resolution: a smaller tolerance
+            break  # cannot be met, and the loop would never end
         if survives(mid):
             lo = mid
         else:
