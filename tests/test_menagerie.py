@@ -90,3 +90,29 @@ def test_panda_loads_from_menagerie_root() -> None:
     mujoco.mj_resetDataKeyframe(model, data, 0)
     mujoco.mj_step(model, data)
     assert np.all(np.isfinite(data.qpos))
+
+
+@pytest.mark.menagerie
+@pytest.mark.parametrize(
+    ("robot", "frame"),
+    [("franka_emika_panda", "hand"), ("universal_robots_ur5e", "attachment_site")],
+)
+def test_arm_reach_on_a_menagerie_arm_lqr_reaches_within_5mm(robot: str, frame: str) -> None:
+    if not (os.environ.get("MENAGERIE_ROOT") and menagerie.available(robot)):
+        pytest.skip(f"no offline Menagerie copy with {robot} (set MENAGERIE_ROOT)")
+    import warnings
+
+    import mpcbox
+    from mpcbox.tasks.reach import ArmReach
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", menagerie.MissingMeshWarning)
+        problem = ArmReach(
+            f"menagerie:{robot}", frame=frame, target=[0.0, 0.2, -0.2], relative=True
+        )
+    start = problem.reach_error(problem.initial_state())
+    assert start == pytest.approx(np.hypot(0.2, 0.2), abs=1e-9)
+    assert problem.goal.position_error < 1e-3  # the IK goal reaches the target
+    result = mpcbox.simulate(problem, mpcbox.LQR(problem), 3.0, seed=0)
+    assert result.survived, result.failure
+    assert problem.reach_error(result.states[-1]) < 0.005  # m, from 28 cm
