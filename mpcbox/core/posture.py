@@ -261,8 +261,7 @@ def reach_posture(
         if pos_err < tolerance and rot_err < 10 * tolerance:
             used = it + 1
             break
-    qpos = config.q.copy()
-    pos_err, rot_err = errors()
+    qpos = config.q.copy()  # pos_err and rot_err hold its errors (iterations >= 1)
     collisions = self_collisions(model, qpos)
     if collisions:
         raise SolverError(
