@@ -28,6 +28,7 @@ import numpy as np
 from mpcbox.core import derivatives
 from mpcbox.core.cost import ControlCost, Cost, Features, StateCost
 from mpcbox.core.derivatives import Quadratization
+from mpcbox.core.divergence import check_planning_step
 from mpcbox.core.dynamics import Dynamics, Linearization, Rollout, mujoco_errors
 from mpcbox.core.dynamics import read_state as _read_state
 from mpcbox.core.dynamics import write_state as _write_state
@@ -42,12 +43,7 @@ from mpcbox.core.model import (
     with_sensors,
 )
 from mpcbox.core.tangent import TangentSpace
-from mpcbox.errors import (
-    DivergenceError,
-    InvalidArgumentError,
-    ModelLoadError,
-    ShapeError,
-)
+from mpcbox.errors import DivergenceError, InvalidArgumentError, ModelLoadError, ShapeError
 from mpcbox.validation import as_array, positive, positive_int
 
 __all__ = ["Linearization", "Problem", "Quadratization", "Rollout"]
@@ -77,7 +73,8 @@ class Problem:
             state; ``qpos0`` of the model when omitted.
         qpos_ref: Reference positions ``(nq,)``, overriding the keyframe's.
         ctrl_ref: Reference control ``(nu,)``; the keyframe's ``ctrl`` (or zeros) when omitted.
-        planning_timestep: Timestep of the planning model (default: the simulation timestep).
+        planning_timestep: Timestep of the planning model (default: the simulation timestep);
+            a step at which the model diverges raises a ``PlanningDivergenceError``.
         planning_model: A separate source for the planning model; it must have the same
             ``nq``, ``nv``, ``nu`` and ``na``.
         fd_eps: Finite-difference step.
@@ -118,9 +115,7 @@ class Problem:
             self.name = name
         self.fd_eps = positive("fd_eps", fd_eps)
         self.fd_centered = bool(fd_centered)
-        self.threads = positive_int(
-            "threads", threads if threads is not None else os.cpu_count() or 1
-        )
+        self.threads = positive_int("threads", os.cpu_count() or 1 if threads is None else threads)
 
         spec = None if isinstance(model, mujoco.MjModel) else load_spec(model)
         base = model if isinstance(model, mujoco.MjModel) else compile_spec(spec)
@@ -160,6 +155,8 @@ class Problem:
         self.ctrl_low = np.where(limited, ctrlrange[:, 0], -np.inf)
         self.ctrl_high = np.where(limited, ctrlrange[:, 1], np.inf)
         self.dynamics = Dynamics(self.planning_model, self.threads)
+        if planning_timestep is not None:
+            check_planning_step(self)  # PlanningDivergenceError if the step is too coarse
 
     def prepare(self, model: mujoco.MjModel) -> None:
         """Hook run before the cost is built: set ``qpos_ref`` / ``ctrl_ref`` here.
@@ -458,11 +455,16 @@ class Problem:
 
         Args:
             timestep: Planning timestep (s).
+
+        Raises:
+            PlanningDivergenceError: If the model diverges at ``timestep``
+                (:func:`~mpcbox.core.divergence.check_planning_step`).
         """
         clone = copy.copy(self)
         clone.planning_model = copy.copy(self.planning_model)
         clone.planning_model.opt.timestep = positive("timestep", timestep)
         clone.dynamics = Dynamics(clone.planning_model, self.threads)
+        check_planning_step(clone)
         return clone
 
     def with_cost(self, cost: Cost) -> Problem:
@@ -473,11 +475,8 @@ class Problem:
         """
         if not isinstance(cost, Cost):
             raise InvalidArgumentError(f"cost must be an mpcbox.Cost, got {type(cost).__name__}")
-        missing = [
-            r.name
-            for r in cost.sensors(self.planning_model)
-            if mujoco.mj_name2id(self.planning_model, mujoco.mjtObj.mjOBJ_SENSOR, r.name) < 0
-        ]
+        pm, sensor = self.planning_model, mujoco.mjtObj.mjOBJ_SENSOR
+        missing = [r.name for r in cost.sensors(pm) if mujoco.mj_name2id(pm, sensor, r.name) < 0]
         if missing:
             raise ModelLoadError(f"cost: sensors {missing} are not in the Problem's models")
         clone = copy.copy(self)
