@@ -183,3 +183,14 @@ def test_outcomes_are_documented_and_bad_arguments_named():
         mpcbox.simulate(problem, Constant(0.0), 0.1, degraded_limit=2.0)
     with pytest.raises(mpcbox.errors.InvalidArgumentError, match="seed"):
         mpcbox.simulate(problem, Constant(0.0), 0.1, seed=-1)
+
+
+def test_rollout_that_diverges_on_its_first_step_is_marked_non_finite():
+    """MuJoCo's reset on the first step of a rollout leaves time at one step, as if nothing
+    happened; the rollout must still come back NaN from there, never as the reset pose."""
+    problem = mpcbox.Problem(EXPLODING)
+    rollout = problem.rollout(problem.reference_state(), np.ones((2, 3, 1)))
+    assert np.all(rollout.states[:, 0] == 0.0)
+    assert np.all(np.isnan(rollout.states[:, 1:]))
+    calm = problem.rollout(problem.reference_state(), np.zeros((1, 3, 1)))
+    assert np.all(np.isfinite(calm.states))
