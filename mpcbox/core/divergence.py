@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import mujoco
 import numpy as np
@@ -24,8 +24,18 @@ import numpy as np
 from mpcbox.core.dynamics import write_state
 from mpcbox.errors import PlanningDivergenceError
 
-if TYPE_CHECKING:
-    from mpcbox.core.problem import Problem
+
+class PlanningProblem(Protocol):
+    """What :func:`check_planning_step` reads of a :class:`~mpcbox.Problem`."""
+
+    model: mujoco.MjModel
+    planning_model: mujoco.MjModel
+    ctrl_ref: np.ndarray
+
+    def reference_state(self) -> np.ndarray: ...
+
+    def clip_ctrl(self, ctrl: np.ndarray) -> np.ndarray: ...
+
 
 #: Warnings that mean the state left the numbers MuJoCo can integrate.
 UNSTABLE = (
@@ -63,7 +73,9 @@ def unstable_warning(data: mujoco.MjData) -> str | None:
     return None
 
 
-def check_planning_step(problem: Problem, *, duration: float = 0.1, max_steps: int = 200) -> None:
+def check_planning_step(
+    problem: PlanningProblem, *, duration: float = 0.1, max_steps: int = 200
+) -> None:
     """Raise if the planning model diverges from the reference state at the reference control.
 
     Rolls ``problem.planning_model`` forward ``min(max_steps, max(10, ceil(duration / dt)))``
@@ -106,4 +118,10 @@ def check_planning_step(problem: Problem, *, duration: float = 0.1, max_steps: i
     )
 
 
-__all__ = ["UNSTABLE", "captured_warnings", "check_planning_step", "unstable_warning"]
+__all__ = [
+    "UNSTABLE",
+    "PlanningProblem",
+    "captured_warnings",
+    "check_planning_step",
+    "unstable_warning",
+]

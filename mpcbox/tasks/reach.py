@@ -237,12 +237,8 @@ class ArmReach(Problem):
         return float(np.linalg.norm(self.frame_position(state) - self.target))
 
     def measures(self) -> Sequence[ReachError]:
-        """The end-effector error (final, max; arrival time and overshoot in the metrics)."""
-        return (
-            ReachError(
-                frame=self.frame, target=tuple(self.target), arrival_tolerance=self.tolerance
-            ),
-        )
+        """The end-effector error: final, max, settle time; arrival time and overshoot."""
+        return (ReachError(frame=self.frame, target=tuple(self.target), tolerance=self.tolerance),)
 
     def goal_failure(self, time: np.ndarray, states: np.ndarray) -> str | None:
         """Why a finished run missed the target: the final end-effector error, or ``None``.

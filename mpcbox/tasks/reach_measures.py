@@ -1,9 +1,9 @@
 r"""Measures of a reach: the end effector's distance to the target, and when it arrived.
 
 :class:`ReachError` samples :math:`e_k = \lVert p_k - p^\star \rVert` after every step. Its
-summaries over a run are the final and largest error; :meth:`ReachError.summarize` adds the
-time to first come within ``tolerance`` and the overshoot, the largest error after that
-time (see :func:`arrival`).
+summaries over a run are the final and largest error and the settle time (after which the
+error stays within ``tolerance``); :meth:`ReachError.summarize` adds the arrival time (first
+within ``tolerance``) and the overshoot, the largest error from then on (:func:`arrival`).
 """
 
 from __future__ import annotations
@@ -52,56 +52,42 @@ def arrival(errors: np.ndarray, time: np.ndarray, tolerance: float) -> Arrival:
 class ReachError(Measure):
     r"""Distance (m) from an end-effector frame to its target, :math:`\lVert p - p^\star \rVert`.
 
-    Shown in centimeters.
+    Shown in centimeters; ``tolerance`` (m, default 1 cm) is the arrival distance of the
+    settle-time summary and of :meth:`summarize`'s arrival time and overshoot.
 
     Attributes:
         frame: Site or body name of the end effector.
         target: Target position ``(3,)`` in the world frame (m).
-        arrival_tolerance: Distance (m) for :meth:`summarize`'s arrival time and overshoot.
     """
 
     name: str = "reach_error"
     unit: str = "m"
     label: str = "EE error"
-    summaries: tuple[str, ...] = ("final", "max")
+    summaries: tuple[str, ...] = ("final", "max", "settle_time")
     display_unit: str = "cm"
     display_scale: float = 100.0
+    tolerance: float | None = 0.01
     frame: str = ""
     target: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    arrival_tolerance: float = 0.01
 
     def __post_init__(self) -> None:
         super().__post_init__()
         target = as_array("target", np.asarray(self.target, dtype=np.float64), (3,))
         object.__setattr__(self, "target", tuple(float(v) for v in target))
-        object.__setattr__(
-            self, "arrival_tolerance", positive("arrival_tolerance", self.arrival_tolerance)
-        )
+        object.__setattr__(self, "tolerance", positive("tolerance", self.tolerance))
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> float:
         return float(np.linalg.norm(frame_position(model, data, self.frame) - self.target))
 
-    def summarize(self, samples: np.ndarray, time: np.ndarray | None = None) -> dict[str, float]:
-        """The declared summaries, plus ``reach_error_arrival_s`` and ``..._overshoot_m``.
-
-        Args:
-            samples: Errors ``(T,)`` (m).
-            time: Their times ``(T,)`` (s); without them the arrival is counted in samples.
-        """
-        out = super().summarize(samples) if time is None else _base(self, samples, time)
-        times = np.arange(len(samples), dtype=np.float64) if time is None else np.asarray(time)
-        hit = arrival(samples, times, self.arrival_tolerance)
+    def summarize(self, samples: np.ndarray, time: np.ndarray) -> dict[str, float]:
+        """The declared summaries, plus ``reach_error_arrival_s`` and
+        ``reach_error_overshoot_m`` (:func:`arrival`) of the errors ``(T,)`` at ``time``
+        ``(T,)`` (s)."""
+        out = super().summarize(samples, time)
+        hit = arrival(samples, time, float(self.tolerance))
         out[f"{self.name}_arrival_s"] = hit.time
         out[f"{self.name}_overshoot_m"] = hit.overshoot
         return out
-
-
-def _base(measure: Measure, samples: np.ndarray, time: np.ndarray) -> dict[str, float]:
-    """The base class's summaries, with the times where its ``summarize`` takes them."""
-    try:
-        return Measure.summarize(measure, samples, time)  # type: ignore[call-arg]
-    except TypeError:
-        return Measure.summarize(measure, samples)
 
 
 __all__ = ["Arrival", "ReachError", "arrival"]
