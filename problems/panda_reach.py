@@ -67,7 +67,7 @@ def closed_loop_row(problem: ArmReach, name: str, duration: float) -> dict[str, 
         "controller": {"ilqr": "iLQR-MPC", "mppi": "MPPI (CPU)", "lqr": "LQR at IK posture"}[name],
         "final (cm)": f"{100 * errors[-1]:.2f}",
         "to 1 cm (s)": "never" if np.isnan(hit.time) else f"{hit.time:.2f}",
-        "median tick (ms)": f"{1e3 * np.median(ticks):.1f}",
+        "median tick (ms)": f"{1e3 * np.median(ticks):.3g}",
         "outcome": missed or "reached",
     }
 

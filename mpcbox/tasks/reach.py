@@ -4,6 +4,18 @@ The goal posture comes from inverse kinematics with collision avoidance
 (:func:`mpcbox.core.posture.reach_posture`), and the control that holds it from the actuator
 model (:func:`mpcbox.find_equilibrium`: torque for motors, set-point for position servos), so
 LQR about the goal is available out of the box and iLQR starts from a sensible reference.
+
+Planning step. Menagerie's arms drive their joints with stiff position servos (Panda:
+:math:`k_p` up to 4500 N m/rad behind torque limits of 12-87 N m). MuJoCo integrates a
+servo's stiffness explicitly, so a planning model coarser than the simulation mispredicts
+the arm (on the Panda, 0.5 s of the same controls on a 0.01 s planning model put the hand
+10 cm from where the 0.002 s simulation takes it), and iLQR-MPC planned on it wanders. The
+tuned controllers therefore plan at the model's own timestep, with a short horizon (100
+knots, 0.2 s on the Panda) whose end is priced by the LQR value function at the goal
+(``terminal_value="lqr"``). The initial guess is the control that holds the IK goal
+posture, which on a servo arm already drives the arm toward the goal. Offline iLQR over a
+long horizon meets the servos' torque limits (their derivatives vanish once saturated) and
+typically ends on a short step; its ``stop_reason`` says so.
 """
 
 from __future__ import annotations
