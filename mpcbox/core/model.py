@@ -234,6 +234,19 @@ def check_model(model: mujoco.MjModel, name: str = "model") -> None:
         )
 
 
+def check_mjmodel(model: object, name: str = "model") -> mujoco.MjModel:
+    """Check that ``model`` is a compiled :class:`mujoco.MjModel` and return it.
+
+    Raises:
+        InvalidTypeError: Otherwise (a path or spec must be compiled first, e.g. by a Problem).
+    """
+    if not isinstance(model, mujoco.MjModel):
+        raise InvalidTypeError(
+            f"{name} must be a compiled mujoco.MjModel, got {type(model).__name__}"
+        )
+    return model
+
+
 def _ids(model: mujoco.MjModel, field: str, ids: np.ndarray) -> str:
     """``"body 1 ('torso'), body 3"``: the objects of ``field`` at ``ids``, with their names."""
     kind = "body" if field.startswith("body") else "actuator"
@@ -283,38 +296,65 @@ def names(model: mujoco.MjModel, kind: str) -> list[str]:
     return out
 
 
-def object_id(model: mujoco.MjModel, kind: str, name: str | int) -> int:
+def object_id(
+    model: mujoco.MjModel, kind: str, name: str | int, argument: str | None = None
+) -> int:
     """The id of a named object; an integer is checked and returned.
 
+    Args:
+        model: The model.
+        kind: Object kind (``"body"``, ``"site"``, ...).
+        name: Its name, or an id.
+        argument: The argument that gave ``name``, for error messages (default: ``kind``).
+
     Raises:
+        InvalidTypeError: If ``name`` is neither a string nor an integer.
         UnknownNameError: If no object of that kind has that name (lists the valid names).
     """
+    argument = argument or kind
     if kind not in _OBJ_KINDS:
         raise InvalidArgumentError(f"kind must be one of {sorted(_OBJ_KINDS)}, got {kind!r}")
     count = getattr(model, _COUNTS[kind])
-    if isinstance(name, int):
+    if isinstance(name, bool) or not isinstance(name, (str, int, np.integer)):
+        # mj_name2id crashes the interpreter on None.
+        raise InvalidTypeError(
+            f"{argument} must be a {kind} name or id, got {type(name).__name__} {name!r}"
+        )
+    if isinstance(name, (int, np.integer)):
+        name = int(name)
         if not 0 <= name < count:
-            raise InvalidArgumentError(f"{kind} id must be in [0, {count}), got {name}")
+            raise InvalidArgumentError(f"{argument}: {kind} id must be in [0, {count}), got {name}")
         return name
     idx = mujoco.mj_name2id(model, _OBJ_KINDS[kind], name)
     if idx < 0:
-        raise UnknownNameError(kind, name, names(model, kind))
+        raise UnknownNameError(
+            kind, name, names(model, kind), argument if argument != kind else None
+        )
     return idx
 
 
-def frame_object(model: mujoco.MjModel, name: str) -> tuple[str, int]:
+def frame_object(model: mujoco.MjModel, name: str, argument: str = "frame") -> tuple[str, int]:
     """Resolve a point-like frame: a site if one has this name, else a body.
+
+    Args:
+        model: The model.
+        name: Site or body name.
+        argument: The argument that gave ``name``, for error messages.
 
     Returns:
         ``("site", id)`` or ``("body", id)``.
     """
+    if not isinstance(name, str):  # mj_name2id crashes the interpreter on None
+        raise InvalidTypeError(f"{argument} must be a site or body name, got {type(name).__name__}")
     sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
     if sid >= 0:
         return "site", sid
     bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
     if bid >= 0:
         return "body", bid
-    raise UnknownNameError("site or body", name, names(model, "site") + names(model, "body"))
+    raise UnknownNameError(
+        "site or body", name, names(model, "site") + names(model, "body"), argument
+    )
 
 
 def frame_position(model: mujoco.MjModel, data: mujoco.MjData, name: str) -> np.ndarray:
