@@ -199,6 +199,8 @@ class Target:
         args: Argument name -> bad-value kind (``kind(rng) -> list[Bad]``).
         labels: Argument name -> the word the message must contain (default: the name).
         options: Whether an unknown keyword option must be refused (listing valid ones).
+        pending: Why some of its calls are known to fail still (the test is then an expected
+            failure, strict: it reports when they are fixed); empty when none.
     """
 
     name: str
@@ -207,6 +209,7 @@ class Target:
     args: dict[str, Callable]
     labels: dict[str, str] = field(default_factory=dict)
     options: bool = False
+    pending: str = ""
 
 
 class Context:
@@ -731,6 +734,31 @@ TARGETS: list[Target] = [
     ),
     # ------------------------------------------------------------------ comparison
     Target(
+        "simulate",
+        lambda ctx, **kw: mpcbox.simulate(**kw),
+        lambda ctx: {
+            "problem": ctx.pendulum,
+            "controller": ctx.lqr,
+            "duration": 0.03,
+            "noise": mpcbox.ActuatorNoise(std=0.01),
+        },
+        {
+            "problem": problem_type(),
+            "controller": controller_type,
+            "duration": positive,
+            "noise": instance(optional=True),
+            "pushes": only(Bad([42], True), Bad(42, True), Bad([mpcbox.Push(force=[1, 0, 0])])),
+            "mismatch": instance(optional=True),
+            "seed": lambda rng: integer(rng, minimum=0),
+            "initial_state": array((2,), optional=True),
+            "stop_on_failure": boolean,
+            "degraded_limit": unit,
+        },
+        options=True,
+        pending="simulate's own checks live in mpcbox/sim/simulation.py, which this branch "
+        "leaves to the lead (see the badinput report for the patch)",
+    ),
+    Target(
         "Scenario",
         lambda ctx, **kw: Scenario(**kw),
         lambda ctx: {},
@@ -959,7 +987,14 @@ def ctx() -> Context:
 
 
 @pytest.mark.filterwarnings("ignore")
-@pytest.mark.parametrize("target", TARGETS, ids=[t.name for t in TARGETS])
+@pytest.mark.parametrize(
+    "target",
+    [
+        pytest.param(t, marks=pytest.mark.xfail(strict=True, reason=t.pending) if t.pending else ())
+        for t in TARGETS
+    ],
+    ids=[t.name for t in TARGETS],
+)
 def test_every_bad_call_raises_a_named_mpcbox_error(target, ctx):
     failures = []
     for case in cases():

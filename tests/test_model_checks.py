@@ -121,6 +121,7 @@ def test_a_mujoco_fatal_error_becomes_an_mpcbox_error(monkeypatch):
         (pendulum(gear="nan"), "actuator_gear"),
         (compiled(body_mass=np.array([0.0, -1.0])), "body_mass"),
         (compiled(body_inertia=np.inf), "body_inertia"),
+        (compiled(body_inertia=np.array([[0.0, 0, 0], [0.1, -0.1, 0.1]])), "body_inertia"),
         (compiled(actuator_gainprm=np.nan), "actuator_gainprm"),
         (compiled(actuator_biasprm=np.inf), "actuator_biasprm"),
     ],
@@ -133,6 +134,7 @@ def test_a_mujoco_fatal_error_becomes_an_mpcbox_error(monkeypatch):
         "gear-nan",
         "mass-negative",
         "inertia-inf",
+        "inertia-negative",
         "gain-nan",
         "bias-inf",
     ],
@@ -150,7 +152,7 @@ def test_a_broken_planning_model_is_rejected_too():
 
 
 def test_a_model_without_actuators_gets_a_clear_error():
-    with pytest.raises(mpcbox.InvalidArgumentError, match=r"no actuators \(nu = 0\)"):
+    with pytest.raises(mpcbox.InvalidArgumentError, match=r"no actuators \(nu = 0\).*'hinge'"):
         mpcbox.Problem(pendulum(actuated=False))
 
 

@@ -198,7 +198,7 @@ def check_model(model: mujoco.MjModel, name: str = "model") -> None:
     Raises:
         InvalidArgumentError: If the model has no degree of freedom or no actuator, or,
             naming the field, a timestep that is not positive and finite, non-finite
-            gravity, a non-finite or negative body mass, non-finite body inertia, actuator
+            gravity, a non-finite or negative body mass or inertia, non-finite actuator
             gains, biases or gears.
     """
     if model.nv == 0:
@@ -207,9 +207,11 @@ def check_model(model: mujoco.MjModel, name: str = "model") -> None:
             "or free body to predict and control"
         )
     if model.nu == 0:
+        joints = ", ".join(repr(j) for j in names(model, "joint")[:10]) or "(unnamed)"
         raise InvalidArgumentError(
-            f"{name} has no actuators (nu = 0): mpcbox controls a model through its "
-            "actuators, so it needs at least one (add an <actuator> element)"
+            f"{name} has no actuators (nu = 0), only {model.njnt} joint(s) ({joints}) and "
+            f"{model.nv} degree(s) of freedom: mpcbox controls a model through its actuators, "
+            'so it needs at least one (add an <actuator> element, e.g. <motor joint="..."/>)'
         )
     timestep = float(model.opt.timestep)
     if not (np.isfinite(timestep) and timestep > 0.0):
@@ -227,11 +229,13 @@ def check_model(model: mujoco.MjModel, name: str = "model") -> None:
             raise InvalidArgumentError(
                 f"{name}: {field} must be finite; non-finite at {_ids(model, field, bad)}"
             )
-    negative = np.flatnonzero(model.body_mass < 0.0)
-    if negative.size:
-        raise InvalidArgumentError(
-            f"{name}: body_mass must be >= 0; negative at {_ids(model, 'body_mass', negative)}"
-        )
+    for field in ("body_mass", "body_inertia"):
+        values = getattr(model, field)
+        negative = np.flatnonzero((values < 0.0).reshape(len(values), -1).any(axis=1))
+        if negative.size:
+            raise InvalidArgumentError(
+                f"{name}: {field} must be >= 0; negative at {_ids(model, field, negative)}"
+            )
 
 
 def check_mjmodel(model: object, name: str = "model") -> mujoco.MjModel:

@@ -127,11 +127,13 @@ class ILQRConfig:
         if self.fd_centered is not None:
             put("fd_centered", boolean("fd_centered", self.fd_centered))
         self._check_regularization()
-        if isinstance(self.step_sizes, (str, bytes)) or not isinstance(self.step_sizes, Sequence):
+        if isinstance(self.step_sizes, (str, bytes)) or not isinstance(
+            self.step_sizes, Sequence | np.ndarray
+        ):
             raise InvalidTypeError(
                 f"step_sizes must be a sequence of numbers, got {type(self.step_sizes).__name__}"
             )
-        steps = np.array([number("step_sizes", s) for s in self.step_sizes])
+        steps = np.array([number("step_sizes", s) for s in np.ravel(self.step_sizes)])
         if steps.size == 0 or not np.all((steps > 0) & (steps <= 1)):
             raise InvalidArgumentError(
                 "step_sizes must be a non-empty sequence of numbers in (0, 1], "
