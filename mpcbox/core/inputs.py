@@ -62,7 +62,8 @@ def check_in_range(
     Args:
         name: Argument name for the message.
         ctrl: Controls ``(..., nu)``.
-        low, high: Lower and upper limits ``(nu,)`` (``-inf``/``inf`` where unlimited).
+        low: Lower limits ``(nu,)`` (``-inf`` where unlimited).
+        high: Upper limits ``(nu,)`` (``inf`` where unlimited).
         tolerance: Allowed excess (the finite-difference step: within it, MuJoCo's
             one-sided differences still see the control).
 
