@@ -228,6 +228,7 @@ def run_comparison(
     *,
     controller_defaults: dict[str, dict[str, Any]] | None = None,
     stream=None,
+    command: Sequence[str] | None = None,
 ) -> int:
     """Run :func:`mpcbox.compare` from parsed arguments, print the table and write files.
 
@@ -237,10 +238,17 @@ def run_comparison(
         controller_defaults: Controller option overrides applied to the chosen controllers
             that have an entry (before ``--set``, which must name chosen controllers).
         stream (typing.TextIO | None): Where the table is printed (default: stdout).
+        command: The command line recorded in ``run.json`` (default: ``sys.argv``).
 
     Returns:
         The exit status (0).
     """
+    from mpcbox.cli.outputs import (
+        check_single_run_flags,
+        cpu_reductions,
+        mark_reduced,
+        write_outputs,
+    )
     from mpcbox.comparison.plots import plot_comparison
     from mpcbox.comparison.runner import compare, resolve_controllers
     from mpcbox.comparison.scenario import PushTest
@@ -249,11 +257,15 @@ def run_comparison(
     stream = stream or sys.stdout
     out = check_output_folder(args.out)
     check_arguments(args)
+    check_single_run_flags(args)
     chosen = list(resolve_controllers(task_class(task), args.controllers or None))
-    overrides = {k: dict(v) for k, v in (controller_defaults or {}).items() if k in chosen}
-    for name, options in _parse_sets(args.set).items():
+    defaults = {k: dict(v) for k, v in (controller_defaults or {}).items() if k in chosen}
+    overrides = {k: dict(v) for k, v in defaults.items()}
+    sets = _parse_sets(args.set)
+    for name, options in sets.items():
         check_options(name, options, chosen)
         overrides.setdefault(name, {}).update(options)
+    reductions = cpu_reductions(task_class(task), defaults, sets)
     task_options = {name: getattr(args, name) for name in _task_parameters(task)}
     push_tests = ()
     if args.largest_push:
@@ -290,14 +302,31 @@ def run_comparison(
         f"{args.duration:g} s per run, {elapsed:.1f} s wall\n",
         file=stream,
     )
-    table = result.to_markdown()
+    table = mark_reduced(result.to_markdown(), reductions)
     print(table, file=stream)
     (out / "results.md").write_text(table + "\n")
     result.to_csv(out / "results.csv")
     written = [out / "results.md", out / "results.csv"]
     if args.plots:
         written += plot_comparison(result, out)
-    print("\nwrote " + ", ".join(str(p) for p in written), file=stream)
+    written += write_outputs(
+        result,
+        args,
+        task=task,
+        task_options=task_options,
+        overrides=overrides,
+        reductions=reductions,
+        command=command,
+    )
+    folder = out / "trajectories"
+    direct = [p for p in written if p.parent == out]
+    traced = [p for p in written if p.parent == folder and p.suffix == ".csv"]
+    print("\nwrote " + ", ".join(str(p) for p in direct), file=stream)
+    if traced:
+        print(f"saved {len(traced)} trajectories in {folder} (mpcbox replay FILE)", file=stream)
+    for path in written:
+        if path.parent not in (out, folder):
+            print(f"wrote {path}", file=stream)
     failed = {r.controller: r.failure for r in result.runs if r.failure}
     for name, reason in failed.items():
         print(f"{name}: first failure: {reason}", file=stream)

@@ -30,12 +30,14 @@ class Trace(NamedTuple):
         series: Samples ``(T,)`` of each task measure, by measure name, in its unit.
         ctrls: Applied controls ``(T, nu)``.
         ctrl_ref: The problem's reference control ``(nu,)``.
+        states: States ``(T, nstate)`` (for saving the trajectory), or ``None``.
     """
 
     time: np.ndarray
     series: dict[str, np.ndarray]
     ctrls: np.ndarray
     ctrl_ref: np.ndarray
+    states: np.ndarray | None = None
 
 
 class Run(NamedTuple):

@@ -118,7 +118,7 @@ class _Runner:
         )
         trace = None
         if job.seed == self.setup.trace_seed:
-            trace = Trace(res.time, res.series, res.ctrls, problem.ctrl_ref.copy())
+            trace = Trace(res.time, res.series, res.ctrls, problem.ctrl_ref.copy(), res.states)
         run = Run(
             job.controller,
             job.scenario,
