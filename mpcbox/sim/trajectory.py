@@ -36,6 +36,7 @@ from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, MpcboxError
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.simulation import SimulationResult
+from mpcbox.validation import as_array
 
 #: ``format`` entry of the JSON sidecar.
 FORMAT = "mpcbox-trajectory"
@@ -81,12 +82,12 @@ class Trajectory(NamedTuple):
 
 
 class Replay(NamedTuple):
-    """An open-loop re-simulation of a :class:`Trajectory`.
+    r"""An open-loop re-simulation of a :class:`Trajectory`.
 
     Attributes:
         time: Times ``(T,)`` (s).
         states: States ``(T, nstate)`` of the re-simulation.
-        final_error: :math:`\\max_i |x_{T-1,i} - \\hat x_{T-1,i}|` between the replayed and the
+        final_error: :math:`\max_i |x_{T-1,i} - \hat x_{T-1,i}|` between the replayed and the
             saved final state (0 when bit-exact; NaN where either is not finite).
     """
 
@@ -167,8 +168,6 @@ def make_trajectory(
     Raises:
         ShapeError: If the arrays do not match the problem's sizes or each other.
     """
-    from mpcbox.validation import as_array
-
     time = as_array("time", time, (None,))
     steps = len(time)
     if steps == 0:
