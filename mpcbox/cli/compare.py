@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from mpcbox.cli.checks import check_arguments, check_options, check_output_folder
-from mpcbox.errors import MpcboxError, UnknownNameError
+from mpcbox.errors import InvalidArgumentError, MpcboxError, UnknownNameError
 
 #: Defaults of ``mpcbox compare``; :func:`run_task_script` takes overrides by these names.
 DEFAULTS: dict[str, Any] = {
@@ -48,6 +48,8 @@ DEFAULTS: dict[str, Any] = {
     "push_tolerance": 2.0,
     "set": (),
     "workers": 0,
+    "executor": "",
+    "address": None,
     "out": "results",
     "plots": True,
     "progress": True,
@@ -152,6 +154,19 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
         help="controller option override, e.g. mppi.num_samples=256 (repeatable)",
     )
     add("--workers", type=int, default=d["workers"], help="worker processes (0: one per core)")
+    add(
+        "--executor",
+        default=d["executor"],
+        metavar="NAME",
+        help="where runs go: serial, processes (default with --workers) or ray "
+        '(pip install "mpcbox[ray]")',
+    )
+    add(
+        "--address",
+        default=d["address"],
+        metavar="auto|HOST:PORT",
+        help="Ray cluster to join with --executor ray (default: start a local Ray)",
+    )
     add("--out", default=d["out"], help="output folder")
     add("--plots", action=argparse.BooleanOptionalAction, default=d["plots"], help="write PNGs")
     add(
@@ -291,6 +306,8 @@ def run_comparison(
         problem_options=task_options,
         controller_options=overrides,
         workers=args.workers or None,
+        executor=_executor(args),
+        checkpoint=out / "runs",
         progress=args.progress,
     )
     elapsed = time.perf_counter() - t0
@@ -327,10 +344,26 @@ def run_comparison(
     for path in written:
         if path.parent not in (out, folder):
             print(f"wrote {path}", file=stream)
+    places = ", ".join(f"{n} on {where}" for where, n in result.placement.items())
+    print(f"jobs: {places}", file=stream)
     failed = {r.controller: r.failure for r in result.runs if r.failure}
     for name, reason in failed.items():
         print(f"{name}: first failure: {reason}", file=stream)
     return 0
+
+
+def _executor(args: argparse.Namespace) -> Any:
+    """The executor of ``--executor`` and ``--address`` (``None``: from ``--workers``)."""
+    from mpcbox.comparison.executors import EXECUTORS, RayExecutor
+
+    name = args.executor or None
+    if args.address is not None and name != "ray":
+        raise InvalidArgumentError("--address needs --executor ray")
+    if name is not None and name not in EXECUTORS:
+        raise UnknownNameError("--executor", name, EXECUTORS)
+    if name == "ray":
+        return RayExecutor(address=args.address, workers=args.workers or None)
+    return name
 
 
 def quick_sampling_options() -> dict[str, dict]:
