@@ -862,6 +862,8 @@ TARGETS: list[Target] = [
                 Bad({"nope": {}}), Bad({"lqr": {"bogus_option": 1}}), Bad(42, True)
             ),
             "workers": opt(integer),
+            "executor": opt(choice),
+            "checkpoint": only(Bad(42, True), Bad(["a"], True)),
             "progress": boolean,
         },
         labels={"problem": "task"},

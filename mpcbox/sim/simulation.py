@@ -102,6 +102,10 @@ class SimulationResult:
         series: Samples ``(T,)`` of each task measure, by measure name, in its unit.
         measures: The task's measures (:meth:`~mpcbox.Problem.measures`).
         controller_stats: The controller's ``stats`` after the run.
+        pushes: The pushes applied during the run.
+        mismatch: The model mismatch of the simulated plant, or ``None``.
+        noise: The actuator noise (already added to ``ctrls``), or ``None``.
+        seed: Seed of the noise.
     """
 
     problem: str
@@ -115,6 +119,10 @@ class SimulationResult:
     series: dict[str, np.ndarray] = field(default_factory=dict)
     measures: tuple[Measure, ...] = ()
     controller_stats: dict[str, float] = field(default_factory=dict)
+    pushes: tuple[Push, ...] = ()
+    mismatch: ModelMismatch | None = None
+    noise: ActuatorNoise | None = None
+    seed: int = 0
 
     @property
     def survived(self) -> bool:
@@ -328,6 +336,10 @@ def simulate(
         series=series,
         measures=measures,
         controller_stats=stats,
+        pushes=tuple(pushes),
+        mismatch=mismatch,
+        noise=noise,
+        seed=seed,
     )
 
 
