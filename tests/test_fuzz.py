@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 import mpcbox
+from mpcbox.comparison.executors import RayExecutor
 from mpcbox.comparison.push_limits import largest_push, push_grid, survival
 from mpcbox.comparison.scenario import PushTest, Scenario
 from mpcbox.controllers.sampling.config import Randomization
@@ -40,6 +41,7 @@ from mpcbox.core.cost import (
 from mpcbox.core.equilibrium import find_equilibrium
 from mpcbox.core.posture import stance_posture
 from mpcbox.registry import controller_class, make_controller, task_class
+from mpcbox.sim.trajectory import load_trajectory, replay, trajectory_from_result
 from mpcbox.tasks import scene_path
 
 SEED = 20261122
@@ -221,6 +223,8 @@ class Context:
         self.x0 = self.pendulum.reference_state()
         self.u0 = np.zeros(1)
         self.humanoid_model = mpcbox.Problem(HUMANOID, keyframe="stand").model
+        run = mpcbox.simulate(self.pendulum, self.lqr, 0.03)
+        self.trajectory = trajectory_from_result(run, self.pendulum)
 
 
 def problem_type(optional=False) -> Callable:
@@ -867,6 +871,34 @@ TARGETS: list[Target] = [
             "progress": boolean,
         },
         labels={"problem": "task"},
+        options=True,
+    ),
+    Target(
+        "RayExecutor",
+        lambda ctx, **kw: RayExecutor(**kw),
+        lambda ctx: {},
+        {
+            "address": opt(text),
+            "workers": opt(integer),
+            "cpus_per_run": positive,
+            "gpus_per_run": opt(nonneg),
+            "max_restarts": lambda rng: integer(rng, minimum=0),
+            "max_task_retries": lambda rng: integer(rng, minimum=0),
+        },
+        options=True,
+    ),
+    Target(
+        "load_trajectory",
+        lambda ctx, **kw: load_trajectory(**kw),
+        lambda ctx: {},
+        {"path": only(Bad("/no/such/run"), Bad(42, True), Bad(None, True))},
+        options=True,
+    ),
+    Target(
+        "replay",
+        lambda ctx, **kw: replay(**kw),
+        lambda ctx: {"traj": ctx.trajectory, "problem": ctx.pendulum},
+        {"traj": instance(), "problem": problem_type()},
         options=True,
     ),
     # ------------------------------------------------------------------ core functions
