@@ -759,8 +759,6 @@ TARGETS: list[Target] = [
             "degraded_limit": unit,
         },
         options=True,
-        pending="simulate's own checks live in mpcbox/sim/simulation.py, which this branch "
-        "leaves to the lead (see the badinput report for the patch)",
     ),
     Target(
         "Scenario",
