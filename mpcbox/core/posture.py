@@ -248,7 +248,7 @@ def reach_posture(
         quat = quat / norm
     positive_int("iterations", iterations)
     positive("tolerance", tolerance)
-    name, kind = _mink_frame(model, frame)
+    name, kind = _mink_frame(model, frame, "frame")
     config = mink.Configuration(model, q=qpos_init.copy())
     task = mink.FrameTask(
         name, kind, position_cost=1.0, orientation_cost=0.0 if orientation is None else 0.5
