@@ -150,7 +150,7 @@ def test_unknown_names_list_the_valid_ones(balance):
 
 
 def test_columns_follow_the_task_measures():
-    """A swing-up declares no measures (no COM or tilt columns) and has no noise model."""
+    """A swing-up measures its upright error (no COM or tilt columns), and has no noise model."""
     with pytest.raises(InvalidArgumentError, match="no noise model"):
         compare("pendulum_swingup", ["lqr"], Scenario(duration=0.1), seeds=1, progress=False)
     result = compare(
@@ -161,8 +161,8 @@ def test_columns_follow_the_task_measures():
         workers=1,
         progress=False,
     )
-    assert result.measures == ()
-    assert result.runs[0].metrics.measures == {}
+    assert [m.name for m in result.measures] == ["upright_error"]
+    assert set(result.runs[0].metrics.measures) == {"upright_error_final_rad"}
     assert np.isfinite(result.runs[0].metrics.cost)
     header = result.to_markdown().splitlines()[0]
     assert "COM" not in header and "tilt" not in header
