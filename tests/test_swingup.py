@@ -13,8 +13,8 @@ from mpcbox.controllers.ilqr.controller import ILQR
 from mpcbox.controllers.ilqr.result import StopReason
 from mpcbox.core.cost import ControlCost, Cost, StateCost, WrappedAngle
 from mpcbox.errors import InvalidArgumentError, PlanningModelWarning, UnknownNameError
-from mpcbox.tasks import scene_path
 from mpcbox.registry import task_class
+from mpcbox.tasks import scene_path
 from mpcbox.tasks.swingup import CartpoleSwingup, PendulumSwingup, Swingup, SwingupWeights
 
 
@@ -132,7 +132,7 @@ def test_names_that_do_not_exist_list_the_choices() -> None:
         Swingup(path)
     with pytest.raises(InvalidArgumentError, match="tolerance"):
         Swingup(path, joints=["hinge_1"], tolerance=0.0)
-    with pytest.raises(InvalidArgumentError, match="weights.angle"):
+    with pytest.raises(InvalidArgumentError, match=r"weights\.angle"):
         SwingupWeights(angle=-1.0)
     with pytest.raises(UnknownNameError, match="dm_nope") as info:
         task_class("dm_nope")

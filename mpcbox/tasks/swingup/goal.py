@@ -6,9 +6,9 @@ sites with target heights or positions. The *upright error* of a state is
 * with joints: :math:`e = \max_j |\mathrm{wrap}(q_j - q_j^\star)|` in radians, with
   :math:`\mathrm{wrap}` onto :math:`[-\pi, \pi]`, so every turn of the target counts as
   upright;
-* with sites only: :math:`e = \max_s d_s` in meters, :math:`d_s` the site's distance from
-  its target height (:math:`|z_s - z_s^\star|`) or target position
-  (:math:`\lVert p_s - p_s^\star \rVert`).
+* with sites (only sites named, or ``by="sites"``): :math:`e = \max_s d_s` in meters,
+  :math:`d_s` the site's distance from its target height (:math:`|z_s - z_s^\star|`) or
+  target position (:math:`\lVert p_s - p_s^\star \rVert`).
 
 The goal is met at the end of a run when :math:`e \le` ``tolerance`` over the final ``hold``
 seconds.
@@ -25,7 +25,7 @@ import numpy as np
 from mpcbox.core.model import frame_object, frame_position, object_id
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.sim.measures import Measure
-from mpcbox.validation import as_array, positive
+from mpcbox.validation import as_array, one_of, positive
 
 #: Default tolerance of a goal given by joints (rad) and by sites only (m).
 DEFAULT_TOLERANCE = {"rad": 0.2, "m": 0.1}
@@ -51,6 +51,8 @@ class UprightGoal:
         tolerance: Largest upright error counted as upright (rad with joints, m with sites
             only); default :data:`DEFAULT_TOLERANCE`.
         hold: Seconds the error must stay within ``tolerance`` at the end of a run.
+        by: ``"joints"`` or ``"sites"``: what the upright error measures (default: the
+            joints when any are named).
 
     Raises:
         InvalidArgumentError: If neither joints nor sites are named, a joint is not a hinge,
@@ -66,6 +68,7 @@ class UprightGoal:
         sites: Mapping[str, float | np.ndarray],
         tolerance: float | None = None,
         hold: float = 1.0,
+        by: str | None = None,
     ) -> None:
         if not joints and not sites:
             raise InvalidArgumentError(
@@ -93,8 +96,14 @@ class UprightGoal:
                     f"(3,), got shape {value.shape}"
                 )
             self.sites[str(name)] = as_array(f"sites[{name!r}]", value, value.shape)
-        #: Unit of the upright error: ``"rad"`` with joints, ``"m"`` with sites only.
-        self.unit = "rad" if self.joints else "m"
+        by = ("joints" if self.joints else "sites") if by is None else by
+        one_of("goal", by, ("joints", "sites"))
+        if not (self.joints if by == "joints" else self.sites):
+            raise InvalidArgumentError(f"goal={by!r} needs at least one named {by[:-1]}")
+        #: What the upright error measures: ``"joints"`` or ``"sites"``.
+        self.by = by
+        #: Unit of the upright error: ``"rad"`` for joints, ``"m"`` for sites.
+        self.unit = "rad" if by == "joints" else "m"
         self.tolerance = positive(
             "tolerance", DEFAULT_TOLERANCE[self.unit] if tolerance is None else tolerance
         )
@@ -105,7 +114,7 @@ class UprightGoal:
     # ------------------------------------------------------------------ errors
     def qpos_error(self, qpos: np.ndarray) -> float:
         """Upright error of one posture ``(nq,)`` (rad with joints, else m)."""
-        if self.joints:
+        if self.by == "joints":
             angles = qpos[self.qpos_addresses] - np.fromiter(self.joints.values(), float)
             return float(np.max(np.abs(wrap_angle(angles))))
         if self._data is None:
@@ -162,7 +171,7 @@ class UprightGoal:
 
     def describe(self) -> str:
         """A short description, e.g. ``"hinge_1 at 3.14 rad"`` or ``"tip at height 4 m"``."""
-        if self.joints:
+        if self.by == "joints":
             return ", ".join(f"{j} at {t:.3g} rad" for j, t in self.joints.items())
         return ", ".join(
             f"{s} at height {t:.3g} m" if t.ndim == 0 else f"{s} at {np.round(t, 3).tolist()} m"

@@ -71,6 +71,8 @@ class Swingup(Problem):
         tolerance: Upright error counted as upright (rad with joints, else m); default 0.2
             rad or 0.1 m.
         hold: Seconds the chain must stay upright at the end of a run.
+        goal: ``"joints"`` or ``"sites"``: which of the named objects define the upright
+            error and success when both are named (default: the joints when any are named).
         weights: The cost weights (:class:`SwingupWeights`).
         controller_configs: Tuned config objects per controller name for this instance
             (default: the class's).
@@ -95,6 +97,7 @@ class Swingup(Problem):
         initial: str | int | np.ndarray = "hanging",
         tolerance: float | None = None,
         hold: float = 1.0,
+        goal: str | None = None,
         weights: SwingupWeights | None = None,
         controller_configs: Mapping[str, Any] | None = None,
         **kwargs: Any,
@@ -107,7 +110,7 @@ class Swingup(Problem):
             )
         self._sites = dict(sites or {})
         self._initial = initial
-        self._goal_options = {"tolerance": tolerance, "hold": hold}
+        self._goal_options = {"tolerance": tolerance, "hold": hold, "by": goal}
         if weights is None:
             weights = SwingupWeights()
         elif not isinstance(weights, SwingupWeights):
@@ -135,7 +138,8 @@ class Swingup(Problem):
         mujoco.mj_kinematics(model, data)
         for name, target in self._sites.items():
             sites[name] = frame_position(model, data, name)[2] if target is None else target
-        #: The upright posture and the success rule.
+        #: The upright posture and the success rule
+        #: (:class:`~mpcbox.tasks.swingup.goal.UprightGoal`).
         self.goal = UprightGoal(model, joints=self._joints, sites=sites, **self._goal_options)
         self.start_state = self._start_state(model)
         half = 0.5 * (model.actuator_ctrlrange[:, 1] - model.actuator_ctrlrange[:, 0])
