@@ -175,12 +175,16 @@ def test_columns_follow_the_task_measures():
         progress=False,
     )
     assert [m.name for m in result.measures] == ["upright_error"]
-    assert set(result.runs[0].metrics.measures) == {"upright_error_final_rad"}
+    assert set(result.runs[0].metrics.measures) == {
+        "upright_error_final_rad",
+        "upright_error_settle_time_s",
+    }
     assert np.isfinite(result.runs[0].metrics.cost)
     header = result.to_markdown().splitlines()[0]
     assert "COM" not in header and "tilt" not in header
     assert result.to_csv().splitlines()[0] == (
-        "scenario,controller,runs,success_rate,outcomes,mean_time_to_fall,control_effort,"
+        "scenario,controller,runs,success_rate,outcomes,mean_time_to_fall,"
+        "upright_error_final_rad,upright_error_settle_time_s,control_effort,"
         "compute_mean_ms,compute_p99_ms,period_ms,p99_fits,offline_ms,realtime_factor,"
         "fallbacks,fallback_rate"
     )

@@ -88,6 +88,9 @@ def test_a_hanging_pole_at_the_end_is_a_goal_failure() -> None:
     (measure,) = problem.measures()
     data = mujoco_data(problem, hanging[0])
     assert measure.sample(problem.model, data) == pytest.approx(np.pi)
+    errors = problem.upright_errors(up)
+    summary = measure.summarize(errors, time)
+    assert summary == {"upright_error_final_rad": errors[-1], "upright_error_settle_time_s": 0.0}
 
 
 def mujoco_data(problem: mpcbox.Problem, state: np.ndarray):

@@ -183,21 +183,26 @@ class UprightGoal:
 class UprightError(Measure):
     """A swing-up's upright error (:class:`UprightGoal`), in rad (joints) or m (sites).
 
+    Summarized by its final value and its settle time, the time to get within the goal's
+    tolerance for good (NaN when the run ends outside it).
+
     Attributes:
-        goal: The goal whose error is sampled.
+        goal: The goal whose error is sampled; it sets ``unit`` and ``tolerance``.
     """
 
     name: str = "upright_error"
     label: str = "upright error"
-    summaries: tuple[str, ...] = ("final",)
+    summaries: tuple[str, ...] = ("final", "settle_time")
     goal: UprightGoal | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
-        super().__post_init__()
-        if self.goal is None:
+        if not isinstance(self.goal, UprightGoal):
             raise InvalidArgumentError("goal must be an UprightGoal")
         if not self.unit:
             object.__setattr__(self, "unit", self.goal.unit)
+        if self.tolerance is None:
+            object.__setattr__(self, "tolerance", self.goal.tolerance)
+        super().__post_init__()
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> float:
         assert self.goal is not None
