@@ -76,9 +76,8 @@ class Swingup(Problem):
         weights: The cost weights (:class:`SwingupWeights`).
         controller_configs: Tuned config objects per controller name for this instance
             (default: the class's).
-        name: Label in tables (default ``"swingup"``).
         **kwargs: Passed to :class:`~mpcbox.Problem` (``keyframe``, ``qpos_ref``,
-            ``planning_timestep``, ...).
+            ``planning_timestep``, ``name`` (default ``"swingup"``), ...).
 
     Raises:
         InvalidArgumentError: If nothing is named upright, a joint is not a hinge, or an
