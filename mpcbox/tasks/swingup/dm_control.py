@@ -95,6 +95,10 @@ class DmAcrobotSwingup(Swingup):
     the two wrapped angles the hanging rest is a local minimum (leaving it bends the elbow
     away from its upright angle 0), while under the tip's distance it is a saddle.
 
+    Not yet solved: the tuned iLQR-MPC and MPPI pump energy but settle into a local minimum
+    of this cost, one link up and the other down, and do not reach the target within 5 s
+    (``benchmarks/swingup_dm_control.py``).
+
     Args:
         **kwargs: Passed to :class:`~mpcbox.tasks.swingup.task.Swingup`.
     """
