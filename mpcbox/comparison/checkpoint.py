@@ -14,7 +14,7 @@ import pickle
 from pathlib import Path
 
 from mpcbox.comparison.jobs import Done, Job, Setup
-from mpcbox.errors import InvalidArgumentError
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError
 
 
 class Checkpoint:
@@ -30,6 +30,8 @@ class Checkpoint:
     """
 
     def __init__(self, folder: str | Path, setup: Setup) -> None:
+        if not isinstance(folder, (str, Path)):
+            raise InvalidTypeError(f"checkpoint must be a folder path, got {type(folder).__name__}")
         root = Path(folder)
         if root.exists() and not root.is_dir():
             raise InvalidArgumentError(f"checkpoint must be a folder, got the file {folder}")

@@ -23,7 +23,14 @@ from dataclasses import dataclass
 from mpcbox.comparison.jobs import Done, Job, Setup, Worker
 from mpcbox.core.problem import Problem
 from mpcbox.errors import BackendUnavailableError, InvalidArgumentError
-from mpcbox.validation import positive_int
+from mpcbox.validation import (
+    checked_options,
+    integer,
+    non_negative,
+    positive,
+    positive_int,
+    string,
+)
 
 
 class Executor(abc.ABC):
@@ -71,6 +78,7 @@ def _run_in_worker(job: Job) -> Done:
     return _WORKER(job)
 
 
+@checked_options
 @dataclass(frozen=True, kw_only=True)
 class ProcessExecutor(Executor):
     """A pool of ``workers`` spawned processes on this machine (default: one per core)."""
@@ -115,6 +123,7 @@ class _RayWorker:
         return done._replace(where=f"{host} node {node}" + (f" gpu {gpu}" if gpu else ""))
 
 
+@checked_options
 @dataclass(frozen=True, kw_only=True)
 class RayExecutor(Executor):
     """Ray actors, one job at a time each, on a local or remote Ray cluster.
@@ -139,20 +148,15 @@ class RayExecutor(Executor):
     name = "ray"
 
     def __post_init__(self) -> None:
-        if self.address is not None and not (isinstance(self.address, str) and self.address):
-            raise InvalidArgumentError(
-                f"address must be 'auto', 'HOST:PORT' or None, got {self.address!r}"
-            )
-        if not self.cpus_per_run > 0:
-            raise InvalidArgumentError(f"cpus_per_run must be > 0, got {self.cpus_per_run!r}")
-        if self.gpus_per_run is not None and not self.gpus_per_run >= 0:
-            raise InvalidArgumentError(f"gpus_per_run must be >= 0, got {self.gpus_per_run!r}")
+        if self.address is not None and not string("address", self.address):
+            raise InvalidArgumentError("address must be 'auto', 'HOST:PORT' or None, got ''")
+        positive("cpus_per_run", self.cpus_per_run)
+        if self.gpus_per_run is not None:
+            non_negative("gpus_per_run", self.gpus_per_run)
         if self.workers is not None:
             positive_int("workers", self.workers)
         for name in ("max_restarts", "max_task_retries"):
-            value = getattr(self, name)
-            if not (isinstance(value, int) and value >= 0):
-                raise InvalidArgumentError(f"{name} must be an integer >= 0, got {value!r}")
+            integer(name, getattr(self, name))
 
     def run(
         self, setup: Setup, jobs: Sequence[Job], problem: Problem | None = None

@@ -37,6 +37,7 @@ from mpcbox.comparison.jobs import Done, Job, Setup, picklable
 from mpcbox.comparison.push_limits import PushLimit
 from mpcbox.comparison.report import Comparison
 from mpcbox.comparison.scenario import PushTest, Scenario, check_noise_models
+from mpcbox.config import check_option_names
 from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError, UnknownNameError
@@ -44,9 +45,11 @@ from mpcbox.registry import (
     CONTROLLERS,
     TASKS,
     available_controllers,
+    controller_class,
     task_class,
 )
-from mpcbox.validation import positive_int
+from mpcbox.validation import boolean, check_class_options, checked_keywords, integers, positive_int
+from mpcbox.validation import instance as instance_of
 
 ControllerFactory = Callable[[Problem], Controller]
 ControllerSpec = str | Controller | ControllerFactory
@@ -81,15 +84,19 @@ def resolve_controllers(
             )
     elif isinstance(controllers, str):
         controllers = [c.strip() for c in controllers.split(",") if c.strip()]
+    elif not isinstance(controllers, Sequence):
+        raise InvalidTypeError(
+            f"controllers must be a sequence of controllers, got {type(controllers).__name__}"
+        )
     if len(controllers) == 0:
         raise InvalidArgumentError("controllers must hold at least one controller")
     out: dict[str, ControllerSpec] = {}
     for i, spec in enumerate(controllers):
         if isinstance(spec, str):
             if spec not in CONTROLLERS:
-                raise UnknownNameError("controller", spec, CONTROLLERS)
+                raise UnknownNameError("controller", spec, CONTROLLERS, "controllers")
         elif not (isinstance(spec, Controller) or callable(spec)):
-            raise InvalidArgumentError(
+            raise InvalidTypeError(
                 "controllers must hold names, mpcbox.Controller instances or factories "
                 f"problem -> Controller, got {type(spec).__name__}"
             )
@@ -100,6 +107,7 @@ def resolve_controllers(
     return out
 
 
+@checked_keywords
 def compare(
     problem: Problem | str,
     controllers: Sequence[ControllerSpec] | str | None = None,
@@ -166,33 +174,47 @@ def compare(
             raise InvalidArgumentError("problem_options only applies when problem is a task name")
         instance, task, problem_class, problem_name = problem, None, type(problem), problem.name
     else:
-        raise InvalidArgumentError(
+        raise InvalidTypeError(
             f"problem must be an mpcbox.Problem or a task name ({', '.join(TASKS)}), "
             f"got {type(problem).__name__}"
         )
+    if problem_options is not None:
+        instance_of("problem_options", problem_options, Mapping, "a mapping of options")
+        check_class_options(problem_class, problem_options, f"problem_options ({problem})")
     specs = resolve_controllers(instance or problem_class, controllers)
+    if controller_options is not None:
+        instance_of("controller_options", controller_options, Mapping, "a mapping of mappings")
     overrides = {k: dict(v) for k, v in (controller_options or {}).items()}
-    for name in overrides:
+    for name, options in overrides.items():
         if name not in specs:
             raise UnknownNameError("controller in controller_options", name, specs)
+        spec = specs[name]
+        if isinstance(spec, str) and controller_class(spec).config_class is not None:
+            check_option_names(
+                controller_class(spec).config_class, options, f"controller_options[{name!r}]"
+            )
 
     if scenarios is None:
         scenarios = (Scenario(),)
     elif isinstance(scenarios, Scenario):
         scenarios = (scenarios,)
-    scenarios = tuple(scenarios)
-    if not scenarios or not all(isinstance(s, Scenario) for s in scenarios):
+    elif not isinstance(scenarios, Sequence):
+        raise InvalidTypeError(
+            f"scenarios must be Scenario objects, got {type(scenarios).__name__}"
+        )
+    scenarios = tuple(instance_of("scenarios", s, Scenario, "mpcbox.Scenario") for s in scenarios)
+    if not scenarios:
         raise InvalidArgumentError("scenarios must hold at least one mpcbox.Scenario")
-    seed_list = (
-        tuple(range(positive_int("seeds", seeds)))
-        if isinstance(seeds, int | np.integer)
-        else tuple(int(s) for s in seeds)
+    seed_list = tuple(
+        range(positive_int("seeds", seeds))
+        if isinstance(seeds, int | np.integer) and not isinstance(seeds, bool)
+        else integers("seeds", seeds)
     )
-    if not seed_list:
-        raise InvalidArgumentError("seeds must hold at least one seed")
-    tests = (push_tests,) if isinstance(push_tests, PushTest) else tuple(push_tests)
-    if not all(isinstance(t, PushTest) for t in tests):
-        raise InvalidArgumentError("push_tests must hold mpcbox.comparison.scenario.PushTest")
+    tests = (push_tests,) if isinstance(push_tests, PushTest) else push_tests
+    if not isinstance(tests, Sequence):
+        raise InvalidTypeError(f"push_tests must be PushTest objects, got {type(tests).__name__}")
+    tests = tuple(instance_of("push_tests", t, PushTest, "mpcbox PushTest objects") for t in tests)
+    progress = boolean("progress", progress)
     labels = [t.label for t in tests]
     if len(set(labels)) != len(labels):
         raise InvalidArgumentError(f"push_tests need distinct labels, got {labels}")

@@ -33,10 +33,10 @@ import numpy as np
 
 from mpcbox.core.model import object_id
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError, MpcboxError
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError, MpcboxError
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.simulation import SimulationResult
-from mpcbox.validation import as_array
+from mpcbox.validation import as_array, checked_keywords, instance
 
 #: ``format`` entry of the JSON sidecar.
 FORMAT = "mpcbox-trajectory"
@@ -287,6 +287,8 @@ def _disturbances(traj: Trajectory) -> dict[str, Any]:
 # ------------------------------------------------------------------------------ files
 def trajectory_paths(path: str | Path) -> tuple[Path, Path]:
     """The CSV and JSON paths of a trajectory named ``path`` (with or without a suffix)."""
+    if not isinstance(path, (str, Path)):
+        raise InvalidTypeError(f"path must be a file path, got {type(path).__name__}")
     path = Path(path)
     if path.suffix.lower() in (".csv", ".json"):
         path = path.with_suffix("")
@@ -305,6 +307,7 @@ def _columns(traj: Trajectory) -> list[str]:
     return cols
 
 
+@checked_keywords
 def save_trajectory(traj: Trajectory, path: str | Path) -> tuple[Path, Path]:
     """Write ``traj`` as ``PATH.csv`` and ``PATH.json`` (a ``.csv``/``.json`` suffix is dropped).
 
@@ -356,6 +359,7 @@ _SHARED |= {"final_time", "initial_state", "measures", "sites", "seed", "pushes"
 _SHARED |= {"noise", "mismatch"}
 
 
+@checked_keywords
 def load_trajectory(path: str | Path) -> Trajectory:
     """Read a trajectory written by :func:`save_trajectory`.
 
@@ -373,7 +377,7 @@ def load_trajectory(path: str | Path) -> Trajectory:
             table = np.loadtxt(f, delimiter=",", ndmin=2, dtype=np.float64)
     except (OSError, ValueError, StopIteration) as exc:
         raise InvalidArgumentError(
-            f"cannot read the trajectory {str(path)!r} ({csv_path.name} + {json_path.name}): "
+            f"path: cannot read the trajectory {str(path)!r} ({csv_path.name} + {json_path.name}): "
             f"{exc or type(exc).__name__}"
         ) from exc
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
@@ -425,6 +429,7 @@ def load_trajectory(path: str | Path) -> Trajectory:
         ) from exc
 
 
+@checked_keywords
 def replay(traj: Trajectory, problem: Problem) -> Replay:
     """Re-simulate ``traj`` open loop on ``problem``'s simulation model.
 
@@ -442,6 +447,8 @@ def replay(traj: Trajectory, problem: Problem) -> Replay:
     Raises:
         InvalidArgumentError: If the problem's sizes or timestep differ from the saved ones.
     """
+    instance("traj", traj, Trajectory, "an mpcbox Trajectory (load_trajectory)")
+    instance("problem", problem, Problem, "an mpcbox.Problem")
     model = problem.model if traj.mismatch is None else traj.mismatch.apply(problem.model)
     saved = {k: traj.metadata.get(k) for k in ("nq", "nv", "na", "nu", "timestep")}
     have = {
