@@ -114,6 +114,20 @@ def test_site_goal_and_hanging_start_by_lowest_center_of_mass() -> None:
     assert problem.goal_failure(*run_of(problem, np.zeros(5))).startswith(
         "not upright at the end: 1 m from upright (tolerance 0.1 m)"
     )
+    both = Swingup(
+        str(scene_path("pendulum.xml")), joints=["hinge"], sites={"tip": None}, keyframe="up"
+    )
+    assert both.goal.unit == "rad" and both.upright_error(both.initial_state()) == np.pi
+    by_site = Swingup(
+        str(scene_path("pendulum.xml")),
+        joints=["hinge"],
+        sites={"tip": None},
+        keyframe="up",
+        goal="sites",
+    )
+    assert by_site.upright_error(by_site.initial_state()) == pytest.approx(1.0)
+    with pytest.raises(InvalidArgumentError, match="goal"):
+        Swingup(str(scene_path("pendulum.xml")), joints=["hinge"], goal="sites")
     cartpole = Swingup(str(scene_path("cartpole.xml")), joints=["hinge_1"], initial="up")
     np.testing.assert_allclose(cartpole.initial_state()[:2], [0.0, np.pi])
 

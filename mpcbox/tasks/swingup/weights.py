@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, fields
 
 from mpcbox.errors import InvalidArgumentError
@@ -47,7 +48,7 @@ class SwingupWeights:
     def __post_init__(self) -> None:
         for spec in fields(self):
             value = getattr(self, spec.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
                 raise InvalidArgumentError(
                     f"weights.{spec.name} must be a number >= 0, got {value!r}"
                 )
