@@ -15,7 +15,8 @@ from mpcbox.tasks.humanoid.base import HumanoidProblem
 
 
 class HumanoidStand(HumanoidProblem):
-    r"""Keep a humanoid standing on both feet (keyframe ``stand`` of the humanoid scene).
+    r"""Keep a humanoid standing on both feet (keyframe ``stand`` of the humanoid scene): a
+    preset of :class:`~mpcbox.tasks.legged.LeggedBalance` with a cost of its own.
 
     The reference posture is the keyframe with the root height adjusted until the contacts
     carry the weight, and the reference control holds it (:func:`~mpcbox.find_equilibrium`).
@@ -46,7 +47,8 @@ class HumanoidStand(HumanoidProblem):
         balance_cost: Weight :math:`w_b` of the centre of mass over each foot (0 drops it).
         terminal_scale: Multiplier of the terminal cost.
         fall_height: The run fails when the torso is lower than this (m).
-        **kwargs: Passed to :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
+        **kwargs: Passed to :class:`~mpcbox.tasks.legged.LeggedBalance` and
+            :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
     """
 
     name = "humanoid_stand"
@@ -90,7 +92,7 @@ class HumanoidStand(HumanoidProblem):
         fall_height: float = 0.9,
         **kwargs: Any,
     ) -> None:
-        self.weights = dict(
+        self.stand_weights = dict(
             height=height_cost,
             upright=upright_cost,
             posture=posture_cost,
@@ -100,19 +102,32 @@ class HumanoidStand(HumanoidProblem):
             balance=balance_cost,
             terminal=terminal_scale,
         )
-        self.fall_height = float(fall_height)
         kwargs.setdefault("keyframe", "stand")
-        super().__init__(scene_path("humanoid.xml") if model is None else model, **kwargs)
+        super().__init__(
+            scene_path("humanoid.xml") if model is None else model,
+            feet=("foot_left", "foot_right"),
+            root="torso",
+            fall_height=fall_height,
+            support="feet",
+            contacts=("body:foot_left", "body:foot_right"),
+            balance_cost=balance_cost,
+            joint_cost=posture_cost,
+            velocity_cost=velocity_cost,
+            ctrl_cost=ctrl_cost,
+            ctrl_units="control",
+            **kwargs,
+        )
+        self.weights = self.stand_weights
 
     def prepare(self, model: mujoco.MjModel) -> None:
         super().prepare(model)
         data = mujoco.MjData(model)
         data.qpos[:] = self.qpos_ref
         mujoco.mj_kinematics(model, data)
-        self.torso_height = float(data.xpos[self._torso, 2])
+        self.torso_height = float(data.xpos[self.root_id, 2])
 
     def _terms(self, model: mujoco.MjModel, scale: float, suffix: str) -> list:
-        w = self.weights
+        w = self.stand_weights
         wq = np.full(model.nv, w["posture"])
         for j in range(model.njnt):
             if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
@@ -144,10 +159,6 @@ class HumanoidStand(HumanoidProblem):
         ]
 
     def build_cost(self, model: mujoco.MjModel) -> Cost:
-        control = ControlCost(self.ctrl_ref, weight=self.weights["ctrl"])
+        control = ControlCost(self.ctrl_ref, weight=self.stand_weights["ctrl"])
         running = [*self._terms(model, 1.0, ""), control]
-        return Cost(running, self._terms(model, self.weights["terminal"], "_terminal"))
-
-    def support_frames(self) -> tuple[str, ...]:
-        """The two foot sites (their midpoint is the support point)."""
-        return ("foot_left", "foot_right")
+        return Cost(running, self._terms(model, self.stand_weights["terminal"], "_terminal"))
