@@ -83,7 +83,9 @@ def plot_measures(results: Sequence[SimulationResult], path: str | Path, title: 
     fig, axes = plt.subplots(len(measures), 1, figsize=(9, 3 * len(measures)), sharex=True)
     axes = np.atleast_1d(axes)
     for res in results:
-        label = res.controller + ("" if res.survived else f" (fell at {res.time[-1]:.2f} s)")
+        label = res.controller + (
+            "" if res.metrics.success else f" ({res.metrics.outcome} at {res.time[-1]:.2f} s)"
+        )
         for ax, measure in zip(axes, measures):
             ax.plot(res.time, res.series[measure.name] * measure.display_scale, label=label)
     for ax, measure in zip(axes, measures):
@@ -163,7 +165,7 @@ def plot_survival(comparison: Comparison, path: str | Path) -> Path:
                 if s.noise_scale == scale and any(s is u for u in used)
                 for r in comparison.runs_of(name, i)
             ]
-            rates.append(100.0 * np.mean([r.metrics.survived for r in runs]) if runs else np.nan)
+            rates.append(100.0 * np.mean([r.metrics.success for r in runs]) if runs else np.nan)
         ax.plot(scales, rates, marker="o", label=name)
     ax.set_xlabel("noise scale (x recipe)")
     ax.set_ylabel(f"success rate over {len(comparison.seeds)} seeds (%)")

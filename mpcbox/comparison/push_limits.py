@@ -2,7 +2,9 @@
 over a grid of push forces (which shows whether survival is monotone in the force).
 
 The pushes are described by :class:`~mpcbox.comparison.scenario.PushTest`, the same object
-that :func:`mpcbox.compare` takes.
+that :func:`mpcbox.compare` takes. A run "survives" here when its outcome is ``"success"``
+(:data:`mpcbox.sim.simulation.OUTCOMES`): a run that diverged, or whose controller fell back
+on most calls, does not count, whatever the state at the end.
 """
 
 from __future__ import annotations
@@ -121,7 +123,7 @@ def survival(
             mismatch=mismatch,
             seed=int(seed),
         )
-        survived.append(res.metrics.survived)
+        survived.append(res.metrics.success)
         times.append(res.metrics.time_to_fall)
     surv, t = np.array(survived), np.array(times)
     return SurvivalSummary(seeds, surv, t, float(surv.mean()), float(t.mean()))
@@ -181,7 +183,7 @@ def push_grid(
 
         iterator = tqdm(grid, desc=f"{getattr(controller, 'name', 'controller')} push grid")
     results = [trial(float(f)) for f in iterator]
-    survived = np.array([r.survived for r in results], dtype=bool)
+    survived = np.array([r.metrics.success for r in results], dtype=bool)
     times = np.array([r.metrics.time_to_fall for r in results])
     return summarize_push_grid(grid, survived, times)
 
@@ -239,7 +241,7 @@ def largest_push(
     def survives(force: float) -> bool:
         nonlocal count
         count += 1
-        return trial(force).survived
+        return trial(force).metrics.success
 
     if not survives(0.0):
         return PushLimit(0.0, 0.0, 0.0, count)

@@ -189,7 +189,9 @@ class IpoptController(Controller):
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
         p = self.problem
         state = as_array("state", state, (p.nstate,))
+        self.last_call = "solve"
         if self._K is None or time < self._plan_time - 1e-9:
+            self.last_call = "offline"
             try:
                 self.plan(state)
             except (SolverError, InvalidArgumentError, RuntimeError):

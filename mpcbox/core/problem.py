@@ -42,12 +42,7 @@ from mpcbox.core.model import (
     with_sensors,
 )
 from mpcbox.core.tangent import TangentSpace
-from mpcbox.errors import (
-    DivergenceError,
-    InvalidArgumentError,
-    ModelLoadError,
-    ShapeError,
-)
+from mpcbox.errors import DivergenceError, InvalidArgumentError, ModelLoadError, ShapeError
 from mpcbox.validation import as_array, positive, positive_int
 
 __all__ = ["Linearization", "Problem", "Quadratization", "Rollout"]
@@ -162,18 +157,12 @@ class Problem:
         self.dynamics = Dynamics(self.planning_model, self.threads)
 
     def prepare(self, model: mujoco.MjModel) -> None:
-        """Hook run before the cost is built: set ``qpos_ref`` / ``ctrl_ref`` here.
-
-        Args:
-            model: The compiled model without cost sensors.
-        """
+        """Hook run before the cost is built, on the compiled ``model`` without cost sensors:
+        set ``qpos_ref`` / ``ctrl_ref`` here."""
 
     def build_cost(self, model: mujoco.MjModel) -> Cost:
-        """Default cost: state deviation from the reference plus control effort.
-
-        Args:
-            model: The compiled model without cost sensors.
-        """
+        """Default cost: state deviation from the reference plus control effort (``model``:
+        compiled, without cost sensors)."""
         return Cost(
             [
                 StateCost(self.qpos_ref, weight_qpos=1.0, weight_qvel=0.1),
@@ -413,6 +402,12 @@ class Problem:
         """
         if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
             return "non-finite state"
+        return None
+
+    def goal_failure(self, time: np.ndarray, states: np.ndarray) -> str | None:
+        """Why a run without :meth:`failure` misses the task's goal, or ``None`` (the default:
+        surviving is the goal). ``time`` ``(T,)`` (s) and ``states`` ``(T, nstate)`` are the
+        run's record; swing-up and reach tasks check the final error here."""
         return None
 
     def measures(self) -> Sequence[Any]:
