@@ -129,6 +129,7 @@ class HumanoidBalance(HumanoidProblem):
             velocity_cost=velocity_cost,
             ctrl_cost=ctrl_cost,
             ctrl_units="control",
+            recovery_tilt=None,
             **kwargs,
         )
         self.weights["balance_joint"] = self.balance_joint_cost

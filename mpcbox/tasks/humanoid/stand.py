@@ -115,6 +115,7 @@ class HumanoidStand(HumanoidProblem):
             velocity_cost=velocity_cost,
             ctrl_cost=ctrl_cost,
             ctrl_units="control",
+            recovery_tilt=None,
             **kwargs,
         )
         self.weights = self.stand_weights

@@ -27,7 +27,7 @@ from mpcbox.sim.disturbances import ActuatorNoise
 from mpcbox.sim.effort_noise import effort_noise
 from mpcbox.sim.measures import Measure
 from mpcbox.tasks.legged.feet import Foot, find_feet
-from mpcbox.tasks.legged.measures import balance_measures
+from mpcbox.tasks.legged.measures import Tilt, balance_measures
 from mpcbox.validation import as_weights, one_of, positive
 
 #: Name of the world site added at the middle of several feet (``support="center"``).
@@ -107,6 +107,9 @@ class LeggedBalance(Problem):
         noise_fraction: Noise standard deviation of :meth:`noise`, as a fraction of each
             actuator's half range.
         noise_torque: Instead, a torque (N m), one or ``(nu,)``.
+        recovery_tilt: The tilt measure also reports the recovery time (its
+            ``"settle_time"``): when the root's tilt is back within this many degrees of its
+            reference tilt for good. ``None`` leaves it out.
         **kwargs: Passed to :class:`~mpcbox.Problem` (``planning_timestep``, ``qpos_ref``...).
 
     Raises:
@@ -142,6 +145,7 @@ class LeggedBalance(Problem):
         ctrl_units: str = "range",
         noise_fraction: float | np.ndarray | None = 0.02,
         noise_torque: float | np.ndarray | None = None,
+        recovery_tilt: float | None = 2.0,
         **kwargs: Any,
     ) -> None:
         self.support = one_of("support", support, SUPPORTS)
@@ -157,6 +161,9 @@ class LeggedBalance(Problem):
         if noise_torque is not None:
             noise_fraction = None
         self.noise_fraction, self.noise_torque = noise_fraction, noise_torque
+        self.recovery_tilt = (
+            None if recovery_tilt is None else positive("recovery_tilt", recovery_tilt)
+        )
 
         spec = load_spec(model)
         base = compile_spec(spec)
@@ -216,11 +223,13 @@ class LeggedBalance(Problem):
         self.equilibrium = find_equilibrium(model, self.qpos_ref)
         self.qpos_ref = self.equilibrium.qpos
         self.ctrl_ref = self.equilibrium.ctrl
+        data = mujoco.MjData(model)
+        data.qpos[:] = self.qpos_ref
+        mujoco.mj_kinematics(model, data)
         if self.fall_height is None:
-            data = mujoco.MjData(model)
-            data.qpos[:] = self.qpos_ref
-            mujoco.mj_kinematics(model, data)
             self.fall_height = self.fall_fraction * float(data.xpos[self.root_id, 2])
+        #: The root's tilt in the reference posture (deg).
+        self.reference_tilt = Tilt(body=self.root).sample(model, data)
 
     def joint_weights(self, model: mujoco.MjModel) -> np.ndarray:
         """Per-dof posture weights ``(nv,)``: ``joint_cost``, zero on free joints (the root)."""
@@ -270,8 +279,10 @@ class LeggedBalance(Problem):
         return self.support_points
 
     def measures(self) -> tuple[Measure, ...]:
-        """COM deviation from the support point (m) and the root's tilt (deg)."""
-        return balance_measures(self.support_frames(), body=self.root)
+        """COM deviation from the support point (m) and the root's tilt (deg), with its
+        recovery time when ``recovery_tilt`` is set."""
+        recovery = None if self.recovery_tilt is None else self.reference_tilt + self.recovery_tilt
+        return balance_measures(self.support_frames(), body=self.root, recovery_tilt=recovery)
 
     def noise(self, scale: float = 1.0) -> ActuatorNoise:
         """The robot-independent noise recipe: ``noise_fraction`` of each actuator's half

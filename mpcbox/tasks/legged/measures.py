@@ -79,11 +79,20 @@ class Tilt(Measure):
         return float(np.degrees(np.arccos(np.clip(zaxis[2], -1.0, 1.0))))
 
 
-def balance_measures(support: tuple[str, ...], body: str) -> tuple[Measure, ...]:
+def balance_measures(
+    support: tuple[str, ...], body: str, *, recovery_tilt: float | None = None
+) -> tuple[Measure, ...]:
     """The legged tasks' measures: :class:`ComDeviation` over ``support`` and :class:`Tilt`.
 
     Args:
         support: Frames whose mean horizontal position is the support point.
         body: Root body (its subtree's center of mass and its tilt are measured).
+        recovery_tilt: With a tilt (deg), the tilt also reports its ``"settle_time"``: the
+            recovery time, after which the tilt stays within ``recovery_tilt`` (NaN when it
+            never does).
     """
-    return (ComDeviation(body=body, support=support), Tilt(body=body))
+    if recovery_tilt is None:
+        tilt = Tilt(body=body)
+    else:
+        tilt = Tilt(body=body, summaries=("rms", "settle_time"), tolerance=float(recovery_tilt))
+    return (ComDeviation(body=body, support=support), tilt)
