@@ -31,6 +31,7 @@ TASKS: dict[str, str] = {
     "cartpole_swingup": "mpcbox.tasks.swingup:CartpoleSwingup",
     "humanoid_stand": "mpcbox.tasks.humanoid.stand:HumanoidStand",
     "humanoid_two_feet": "mpcbox.tasks.humanoid.two_feet:HumanoidTwoFeet",
+    "quadruped_stand": "mpcbox.tasks.legged.quadruped:QuadrupedStand",
 }
 
 

@@ -123,6 +123,7 @@ class HumanoidBalance(HumanoidProblem):
             feet=(self.foot(leg),),
             root="torso",
             fall_height=fall_height,
+            fall_tilt=None,
             contacts=(f"body:foot_{leg}",),
             balance_cost=balance_cost,
             joint_cost=other_joint_cost,

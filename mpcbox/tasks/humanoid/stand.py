@@ -108,6 +108,7 @@ class HumanoidStand(HumanoidProblem):
             feet=("foot_left", "foot_right"),
             root="torso",
             fall_height=fall_height,
+            fall_tilt=None,
             support="feet",
             contacts=("body:foot_left", "body:foot_right"),
             balance_cost=balance_cost,

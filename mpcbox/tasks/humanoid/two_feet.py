@@ -74,6 +74,7 @@ class HumanoidTwoFeet(HumanoidProblem):
             feet=("foot_left", "foot_right"),
             root="torso",
             fall_height=fall_height,
+            fall_tilt=None,
             support="center",
             contacts=self.contacts,
             balance_cost=balance_cost,

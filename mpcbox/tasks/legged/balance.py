@@ -81,7 +81,8 @@ class LeggedBalance(Problem):
     foot itself for one foot); with ``"feet"`` the cost keeps the center of mass over each
     foot (weight ``w_b / n`` each, the same as over their moving mean up to a constant).
 
-    A run fails when the root body drops below ``fall_height``. The measures are the center
+    A run fails when the root body drops below ``fall_height`` or tilts by more than
+    ``fall_tilt``. The measures are the center
     of mass over the support and the root's tilt
     (:func:`~mpcbox.tasks.legged.measures.balance_measures`), and :meth:`noise` is the
     robot-independent recipe :func:`~mpcbox.sim.effort_noise.effort_noise`.
@@ -96,9 +97,12 @@ class LeggedBalance(Problem):
         fall_height: The run fails when the root is lower than this (m); default
             ``fall_fraction`` times the root's height in the reference posture.
         fall_fraction: See ``fall_height``.
+        fall_tilt: The run also fails when the root tilts more than this many degrees from
+            its reference tilt (a robot thrown onto its side or back may keep its root
+            high); ``None``: height only.
         support: ``"center"`` or ``"feet"`` (see above).
-        contacts: Contact geoms, bodies or sites for QP-MPC (default: the feet, each as
-            ``"kind:name"``).
+        contacts: Contact geoms, bodies or sites for QP-MPC (default: each foot as given,
+            except a body foot standing on one point, such as a sphere: its sole site).
         balance_cost: :math:`w_b` (per m²).
         joint_cost: Weight of the joint deviations (per rad²), one or ``(nv,)`` per dof.
         velocity_cost: :math:`w_v`.
@@ -136,6 +140,7 @@ class LeggedBalance(Problem):
         keyframe: str | int | None = None,
         fall_height: float | None = None,
         fall_fraction: float = 0.6,
+        fall_tilt: float | None = 60.0,
         support: str = "center",
         contacts: Sequence[str] | None = None,
         balance_cost: float = 1000.0,
@@ -143,7 +148,7 @@ class LeggedBalance(Problem):
         velocity_cost: float = 0.0,
         ctrl_cost: float | np.ndarray = 1.0,
         ctrl_units: str = "range",
-        noise_fraction: float | np.ndarray | None = 0.02,
+        noise_fraction: float | np.ndarray | None = 0.05,
         noise_torque: float | np.ndarray | None = None,
         recovery_tilt: float | None = 2.0,
         **kwargs: Any,
@@ -152,6 +157,7 @@ class LeggedBalance(Problem):
         self.ctrl_units = one_of("ctrl_units", ctrl_units, UNITS)
         self.fall_fraction = positive("fall_fraction", fall_fraction)
         self.fall_height = None if fall_height is None else float(fall_height)
+        self.fall_tilt = None if fall_tilt is None else positive("fall_tilt", fall_tilt)
         self.weights = dict(
             balance=float(balance_cost),
             joint=joint_cost,
@@ -178,8 +184,8 @@ class LeggedBalance(Problem):
         if not self.root:
             raise InvalidArgumentError("root: the root body needs a name for the cost sensors")
         self.feet: tuple[Foot, ...] = find_feet(base, feet, qpos)
-        self.contacts = tuple(f.contact for f in self.feet) if contacts is None else tuple(contacts)
         self.foot_frames = self.add_sole_sites(spec, base)
+        self.contacts = self._contacts() if contacts is None else tuple(contacts)
         self.support_points = self._add_support(spec, base, qpos)
         super().__init__(spec, keyframe=key, **kwargs)
 
@@ -203,6 +209,17 @@ class LeggedBalance(Problem):
             spec.bodies[foot.body].add_site(name=name, pos=foot.sole.tolist())
             frames.append(name)
         return tuple(frames)
+
+    def _contacts(self) -> tuple[str, ...]:
+        """Each foot's contact: a site or geom foot itself; a body foot's sole site when
+        the sole is one point (a sphere), else all of the body's collision geoms."""
+        out = []
+        for foot, frame in zip(self.feet, self.foot_frames):
+            if foot.kind == "body" and foot.point and frame != foot.name:
+                out.append(f"site:{frame}")
+            else:
+                out.append(foot.contact)
+        return tuple(out)
 
     def _add_support(
         self, spec: mujoco.MjSpec, base: mujoco.MjModel, qpos: np.ndarray
@@ -272,6 +289,10 @@ class LeggedBalance(Problem):
         reason = super().failure(model, data)
         if reason is None and data.xpos[self.root_id, 2] < self.fall_height:
             reason = f"fell: {self.root} below {self.fall_height:.3g} m"
+        if reason is None and self.fall_tilt is not None:
+            tilt = float(np.degrees(np.arccos(np.clip(data.xmat[self.root_id, 8], -1.0, 1.0))))
+            if abs(tilt - self.reference_tilt) > self.fall_tilt:
+                reason = f"fell: {self.root} tilted {tilt:.0f} deg"
         return reason
 
     def support_frames(self) -> tuple[str, ...]:

@@ -33,6 +33,8 @@ class Foot(NamedTuple):
             the geom (mean of its lowest points), or the mean of the lowest points of the
             body's collision geoms (those within ``margin`` of the lowest).
         contact: How :func:`~mpcbox.core.contact.contact_points` names it (``"geom:FR"``).
+        point: Whether the sole is one point (a site, or lowest points within 1 mm of each
+            other, as under a sphere) rather than an area (a capsule's or box's bottom).
     """
 
     kind: str
@@ -41,6 +43,7 @@ class Foot(NamedTuple):
     body: int
     sole: np.ndarray
     contact: str
+    point: bool
 
     def world(self, data: mujoco.MjData) -> np.ndarray:
         """World position ``(3,)`` of the sole (needs kinematics in ``data``)."""
@@ -98,6 +101,7 @@ def find_feet(
         kind, name, idx = _lookup(model, entry)
         if any(f.kind == kind and f.name == name for f in out):
             raise InvalidArgumentError(f"feet: {kind} {name!r} is given twice")
+        point = True
         if kind == "site":
             body = int(model.site_bodyid[idx])
             world = data.site_xpos[idx]
@@ -107,7 +111,8 @@ def find_feet(
             low = world_points[:, 2] <= world_points[:, 2].min() + margin
             body = int(points.body[0])
             world = world_points[low].sum(axis=0) / np.count_nonzero(low)
+            point = bool(np.max(np.linalg.norm(world_points[low] - world, axis=1)) < 1e-3)
         rot = data.xmat[body].reshape(3, 3)
         sole = rot.T @ (world - data.xpos[body])
-        out.append(Foot(kind, name, idx, body, sole, f"{kind}:{name}"))
+        out.append(Foot(kind, name, idx, body, sole, f"{kind}:{name}", point))
     return tuple(out)
