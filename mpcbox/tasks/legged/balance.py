@@ -28,7 +28,7 @@ from mpcbox.sim.effort_noise import effort_noise
 from mpcbox.sim.measures import Measure
 from mpcbox.tasks.legged.feet import Foot, find_feet
 from mpcbox.tasks.legged.measures import Tilt, balance_measures
-from mpcbox.validation import as_weights, one_of, positive
+from mpcbox.validation import as_array, as_weights, one_of, positive
 
 #: Name of the world site added at the middle of several feet (``support="center"``).
 FEET_CENTER = "feet_center"
@@ -48,9 +48,11 @@ def _root_body(model: mujoco.MjModel, root: str | None) -> int:
     return body
 
 
-def _unique_name(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> str:
+def _unique_name(
+    model: mujoco.MjModel, kind: mujoco.mjtObj, name: str, taken: Sequence[str] = ()
+) -> str:
     candidate, i = name, 1
-    while mujoco.mj_name2id(model, kind, candidate) >= 0:
+    while mujoco.mj_name2id(model, kind, candidate) >= 0 or candidate in taken:
         candidate, i = f"{name}_{i}", i + 1
     return candidate
 
@@ -178,7 +180,7 @@ class LeggedBalance(Problem):
         key = None if keyframe is None else object_id(base, "keyframe", keyframe)
         qpos = base.qpos0 if key is None else base.key_qpos[key]
         if kwargs.get("qpos_ref") is not None:
-            qpos = np.asarray(kwargs["qpos_ref"], dtype=np.float64)
+            qpos = as_array("qpos_ref", kwargs["qpos_ref"], (base.nq,))
         self.root_id = _root_body(base, root)
         self.root = mujoco.mj_id2name(base, mujoco.mjtObj.mjOBJ_BODY, self.root_id) or ""
         if not self.root:
@@ -200,13 +202,14 @@ class LeggedBalance(Problem):
         Returns:
             The frame (site or body name) of each foot that the cost and measures follow.
         """
-        frames = []
+        frames: list[str] = []
         for foot in self.feet:
             if foot.kind == "site":
                 frames.append(foot.name)
                 continue
-            name = _unique_name(base, mujoco.mjtObj.mjOBJ_SITE, f"{foot.name}_sole")
-            spec.bodies[foot.body].add_site(name=name, pos=foot.sole.tolist())
+            name = _unique_name(base, mujoco.mjtObj.mjOBJ_SITE, f"{foot.name}_sole", frames)
+            body = spec.bodies[foot.body]  # the spec lists bodies in the model's order
+            body.add_site(name=name, pos=foot.sole.tolist())
             frames.append(name)
         return tuple(frames)
 
