@@ -30,12 +30,14 @@ class Trace(NamedTuple):
         series: Samples ``(T,)`` of each task measure, by measure name, in its unit.
         ctrls: Applied controls ``(T, nu)``.
         ctrl_ref: The problem's reference control ``(nu,)``.
+        states: States ``(T, nstate)`` (for saving the trajectory), or ``None``.
     """
 
     time: np.ndarray
     series: dict[str, np.ndarray]
     ctrls: np.ndarray
     ctrl_ref: np.ndarray
+    states: np.ndarray | None = None
 
 
 class Run(NamedTuple):
@@ -126,6 +128,7 @@ class Comparison:
         push_limits: ``{controller: {push test label: PushLimit}}``.
         measures: The task's measures (:meth:`~mpcbox.Problem.measures`).
         wall_time: Seconds the whole comparison took.
+        placement: Jobs run per host (and GPU ids, where workers had GPUs).
     """
 
     problem: str
@@ -136,6 +139,7 @@ class Comparison:
     push_limits: dict[str, dict[str, PushLimit]] = field(default_factory=dict)
     measures: tuple[Measure, ...] = ()
     wall_time: float = 0.0
+    placement: dict[str, int] = field(default_factory=dict)
 
     def runs_of(self, controller: str, scenario: int) -> list[Run]:
         """The runs of one controller on one scenario (by index), in seed order."""

@@ -8,9 +8,17 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from mpcbox.core.model import frame_object, free_body, object_id
+from mpcbox.core.model import check_mjmodel, frame_object, free_body, object_id
 from mpcbox.errors import InvalidArgumentError, PostureWarning, SolverError
-from mpcbox.validation import as_array, one_of, positive, positive_int
+from mpcbox.validation import (
+    as_array,
+    boolean,
+    checked_keywords,
+    finite_array,
+    one_of,
+    positive,
+    positive_int,
+)
 
 #: What :func:`stance_posture` does when its posture is in self-collision.
 ON_COLLISION: tuple[str, ...] = ("warn", "raise", "ignore")
@@ -35,11 +43,12 @@ class StancePosture(NamedTuple):
     collisions: tuple[tuple[str, str], ...] = ()
 
 
-def _mink_frame(model: mujoco.MjModel, name: str) -> tuple[str, str]:
-    kind, _ = frame_object(model, name)
+def _mink_frame(model: mujoco.MjModel, name: str, argument: str) -> tuple[str, str]:
+    kind, _ = frame_object(model, name, argument)
     return name, kind
 
 
+@checked_keywords
 def stance_posture(
     model: mujoco.MjModel,
     qpos_init: np.ndarray,
@@ -88,25 +97,29 @@ def stance_posture(
         UnknownNameError: If a frame or body does not exist (lists those that do).
     """
     import mink
+    import qpsolvers
 
-    qpos_init = as_array("qpos_init", qpos_init, (model.nq,))
-    positive("lift", lift)
+    model = check_mjmodel(model)
+    qpos_init = finite_array("qpos_init", qpos_init, (model.nq,))
+    lift = positive("lift", lift)
     positive_int("iterations", iterations)
+    tolerance = positive("tolerance", tolerance)
     one_of("on_collision", on_collision, ON_COLLISION)
     root = free_body(model)
     if com_body is None:
         com_body = 1 if root is None else root
-    com_body = object_id(model, "body", com_body)
-    if not keep_upright:
+    com_body = object_id(model, "body", com_body, "com_body")
+    if not boolean("keep_upright", keep_upright):
         upright_body = None
     elif upright_body is None and root is not None:
         upright_body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, root)
     elif upright_body is not None:
-        object_id(model, "body", upright_body)
+        object_id(model, "body", upright_body, "upright_body")
+    one_of("solver", solver, qpsolvers.available_solvers)
     config = mink.Configuration(model, q=qpos_init.copy())
     data = config.data
-    stance_name, stance_kind = _mink_frame(model, stance)
-    swing_name, swing_kind = _mink_frame(model, swing)
+    stance_name, stance_kind = _mink_frame(model, stance, "stance")
+    swing_name, swing_kind = _mink_frame(model, swing, "swing")
     stance_task = mink.FrameTask(
         stance_name, stance_kind, position_cost=100.0, orientation_cost=10.0
     )
@@ -192,7 +205,8 @@ def self_collisions(
 ) -> tuple[tuple[str, str], ...]:
     """The pairs of geoms of *different moving bodies* that touch or penetrate at ``qpos``.
 
-    Contacts with the world body (a floor, a table) are not self-collisions and are left out.
+    Contacts with the world body or a body welded to it (a floor, a table) are not
+    self-collisions and are left out; each pair is listed once.
 
     Args:
         model: The model.
@@ -202,7 +216,8 @@ def self_collisions(
     Returns:
         ``(geom_a, geom_b)`` labels, one per touching pair.
     """
-    qpos = as_array("qpos", qpos, (model.nq,))
+    model = check_mjmodel(model)
+    qpos = finite_array("qpos", qpos, (model.nq,))
     data = mujoco.MjData(model)
     data.qpos[:] = qpos
     mujoco.mj_forward(model, data)
@@ -210,12 +225,16 @@ def self_collisions(
     for i in range(data.ncon):
         con = data.contact[i]
         b1, b2 = model.geom_bodyid[con.geom1], model.geom_bodyid[con.geom2]
-        if b1 == 0 or b2 == 0 or con.dist > -margin:
+        static = model.body_weldid[b1] == 0 or model.body_weldid[b2] == 0
+        if static or con.dist > -margin:
             continue
-        pairs.append((_geom_label(model, con.geom1), _geom_label(model, con.geom2)))
+        pair = (_geom_label(model, con.geom1), _geom_label(model, con.geom2))
+        if pair not in pairs:
+            pairs.append(pair)
     return tuple(pairs)
 
 
+@checked_keywords
 def reach_posture(
     model: mujoco.MjModel,
     qpos_init: np.ndarray,
@@ -253,8 +272,9 @@ def reach_posture(
     """
     import mink
 
-    qpos_init = as_array("qpos_init", qpos_init, (model.nq,))
-    target_pos = as_array("position", position, (3,))
+    model = check_mjmodel(model)
+    qpos_init = finite_array("qpos_init", qpos_init, (model.nq,))
+    target_pos = finite_array("position", position, (3,))
     if orientation is not None:
         quat = as_array("orientation", orientation, (4,))
         norm = float(np.linalg.norm(quat))
@@ -263,7 +283,7 @@ def reach_posture(
         quat = quat / norm
     positive_int("iterations", iterations)
     positive("tolerance", tolerance)
-    name, kind = _mink_frame(model, frame)
+    name, kind = _mink_frame(model, frame, "frame")
     config = mink.Configuration(model, q=qpos_init.copy())
     task = mink.FrameTask(
         name, kind, position_cost=1.0, orientation_cost=0.0 if orientation is None else 0.5

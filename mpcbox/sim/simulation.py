@@ -23,7 +23,14 @@ from mpcbox.errors import InvalidArgumentError, InvalidTypeError, MpcboxError
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.divergence import DivergenceMonitor
 from mpcbox.sim.measures import Measure, check_measures
-from mpcbox.validation import as_array, positive
+from mpcbox.validation import (
+    boolean,
+    checked_keywords,
+    in_range,
+    instance,
+    integer,
+    positive,
+)
 
 #: Outcomes of a run, in :attr:`Metrics.outcome`.
 OUTCOMES: dict[str, str] = {
@@ -102,6 +109,10 @@ class SimulationResult:
         series: Samples ``(T,)`` of each task measure, by measure name, in its unit.
         measures: The task's measures (:meth:`~mpcbox.Problem.measures`).
         controller_stats: The controller's ``stats`` after the run.
+        pushes: The pushes applied during the run.
+        mismatch: The model mismatch of the simulated plant, or ``None``.
+        noise: The actuator noise (already added to ``ctrls``), or ``None``.
+        seed: Seed of the noise.
     """
 
     problem: str
@@ -115,6 +126,10 @@ class SimulationResult:
     series: dict[str, np.ndarray] = field(default_factory=dict)
     measures: tuple[Measure, ...] = ()
     controller_stats: dict[str, float] = field(default_factory=dict)
+    pushes: tuple[Push, ...] = ()
+    mismatch: ModelMismatch | None = None
+    noise: ActuatorNoise | None = None
+    seed: int = 0
 
     @property
     def survived(self) -> bool:
@@ -122,6 +137,7 @@ class SimulationResult:
         return self.metrics.survived
 
 
+@checked_keywords
 def simulate(
     problem: Problem,
     controller: Controller,
@@ -177,13 +193,21 @@ def simulate(
     Returns:
         A :class:`SimulationResult`.
     """
+    instance("problem", problem, Problem, "an mpcbox.Problem")
     duration = positive("duration", duration)
     if not isinstance(controller, Controller) and not callable(controller):
         raise InvalidTypeError(f"controller must be an mpcbox.Controller, got {type(controller)}")
-    if not isinstance(seed, int | np.integer) or isinstance(seed, bool) or seed < 0:
-        raise InvalidArgumentError(f"seed must be an integer >= 0, got {seed!r}")
-    if not (isinstance(degraded_limit, float | int) and 0.0 <= degraded_limit <= 1.0):
-        raise InvalidArgumentError(f"degraded_limit must be in [0, 1], got {degraded_limit!r}")
+    seed = integer("seed", seed)
+    degraded_limit = in_range(
+        "degraded_limit", degraded_limit, 0.0, 1.0, low_open=False, high_open=False
+    )
+    stop_on_failure = boolean("stop_on_failure", stop_on_failure)
+    if noise is not None:
+        instance("noise", noise, ActuatorNoise, "an mpcbox.ActuatorNoise")
+    if mismatch is not None:
+        instance("mismatch", mismatch, ModelMismatch, "an mpcbox.ModelMismatch")
+    if isinstance(pushes, (str, bytes)) or not isinstance(pushes, Sequence):
+        raise InvalidTypeError(f"pushes must be a sequence of Push, got {type(pushes).__name__}")
     pushes = tuple(pushes)
     for push in pushes:
         if not isinstance(push, Push):
@@ -193,10 +217,10 @@ def simulate(
     dt = float(model.opt.timestep)
     steps = math.ceil(duration / dt - 1e-9)
     state0 = problem.initial_state() if initial_state is None else initial_state
-    state0 = as_array("initial_state", state0, (problem.nstate,))
+    state0 = problem.check_state(state0, "initial_state")
     problem.set_state(data, state0)
     mujoco.mj_forward(model, data)
-    push_ids = [object_id(model, "body", p.body) for p in pushes]
+    push_ids = [object_id(model, "body", p.body, f"pushes[{i}].body") for i, p in enumerate(pushes)]
     measures = check_measures(problem.measures(), type(problem).__name__)
 
     period = getattr(controller, "period", None)
@@ -328,6 +352,10 @@ def simulate(
         series=series,
         measures=measures,
         controller_stats=stats,
+        pushes=tuple(pushes),
+        mismatch=mismatch,
+        noise=noise,
+        seed=seed,
     )
 
 
@@ -350,8 +378,11 @@ def _mean_cost(problem: Problem, states: np.ndarray, ctrls: np.ndarray) -> float
     """Mean running cost over the rows of ``states`` ``(N, nstate)`` and ``ctrls`` ``(N, nu)``.
 
     Each row is evaluated on the planning model (``mj_forward``, then the cost's features);
-    NaN when a row is not finite.
+    NaN when a row is not finite or cannot be evaluated (a control beyond MuJoCo's limit).
     """
     if not (np.all(np.isfinite(states)) and np.all(np.isfinite(ctrls))):
         return float("nan")
-    return float(np.mean([problem.running_cost(x, u) for x, u in zip(states, ctrls)]))
+    try:
+        return float(np.mean([problem.running_cost(x, u) for x, u in zip(states, ctrls)]))
+    except MpcboxError:
+        return float("nan")

@@ -13,9 +13,9 @@ from mpcbox.controllers.lqr import LQRConfig
 from mpcbox.controllers.qp_mpc.config import QPMPCConfig
 from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, PredictiveSamplingConfig
 from mpcbox.core.model import ModelSource, object_id
-from mpcbox.errors import InvalidArgumentError
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.base import HumanoidProblem, balance_dofs, joint_weights
+from mpcbox.validation import finite, non_negative, one_of
 
 
 class HumanoidBalance(HumanoidProblem):
@@ -110,11 +110,9 @@ class HumanoidBalance(HumanoidProblem):
         fall_height: float = 0.8,
         **kwargs: Any,
     ) -> None:
-        if leg not in ("left", "right"):
-            raise InvalidArgumentError(f"leg must be 'left' or 'right', got {leg!r}")
-        self.leg = leg
+        self.leg = one_of("leg", leg, ("left", "right"))
         self.swing_leg = "right" if leg == "left" else "left"
-        self.balance_joint_cost = float(balance_joint_cost)
+        self.balance_joint_cost = non_negative("balance_joint_cost", balance_joint_cost)
         self.noise_stance = leg
         if leg == "left":
             kwargs.setdefault("keyframe", "stand_on_left_leg")
@@ -122,13 +120,13 @@ class HumanoidBalance(HumanoidProblem):
             scene_path("humanoid.xml") if model is None else model,
             feet=(self.foot(leg),),
             root="torso",
-            fall_height=fall_height,
+            fall_height=finite("fall_height", fall_height),
             fall_tilt=None,
             contacts=(f"body:foot_{leg}",),
             balance_cost=balance_cost,
-            joint_cost=other_joint_cost,
+            joint_cost=non_negative("other_joint_cost", other_joint_cost),
             velocity_cost=velocity_cost,
-            ctrl_cost=ctrl_cost,
+            ctrl_cost=non_negative("ctrl_cost", ctrl_cost),
             ctrl_units="control",
             recovery_tilt=None,
             **kwargs,

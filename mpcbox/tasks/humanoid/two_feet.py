@@ -13,6 +13,7 @@ from mpcbox.core.model import ModelSource
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.base import HumanoidProblem, balance_dofs, joint_weights
 from mpcbox.tasks.legged.balance import FEET_CENTER
+from mpcbox.validation import finite, non_negative
 
 __all__ = ["FEET_CENTER", "HumanoidTwoFeet"]
 
@@ -67,20 +68,21 @@ class HumanoidTwoFeet(HumanoidProblem):
         fall_height: float = 0.8,
         **kwargs: Any,
     ) -> None:
-        self.balance_joint_cost = float(balance_joint_cost)
-        kwargs.setdefault("keyframe", "stand")
+        self.balance_joint_cost = non_negative("balance_joint_cost", balance_joint_cost)
+        if kwargs.get("keyframe") is None:
+            kwargs["keyframe"] = "stand"
         super().__init__(
             scene_path("humanoid.xml") if model is None else model,
             feet=("foot_left", "foot_right"),
             root="torso",
-            fall_height=fall_height,
+            fall_height=finite("fall_height", fall_height),
             fall_tilt=None,
             support="center",
             contacts=self.contacts,
             balance_cost=balance_cost,
-            joint_cost=other_joint_cost,
+            joint_cost=non_negative("other_joint_cost", other_joint_cost),
             velocity_cost=velocity_cost,
-            ctrl_cost=ctrl_cost,
+            ctrl_cost=non_negative("ctrl_cost", ctrl_cost),
             ctrl_units="control",
             recovery_tilt=None,
             **kwargs,

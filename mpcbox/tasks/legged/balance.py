@@ -28,7 +28,7 @@ from mpcbox.sim.effort_noise import effort_noise
 from mpcbox.sim.measures import Measure
 from mpcbox.tasks.legged.feet import Foot, find_feet
 from mpcbox.tasks.legged.measures import Tilt, balance_measures
-from mpcbox.validation import as_array, as_weights, one_of, positive
+from mpcbox.validation import as_array, as_weights, finite, non_negative, one_of, positive
 
 #: Name of the world site added at the middle of several feet (``support="center"``).
 FEET_CENTER = "feet_center"
@@ -38,7 +38,7 @@ SUPPORTS: tuple[str, ...] = ("center", "feet")
 
 def _root_body(model: mujoco.MjModel, root: str | None) -> int:
     if root is not None:
-        return object_id(model, "body", root)
+        return object_id(model, "body", root, "root")
     body = free_body(model)
     if body is None:
         raise InvalidArgumentError(
@@ -158,12 +158,12 @@ class LeggedBalance(Problem):
         self.support = one_of("support", support, SUPPORTS)
         self.ctrl_units = one_of("ctrl_units", ctrl_units, UNITS)
         self.fall_fraction = positive("fall_fraction", fall_fraction)
-        self.fall_height = None if fall_height is None else float(fall_height)
+        self.fall_height = None if fall_height is None else finite("fall_height", fall_height)
         self.fall_tilt = None if fall_tilt is None else positive("fall_tilt", fall_tilt)
         self.weights = dict(
-            balance=float(balance_cost),
+            balance=non_negative("balance_cost", balance_cost),
             joint=joint_cost,
-            velocity=float(velocity_cost),
+            velocity=non_negative("velocity_cost", velocity_cost),
             ctrl=ctrl_cost,
         )
         if noise_torque is not None:
@@ -177,7 +177,7 @@ class LeggedBalance(Problem):
         base = compile_spec(spec)
         if keyframe is None and base.nkey:
             keyframe = 0
-        key = None if keyframe is None else object_id(base, "keyframe", keyframe)
+        key = None if keyframe is None else object_id(base, "keyframe", keyframe, "keyframe")
         qpos = base.qpos0 if key is None else base.key_qpos[key]
         if kwargs.get("qpos_ref") is not None:
             qpos = as_array("qpos_ref", kwargs["qpos_ref"], (base.nq,))
