@@ -68,7 +68,7 @@ def actuator_scales(model: mujoco.MjModel, qpos: np.ndarray) -> ActuatorScales:
 
 
 def _per_actuator(name: str, value: float | np.ndarray, nu: int) -> np.ndarray:
-    values = np.asarray(value, dtype=np.float64)
+    values = as_array(name, value, (None,) * np.ndim(value))
     values = np.full(nu, float(values)) if values.ndim == 0 else as_array(name, values, (nu,))
     if not np.all(np.isfinite(values)) or np.any(values < 0):
         raise InvalidArgumentError(f"{name} must be finite and non-negative, got {values}")
@@ -82,7 +82,12 @@ def _check_finite(scales: ActuatorScales, scale: np.ndarray, what: str, hint: st
 
 
 def to_control(
-    scales: ActuatorScales, value: float | np.ndarray, units: str, *, power: int = 1
+    scales: ActuatorScales,
+    value: float | np.ndarray,
+    units: str,
+    *,
+    power: int = 1,
+    name: str = "value",
 ) -> np.ndarray:
     r"""Convert per-actuator amounts to control units.
 
@@ -99,6 +104,7 @@ def to_control(
         value: One non-negative amount for all actuators, or one per actuator ``(nu,)``.
         units: ``"control"`` (returned as is), ``"torque"`` or ``"range"``.
         power: ``1`` for amounts, ``-2`` for weights on squared deviations.
+        name: The argument that gave ``value``, for error messages.
 
     Returns:
         The amounts in control units ``(nu,)``.
@@ -112,15 +118,18 @@ def to_control(
     if power not in (1, -2):
         raise InvalidArgumentError(f"power must be 1 or -2, got {power!r}")
     nu = len(scales.names)
-    values = _per_actuator("value", value, nu)
+    values = _per_actuator(name, value, nu)
     if units == "control":
         return values
     if units == "torque":
         k = scales.torque_per_ctrl
-        _check_finite(scales, k, "a torque unit", "they exert no force at this posture")
+        _check_finite(scales, k, f"{name}: a torque unit", "they exert no force at this posture")
         return values / k if power == 1 else values * k**2
     h = scales.half_range
     _check_finite(
-        scales, h, "a fraction of the range", "they have no control or force range; use torque"
+        scales,
+        h,
+        f"{name}: a fraction of the range",
+        "they have no control or force range; use torque",
     )
     return values * h if power == 1 else values / h**2

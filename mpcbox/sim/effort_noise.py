@@ -56,7 +56,7 @@ def effort_noise(
         raise InvalidArgumentError("effort_noise: give exactly one of fraction and torque")
     scales = actuator_scales(model, qpos)
     if torque is not None:
-        std = to_control(scales, torque, "torque")
+        std = to_control(scales, torque, "torque", name="torque")
     else:
-        std = to_control(scales, fraction, "range")
+        std = to_control(scales, fraction, "range", name="fraction")
     return ActuatorNoise(std=std, scale=scale, width=width)

@@ -28,7 +28,15 @@ from mpcbox.sim.effort_noise import effort_noise
 from mpcbox.sim.measures import Measure
 from mpcbox.tasks.legged.feet import Foot, find_feet
 from mpcbox.tasks.legged.measures import Tilt, balance_measures
-from mpcbox.validation import as_array, as_weights, finite, non_negative, one_of, positive
+from mpcbox.validation import (
+    as_array,
+    as_weights,
+    finite,
+    finite_array,
+    non_negative,
+    one_of,
+    positive,
+)
 
 #: Name of the world site added at the middle of several feet (``support="center"``).
 FEET_CENTER = "feet_center"
@@ -46,6 +54,16 @@ def _root_body(model: mujoco.MjModel, root: str | None) -> int:
             f"the root body (bodies: {', '.join(names(model, 'body'))})"
         )
     return body
+
+
+def _weight(name: str, value: object) -> float | np.ndarray:
+    """A non-negative weight, or a 1-D array of them (its length is checked later)."""
+    if np.ndim(value) == 0 or isinstance(value, (str, bytes)):
+        return non_negative(name, value)
+    weights = finite_array(name, value, (None,))
+    if np.any(weights < 0):
+        raise InvalidArgumentError(f"{name} must be >= 0, got {weights.tolist()}")
+    return weights
 
 
 def _unique_name(
@@ -162,9 +180,9 @@ class LeggedBalance(Problem):
         self.fall_tilt = None if fall_tilt is None else positive("fall_tilt", fall_tilt)
         self.weights = dict(
             balance=non_negative("balance_cost", balance_cost),
-            joint=joint_cost,
+            joint=_weight("joint_cost", joint_cost),
             velocity=non_negative("velocity_cost", velocity_cost),
-            ctrl=ctrl_cost,
+            ctrl=_weight("ctrl_cost", ctrl_cost),
         )
         if noise_torque is not None:
             noise_fraction = None
@@ -263,7 +281,7 @@ class LeggedBalance(Problem):
     def ctrl_weights(self, model: mujoco.MjModel) -> np.ndarray:
         """Per-actuator control weights ``(nu,)`` in control units (from ``ctrl_units``)."""
         scales = actuator_scales(model, self.qpos_ref)
-        return to_control(scales, self.weights["ctrl"], self.ctrl_units, power=-2)
+        return to_control(scales, self.weights["ctrl"], self.ctrl_units, power=-2, name="ctrl_cost")
 
     def balance_terms(self) -> list[CostTerm]:
         """The center of mass over the support point (or over each foot)."""

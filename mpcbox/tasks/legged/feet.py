@@ -54,7 +54,7 @@ class Foot(NamedTuple):
 
 def _lookup(model: mujoco.MjModel, entry: str) -> tuple[str, str, int]:
     if not isinstance(entry, str):
-        raise InvalidTypeError(f"feet must hold names (str), got {entry!r}")
+        raise InvalidTypeError(f"feet must hold names (str), got {type(entry).__name__} {entry!r}")
     kind, _, name = entry.rpartition(":")
     if kind not in ("", *FOOT_KINDS):
         kind, name = "", entry
@@ -64,7 +64,7 @@ def _lookup(model: mujoco.MjModel, entry: str) -> tuple[str, str, int]:
         if idx >= 0:
             return k, name, idx
     valid = [f"{k}:{n}" if kind == "" else n for k in kinds for n in names(model, k)]
-    raise UnknownNameError("foot " + " or ".join(kinds), name, valid)
+    raise UnknownNameError("foot " + " or ".join(kinds), name, valid, "feet")
 
 
 def find_feet(
@@ -90,6 +90,10 @@ def find_feet(
     """
     if isinstance(feet, str):
         feet = [feet]
+    if not isinstance(feet, (list, tuple)):
+        raise InvalidTypeError(
+            f"feet must be a name or a sequence of names, got {type(feet).__name__} {feet!r}"
+        )
     feet = list(feet)
     if not feet:
         raise InvalidArgumentError("feet must name at least one site, body or geom")
