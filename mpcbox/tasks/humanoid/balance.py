@@ -19,7 +19,8 @@ from mpcbox.validation import finite, non_negative, one_of
 
 
 class HumanoidBalance(HumanoidProblem):
-    """Balance a humanoid on one leg: a preset of :class:`~mpcbox.tasks.legged.LeggedBalance`.
+    """Balance a humanoid on one leg: a preset of
+    :class:`~mpcbox.tasks.legged.balance.LeggedBalance`.
 
     The reference posture is the keyframe ``stand_on_left_leg`` for the left leg, or a
     mink inverse-kinematics stance (center of mass over the right foot, left foot lifted
@@ -42,7 +43,7 @@ class HumanoidBalance(HumanoidProblem):
         velocity_cost: Weight of joint velocities (all dofs).
         ctrl_cost: Weight of control deviations.
         fall_height: The run fails when the torso is lower than this (m).
-        **kwargs: Passed to :class:`~mpcbox.tasks.legged.LeggedBalance` and
+        **kwargs: Passed to :class:`~mpcbox.tasks.legged.balance.LeggedBalance` and
             :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
     """
 

@@ -17,7 +17,7 @@ from mpcbox.validation import finite, non_negative
 
 class HumanoidStand(HumanoidProblem):
     r"""Keep a humanoid standing on both feet (keyframe ``stand`` of the humanoid scene): a
-    preset of :class:`~mpcbox.tasks.legged.LeggedBalance` with a cost of its own.
+    preset of :class:`~mpcbox.tasks.legged.balance.LeggedBalance` with a cost of its own.
 
     The reference posture is the keyframe with the root height adjusted until the contacts
     carry the weight, and the reference control holds it (:func:`~mpcbox.find_equilibrium`).
@@ -48,7 +48,7 @@ class HumanoidStand(HumanoidProblem):
         balance_cost: Weight :math:`w_b` of the centre of mass over each foot (0 drops it).
         terminal_scale: Multiplier of the terminal cost.
         fall_height: The run fails when the torso is lower than this (m).
-        **kwargs: Passed to :class:`~mpcbox.tasks.legged.LeggedBalance` and
+        **kwargs: Passed to :class:`~mpcbox.tasks.legged.balance.LeggedBalance` and
             :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
     """
 

@@ -20,7 +20,7 @@ __all__ = ["FEET_CENTER", "HumanoidTwoFeet"]
 
 class HumanoidTwoFeet(HumanoidProblem):
     """Stand on both feet, the center of mass above the middle of the feet: a preset of
-    :class:`~mpcbox.tasks.legged.LeggedBalance`.
+    :class:`~mpcbox.tasks.legged.balance.LeggedBalance`.
 
     A world-fixed site ``feet_center`` is added to the model at the midpoint of the sites
     ``foot_left`` and ``foot_right`` in keyframe ``stand``; the root height is adjusted and
@@ -39,7 +39,7 @@ class HumanoidTwoFeet(HumanoidProblem):
         velocity_cost: Weight of joint velocities.
         ctrl_cost: Weight of control deviations.
         fall_height: The run fails when the torso is lower than this (m).
-        **kwargs: Passed to :class:`~mpcbox.tasks.legged.LeggedBalance` and
+        **kwargs: Passed to :class:`~mpcbox.tasks.legged.balance.LeggedBalance` and
             :class:`~mpcbox.Problem`.
     """
 
