@@ -15,10 +15,12 @@ from mpcbox.validation import one_of, positive, positive_int
 
 StanceModelName = Literal["soft", "rigid"]
 Fallback = Literal["lqr", "plan"]
+LiftedPoints = Literal["drop", "keep"]
 #: Names of the terminal costs (an ``(nx, nx)`` matrix is accepted too).
 TERMINALS: tuple[str, ...] = ("stance", "lqr", "cost")
 STANCE_MODELS: tuple[str, ...] = ("soft", "rigid")
 FALLBACKS: tuple[str, ...] = ("lqr", "plan")
+LIFTED_POINTS: tuple[str, ...] = ("drop", "keep")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -54,6 +56,11 @@ class QPMPCConfig:
             stance only).
         contact_margin: A point higher than this above the lowest reference point is
             lifted (m).
+        lifted_points: ``"drop"`` (default): contact points already lifted at the reference
+            state are left out of the QP, so a foot named as a body keeps only the points of
+            its geoms that touch the ground (on Menagerie's A1 the four feet as bodies give 20
+            points, 4 of them on the ground: the QP shrinks from 1680 to 720 variables);
+            ``"keep"``: every point stays (a lifted one carries no force until it touches).
         joint_limits: Add the joints' ranges as constraints.
         cost_gradient: Keep the cost gradient at the reference (default: regulate to the
             reference, dropping it, as LQR does).
@@ -92,6 +99,7 @@ class QPMPCConfig:
     drift_gain: float = 0.2
     stance_weight: float | None = 1e4
     contact_margin: float = 0.01
+    lifted_points: LiftedPoints = "drop"
     joint_limits: bool = False
     cost_gradient: bool = False
     warm_start: bool = True
@@ -143,5 +151,6 @@ class QPMPCConfig:
         if self.export_dir is not None:
             put("export_dir", Path(self.export_dir))
         one_of("fallback", self.fallback, FALLBACKS)
+        one_of("lifted_points", self.lifted_points, LIFTED_POINTS)
         for name in ("relinearize", "joint_limits", "cost_gradient", "warm_start", "fd_centered"):
             put(name, bool(getattr(self, name)))

@@ -34,6 +34,7 @@ from mpcbox.controllers.qp_mpc.prediction import PREDICTION_MODELS
 from mpcbox.controllers.qp_mpc.solvers import QPData, export_qp, make_backend
 from mpcbox.controllers.qp_mpc.terminal import terminal_matrix
 from mpcbox.core.contact import (
+    ContactPoints,
     cone_violation,
     contact_points,
     friction_pyramid,
@@ -99,6 +100,20 @@ def default_contacts(problem: Problem, state: np.ndarray) -> list[str]:
             "contact geoms, sites or bodies"
         )
     return ["body:" + mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) for b in bodies]
+
+
+def grounded_points(
+    model: mujoco.MjModel, points: ContactPoints, qpos: np.ndarray, margin: float
+) -> ContactPoints:
+    """The points less than ``margin`` above the lowest one at posture ``qpos`` ``(nq,)``."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    z = points.world(data)[:, 2]
+    keep = np.flatnonzero(z < z.min() + margin)
+    return ContactPoints(
+        points.body[keep], points.local[keep], tuple(points.label[i] for i in keep)
+    )
 
 
 class QPMPC(Controller):
@@ -167,6 +182,10 @@ class QPMPC(Controller):
             contacts = problem.contacts or default_contacts(problem, self.state_ref)
         contacts = [contacts] if isinstance(contacts, str) else list(contacts)
         self.points = contact_points(self.model, contacts, self.state_ref[: problem.nq])
+        if cfg.lifted_points == "drop":
+            self.points = grounded_points(
+                self.model, self.points, self.state_ref[: problem.nq], cfg.contact_margin
+            )
         self.dynamics = ContactDynamics(
             problem,
             self.model,
@@ -222,6 +241,8 @@ class QPMPC(Controller):
         self._prev_y: np.ndarray | None = None
         self._last_ctrl = self.ctrl_ref.copy()
         self._plan_age = self._tick = self._fallbacks = 0
+        self._plan_fallbacks = self._inaccurate = 0
+        self._violation_max = 0.0
         self._failures: dict[str, int] = {}
         self._iters: list[int] = []
         self.reset()
@@ -235,7 +256,8 @@ class QPMPC(Controller):
         self._plan_age = 0
         self.prediction.reset()
         self._tick = 0
-        self._fallbacks = 0
+        self._fallbacks = self._plan_fallbacks = self._inaccurate = 0
+        self._violation_max = 0.0
         self._failures = {}
         self._iters = []
         self.last_status = "unsolved"
@@ -244,11 +266,32 @@ class QPMPC(Controller):
 
     @property
     def stats(self) -> dict[str, float]:
-        """``fallbacks``, ``solves``, mean OSQP ``iterations`` and failed statuses."""
+        """Counters since :meth:`reset`; nothing the solver did wrong goes unreported.
+
+        * ``solves``: QPs solved (one per call);
+        * ``failed_solves``: solves without a usable solution (each also counted under
+          ``failed:<status>``, the solver's status);
+        * ``fallbacks``: calls whose control did not come from a fresh solve;
+          ``fallbacks_lqr`` and ``fallbacks_plan`` split them by what was applied;
+        * ``inaccurate_solves``: accepted solves the solver flagged as inaccurate (OSQP's
+          ``"solved inaccurate"``);
+        * ``solver_iterations`` (mean; ``iterations`` is the same number) and
+          ``solver_iterations_max`` over the accepted solves;
+        * ``force_violation_max``: largest friction or bound violation of an accepted raw
+          solution, in newtons (the applied forces are projected, see :class:`QPPlan`).
+        """
+        iters = self._iters
         out: dict[str, float] = {
             "fallbacks": self._fallbacks,
+            "fallbacks_lqr": self._fallbacks - self._plan_fallbacks,
+            "fallbacks_plan": self._plan_fallbacks,
             "solves": self._tick,
-            "iterations": float(np.mean(self._iters)) if self._iters else 0.0,
+            "failed_solves": sum(self._failures.values()),
+            "inaccurate_solves": self._inaccurate,
+            "solver_iterations": float(np.mean(iters)) if iters else 0.0,
+            "solver_iterations_max": float(max(iters)) if iters else 0.0,
+            "iterations": float(np.mean(iters)) if iters else 0.0,
+            "force_violation_max": self._violation_max,
         }
         for status, count in self._failures.items():
             out[f"failed:{status}"] = count
@@ -290,6 +333,8 @@ class QPMPC(Controller):
             self._failures[sol.status] = self._failures.get(sol.status, 0) + 1
             return None
         self._iters.append(sol.iterations)
+        if sol.inaccurate:
+            self._inaccurate += 1
         self._prev_z, self._prev_y = z, sol.y
         N, nx, nu = L.horizon, L.nx, L.nu
         dx = np.vstack([p.state_difference(state, lin.state), z[: N * nx].reshape(N, nx)])
@@ -302,6 +347,7 @@ class QPMPC(Controller):
             viol = max(viol, float(np.max(np.abs(raw[:, ~active]))))
             raw_active[:, ~active] = 0.0
         forces = project_to_pyramid(raw_active, self.friction, self.facets, self.f_max)
+        self._violation_max = max(self._violation_max, viol)
         plan = QPPlan(dx, ctrls, forces, viol, sol.status, sol.iterations, t3 - t2, sol.objective)
         self.last_plan = plan
         self._plan_age = 0
@@ -318,6 +364,7 @@ class QPMPC(Controller):
             plan = self.last_plan
             if self.config.fallback == "plan" and plan is not None and step < self.horizon:
                 ctrl = self.problem.clip_ctrl(plan.ctrls[step])
+                self._plan_fallbacks += 1
             else:
                 ctrl = self._fallback_lqr()(state, time)
         self._last_ctrl = ctrl

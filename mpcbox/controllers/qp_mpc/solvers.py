@@ -65,6 +65,8 @@ class QPSolution(NamedTuple):
         status: Solver status string.
         iterations: Solver iterations (0 when the backend does not report them).
         objective: Objective value (``nan`` when not known).
+        inaccurate: The solver accepted ``x`` at a looser tolerance than asked (OSQP's
+            ``"solved inaccurate"``).
     """
 
     x: np.ndarray | None
@@ -72,6 +74,7 @@ class QPSolution(NamedTuple):
     status: str
     iterations: int
     objective: float
+    inaccurate: bool = False
 
 
 class QPBackend(abc.ABC):
@@ -136,6 +139,7 @@ class OSQPBackend(QPBackend):
             str(res.info.status),
             int(res.info.iter),
             float(res.info.obj_val),
+            res.info.status_val == osqp.SolverStatus.OSQP_SOLVED_INACCURATE,
         )
 
 
