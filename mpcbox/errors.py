@@ -48,7 +48,9 @@ class UnknownNameError(InvalidArgumentError):
     The message lists the names that do exist.
     """
 
-    def __init__(self, kind: str, name: str, valid: Iterable[str]) -> None:
+    def __init__(
+        self, kind: str, name: str, valid: Iterable[str], argument: str | None = None
+    ) -> None:
         valid = sorted({str(v) for v in valid})
         self.kind = kind
         self.name = name
@@ -58,7 +60,10 @@ class UnknownNameError(InvalidArgumentError):
             shown += f", ... ({len(valid)} in all)"
         close = difflib.get_close_matches(str(name), valid, n=3)
         hint = f" (did you mean {' or '.join(map(repr, close))}?)" if close else ""
-        super().__init__(f"unknown {kind} {name!r}{hint}; valid {kind} names: {shown or '(none)'}")
+        where = f"{argument}: " if argument else ""
+        super().__init__(
+            f"{where}unknown {kind} {name!r}{hint}; valid {kind} names: {shown or '(none)'}"
+        )
 
 
 class ModelNotFoundError(MpcboxError, FileNotFoundError):
@@ -71,6 +76,10 @@ class ModelLoadError(MpcboxError, ValueError):
 
 class NotStabilizableError(InvalidArgumentError):
     """The pair (A, B) has an uncontrollable mode outside the unit circle (PBH test)."""
+
+
+class NoControlAuthorityError(InvalidArgumentError):
+    """A linearization has ``B = 0``: no control acts on the state at that point."""
 
 
 class CostDefinitionError(InvalidArgumentError):

@@ -10,7 +10,7 @@ import importlib
 import importlib.util
 from typing import Any
 
-from mpcbox.errors import UnknownNameError
+from mpcbox.errors import InvalidTypeError, UnknownNameError
 
 #: Controller name -> class. Each class is built as ``cls(problem, config, **options)``, with
 #: ``config`` taken from the task's ``controller_configs``.
@@ -40,8 +40,14 @@ def resolve(entry: str) -> Any:
     return getattr(importlib.import_module(module), attr)
 
 
+def _check_name(kind: str, name: object) -> None:
+    if not isinstance(name, str):
+        raise InvalidTypeError(f"{kind} name must be a string, got {type(name).__name__} {name!r}")
+
+
 def controller_class(name: str) -> type:
     """The controller class registered under ``name``."""
+    _check_name("controller", name)
     if name not in CONTROLLERS:
         raise UnknownNameError("controller", name, CONTROLLERS)
     return resolve(CONTROLLERS[name])
@@ -49,6 +55,7 @@ def controller_class(name: str) -> type:
 
 def task_class(name: str) -> type:
     """The Problem subclass registered under ``name``."""
+    _check_name("task", name)
     if name not in TASKS:
         raise UnknownNameError("task", name, TASKS)
     return resolve(TASKS[name])
@@ -68,6 +75,8 @@ def make_controller(name: str, problem: Any, **overrides: Any):
         UnknownOptionError: If an override is not an option of the controller (lists them).
     """
     cls = controller_class(name)
+    if not hasattr(problem, "controller_configs"):  # not a Problem (a lower layer than core)
+        raise InvalidTypeError(f"problem must be an mpcbox.Problem, got {type(problem).__name__}")
     config = problem.controller_configs.get(name)
     controller = cls(problem, config, **overrides)
     controller.name = name

@@ -1,12 +1,23 @@
-"""Argument checks shared by the public API; messages always name the argument."""
+"""Argument checks shared by the public API; messages always name the argument.
+
+A value of the wrong type raises :class:`~mpcbox.errors.InvalidTypeError` (also a
+:class:`TypeError`), a value of the right type outside its range
+:class:`~mpcbox.errors.InvalidArgumentError` (also a :class:`ValueError`).
+"""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import functools
+import inspect
+import numbers
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, TypeVar
 
 import numpy as np
 
-from mpcbox.errors import InvalidArgumentError, ShapeError
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError, ShapeError, UnknownOptionError
+
+F = TypeVar("F", bound=Callable[..., Any])
 
 
 def as_array(name: str, value: object, shape: Sequence[int | None]) -> np.ndarray:
@@ -22,53 +33,209 @@ def as_array(name: str, value: object, shape: Sequence[int | None]) -> np.ndarra
 
     Raises:
         ShapeError: If the number of dimensions or a fixed dimension differs.
-        InvalidArgumentError: If ``value`` is not numeric.
+        InvalidTypeError: If ``value`` is not numeric (a string, a mapping, ``None``, ...).
     """
+    if value is None or isinstance(value, (str, bytes, Mapping)):
+        raise InvalidTypeError(f"{name} must be a numeric array, got {type(value).__name__}")
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise InvalidArgumentError(f"{name} must be a numeric array, got {type(value)}") from exc
+        raise InvalidTypeError(
+            f"{name} must be a numeric array, got {type(value).__name__}: {exc}"
+        ) from exc
     want = tuple("*" if s is None else s for s in shape)
     if arr.ndim != len(shape) or any(s is not None and a != s for a, s in zip(arr.shape, shape)):
         raise ShapeError(f"{name} must have shape {want}, got {arr.shape}")
     return arr
 
 
+def finite_array(name: str, value: object, shape: Sequence[int | None]) -> np.ndarray:
+    """:func:`as_array`, and every entry finite (no NaN or infinity)."""
+    arr = as_array(name, value, shape)
+    if not np.all(np.isfinite(arr)):
+        raise InvalidArgumentError(f"{name} must be finite, got {arr.tolist()}")
+    return arr
+
+
 def as_weights(name: str, value: object, size: int) -> np.ndarray:
     """A non-negative, finite weight vector of length ``size`` from a scalar or array."""
-    arr = np.asarray(value, dtype=np.float64)
+    if value is None or isinstance(value, (str, bytes, Mapping, bool)):
+        raise InvalidTypeError(f"{name} must be a number or an array, got {type(value).__name__}")
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InvalidTypeError(f"{name} must be a number or an array: {exc}") from exc
     if arr.ndim == 0:
         arr = np.full(size, float(arr))
-    arr = as_array(name, arr, (size,))
-    if not np.all(np.isfinite(arr)):
-        raise InvalidArgumentError(f"{name} must be finite, got {arr}")
+    arr = finite_array(name, arr, (size,))
     if np.any(arr < 0):
         raise InvalidArgumentError(f"{name} must be non-negative, got {arr}")
     return arr
 
 
-def positive(name: str, value: float) -> float:
-    """Check ``value > 0`` and return it as float."""
-    try:
-        val = float(value)
-    except (TypeError, ValueError) as exc:
-        raise InvalidArgumentError(f"{name} must be a positive number, got {value!r}") from exc
+def number(name: str, value: object) -> float:
+    """``value`` as a float; it must be a real number (not a bool, a string or an array).
+
+    Raises:
+        InvalidTypeError: If it is not a real number.
+    """
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value[()]
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise InvalidTypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")
+    return float(value)
+
+
+def finite(name: str, value: object) -> float:
+    """Check that ``value`` is a finite number and return it as float."""
+    val = number(name, value)
+    if not np.isfinite(val):
+        raise InvalidArgumentError(f"{name} must be a finite number, got {value!r}")
+    return val
+
+
+def positive(name: str, value: object) -> float:
+    """Check ``0 < value < inf`` and return it as float."""
+    val = number(name, value)
     if not np.isfinite(val) or val <= 0:
         raise InvalidArgumentError(f"{name} must be a positive finite number, got {value!r}")
     return val
 
 
-def positive_int(name: str, value: int) -> int:
-    """Check that ``value`` is an integer >= 1 and return it."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise InvalidArgumentError(f"{name} must be an integer >= 1, got {value!r}")
+def non_negative(name: str, value: object) -> float:
+    """Check ``0 <= value < inf`` and return it as float."""
+    val = number(name, value)
+    if not np.isfinite(val) or val < 0:
+        raise InvalidArgumentError(f"{name} must be a finite number >= 0, got {value!r}")
+    return val
+
+
+def in_range(
+    name: str, value: object, low: float, high: float, *, low_open: bool, high_open: bool
+) -> float:
+    """Check that ``value`` lies in the interval from ``low`` to ``high`` (ends open or closed)."""
+    val = number(name, value)
+    above = val > low if low_open else val >= low
+    below = val < high if high_open else val <= high
+    if not (above and below):
+        interval = f"{'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
+        raise InvalidArgumentError(f"{name} must be in {interval}, got {value!r}")
+    return val
+
+
+def integer(name: str, value: object, minimum: int = 0) -> int:
+    """Check that ``value`` is an integer (not a bool) ``>= minimum`` and return it."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise InvalidTypeError(
+            f"{name} must be an integer >= {minimum}, got {type(value).__name__} {value!r}"
+        )
+    if value < minimum:
+        raise InvalidArgumentError(f"{name} must be an integer >= {minimum}, got {value!r}")
     return int(value)
+
+
+def positive_int(name: str, value: object) -> int:
+    """Check that ``value`` is an integer >= 1 and return it."""
+    return integer(name, value, 1)
+
+
+def integers(name: str, values: object, minimum: int = 0) -> list[int]:
+    """A non-empty sequence of integers ``>= minimum`` (seeds, for example) as a list."""
+    if isinstance(values, (str, bytes, Mapping)) or not isinstance(values, Sequence | np.ndarray):
+        raise InvalidTypeError(
+            f"{name} must be a sequence of integers, got {type(values).__name__} {values!r}"
+        )
+    out = [integer(name, value, minimum) for value in values]
+    if not out:
+        raise InvalidArgumentError(f"{name} must hold at least one integer")
+    return out
+
+
+def boolean(name: str, value: object) -> bool:
+    """Check that ``value`` is a bool (Python's or numpy's) and return it."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise InvalidTypeError(
+            f"{name} must be True or False, got {type(value).__name__} {value!r}"
+        )
+    return bool(value)
+
+
+def string(name: str, value: object) -> str:
+    """Check that ``value`` is a string and return it."""
+    if not isinstance(value, str):
+        raise InvalidTypeError(f"{name} must be a string, got {type(value).__name__} {value!r}")
+    return value
+
+
+def instance(name: str, value: object, cls: type, what: str | None = None) -> Any:
+    """Check ``isinstance(value, cls)`` and return ``value``; ``what`` names ``cls``."""
+    if not isinstance(value, cls):
+        raise InvalidTypeError(
+            f"{name} must be {what or 'a ' + cls.__name__}, got {type(value).__name__}"
+        )
+    return value
 
 
 def one_of(name: str, value: str, choices: Sequence[str]) -> str:
     """Check that ``value`` is one of ``choices``; the error lists them."""
+    listed = ", ".join(repr(c) for c in choices)
+    if not isinstance(value, str):
+        raise InvalidTypeError(f"{name} must be one of {listed}; got {type(value).__name__}")
     if value not in choices:
-        raise InvalidArgumentError(
-            f"{name} must be one of {', '.join(repr(c) for c in choices)}; got {value!r}"
-        )
+        raise InvalidArgumentError(f"{name} must be one of {listed}; got {value!r}")
     return value
+
+
+def checked_options(init: F) -> F:
+    """Decorate an ``__init__`` (or a class, e.g. a config dataclass, below ``@dataclass``)
+    so that an unknown keyword argument raises :class:`~mpcbox.errors.UnknownOptionError`
+    listing the valid ones (Python's own error is a bare :class:`TypeError`).
+
+    The valid names are the keyword parameters of every ``__init__`` in the class hierarchy
+    of the instance (so a subclass that forwards ``**kwargs`` to the decorated one is covered
+    too), without ``*args``/``**kwargs`` themselves.
+    """
+    if isinstance(init, type):
+        init.__init__ = checked_options(init.__init__)  # type: ignore[misc]
+        return init
+
+    @functools.wraps(init)
+    def wrapper(self: Any, *args: Any, **kwargs: Any) -> Any:
+        check_class_options(type(self), kwargs, type(self).__name__)
+        return init(self, *args, **kwargs)
+
+    return wrapper  # type: ignore[return-value]
+
+
+def check_class_options(cls: type, options: Mapping[str, Any], owner: str) -> None:
+    """Raise :class:`~mpcbox.errors.UnknownOptionError` for a keyword in ``options`` that no
+    ``__init__`` of ``cls`` or its bases takes (the message lists those that exist)."""
+    valid: set[str] = set()
+    for klass in cls.__mro__:
+        method = klass.__dict__.get("__init__")
+        if method is None or klass is object:
+            continue
+        for param in inspect.signature(inspect.unwrap(method)).parameters.values():
+            if param.kind in (param.POSITIONAL_OR_KEYWORD, param.KEYWORD_ONLY):
+                valid.add(param.name)
+    valid.discard("self")
+    unknown = set(options) - valid
+    if unknown:
+        raise UnknownOptionError(owner, unknown, valid)
+
+
+def checked_keywords(function: F) -> F:
+    """Decorate a function so that an unknown keyword argument raises
+    :class:`~mpcbox.errors.UnknownOptionError` listing its keyword parameters (Python's own
+    error is a bare :class:`TypeError`)."""
+    params = inspect.signature(function).parameters.values()
+    valid = {p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+
+    @functools.wraps(function)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        unknown = set(kwargs) - valid
+        if unknown:
+            raise UnknownOptionError(function.__name__, unknown, valid)
+        return function(*args, **kwargs)
+
+    return wrapper  # type: ignore[return-value]

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import mpcbox
 from mpcbox.cli import main
+from mpcbox.registry import task_class
 
 
 def run(capsys, *argv: str) -> tuple[int, str, str]:
@@ -77,3 +79,112 @@ def test_simulate_runs_one_controller_once(capsys, tmp_path: Path) -> None:
     assert code == 0, err
     assert "| lqr |" in out.replace("|lqr|", "| lqr |") or "lqr" in out
     assert (tmp_path / "results.csv").read_text().count("\n") == 2  # header and one row
+
+
+def _simulate_args(tmp_path: Path, *extra: str) -> list[str]:
+    return [
+        "simulate",
+        "pendulum_swingup",
+        "--controller",
+        "lqr",
+        "--duration",
+        "0.3",
+        "--push",
+        "2",
+        "--push-time",
+        "0.1",
+        "--push-body",
+        "pole",
+        "--no-plots",
+        "--no-progress",
+        "--out",
+        str(tmp_path / "out"),
+        *extra,
+    ]
+
+
+def test_simulate_saves_a_trajectory_that_replays_to_the_same_state(capsys, tmp_path) -> None:
+    saved = tmp_path / "traj" / "run"
+    code, out, err = run(capsys, *_simulate_args(tmp_path, "--save-trajectory", str(saved)))
+    assert code == 0, err
+    assert saved.with_suffix(".csv").exists() and saved.with_suffix(".json").exists()
+    code, out, err = run(capsys, "replay", str(saved.with_suffix(".csv")))
+    assert code == 0, err
+    assert "final-state error 0 " in out and "same" in out
+    # A changed control (within the +-2 N m range) makes the replay differ: status 1.
+    lines = saved.with_suffix(".csv").read_text().splitlines()
+    cells = lines[1].split(",")
+    ctrl_column = lines[0].split(",").index("ctrl_0")
+    cells[ctrl_column] = "1.0" if abs(float(cells[ctrl_column]) - 1.0) > 0.5 else "-1.0"
+    saved.with_suffix(".csv").write_text("\n".join([lines[0], ",".join(cells), *lines[2:]]))
+    code, out, _ = run(capsys, "replay", str(saved))
+    assert code == 1 and "DIFFERENT" in out
+
+
+def test_compare_out_keeps_per_seed_rows_spread_settings_and_trajectories(capsys, tmp_path):
+    import csv
+    import json
+
+    from mpcbox.sim.simulation import Metrics
+
+    out_dir = tmp_path / "out"
+    argv = ["compare", "pendulum_swingup", "--controllers", "lqr", "--seeds", "3"]
+    argv += ["--duration", "0.3", "--workers", "1", "--no-plots", "--no-progress"]
+    code, _, err = run(capsys, *argv, "--out", str(out_dir))
+    assert code == 0, err
+    rows = list(csv.DictReader((out_dir / "runs.csv").open()))
+    assert [r["seed"] for r in rows] == ["0", "1", "2"]
+    plain = [f for f in Metrics._fields if f != "measures"]
+    assert set(plain) <= set(rows[0]) and {"scenario", "controller", "outcome"} <= set(rows[0])
+    groups = json.loads((out_dir / "groups.json").read_text())
+    cost = [float(r["cost"]) for r in rows]
+    assert groups[0]["runs"] == 3
+    assert groups[0]["cost_mean"] == pytest.approx(np.mean(cost))
+    assert groups[0]["cost_std"] == pytest.approx(np.std(cost, ddof=1))
+    assert groups[0]["cost_min"] == min(cost) and groups[0]["cost_max"] == max(cost)
+    record = json.loads((out_dir / "run.json").read_text())
+    assert record["command"].startswith("mpcbox compare pendulum_swingup")
+    assert record["versions"]["mujoco"] and record["versions"]["numpy"]
+    assert record["controllers"]["lqr"]["config_class"] == "LQRConfig"
+    assert record["scenarios"][0]["duration"] == 0.3 and record["date"]
+    assert len(list((out_dir / "trajectories").glob("*.csv"))) == 1  # the traced first seed
+
+
+def test_cpu_reduced_settings_are_marked_next_to_their_row() -> None:
+    from mpcbox.cli.outputs import REDUCED_MARK, cpu_reductions, mark_reduced
+
+    cls = task_class("humanoid_balance")
+    tuned = cls.controller_configs["mppi"]
+    small = {"num_samples": tuned.num_samples // 8, "horizon": tuned.horizon / 2, "backend": "x"}
+    reductions = cpu_reductions(cls, {"mppi": small}, {"mppi": {"horizon": 0.1}})
+    assert reductions == {"mppi": {"num_samples": (tuned.num_samples, small["num_samples"])}}
+    table = "| scenario | controller |\n|---|---|\n| s | lqr |\n| s | mppi |"
+    marked = mark_reduced(table, reductions).splitlines()
+    assert marked[2] == "| s | lqr |" and marked[3] == f"| s | mppi{REDUCED_MARK} |"
+    assert f"num_samples {tuned.num_samples} -> {small['num_samples']}" in marked[-1]
+    assert mark_reduced(table, {}) == table
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        (["--video", "run.avi"], ".mp4 or .gif"),
+        (["--save-trajectory", "{out}/run"], "--save-trajectory"),
+    ],
+)
+def test_simulate_output_errors_exit_2_before_running(capsys, tmp_path, extra, needle) -> None:
+    extra = [e.format(out=tmp_path / "out") for e in extra]
+    code, out, err = run(capsys, *_simulate_args(tmp_path, *extra))
+    assert code == 2 and err.startswith("error:") and needle in err, err
+    assert "|" not in out
+
+
+def test_replay_errors_exit_2_with_one_line(capsys, tmp_path) -> None:
+    code, _, err = run(capsys, "replay", str(tmp_path / "missing.csv"))
+    assert code == 2 and err.startswith("error:") and "missing" in err
+    assert "Traceback" not in err
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    (tmp_path / "bad.csv").write_text("time\n0\n")
+    code, _, err = run(capsys, "replay", str(bad))
+    assert code == 2 and err.startswith("error:") and "bad" in err

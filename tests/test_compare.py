@@ -84,6 +84,7 @@ def test_table_csv_and_plots(balance, tmp_path):
         "controller",
         "seeds",
         "success",
+        "not successful",
         "mean time to fall (s)",
         "COM dev RMS (cm)",
         "tilt RMS (deg)",
@@ -91,11 +92,18 @@ def test_table_csv_and_plots(balance, tmp_path):
         "largest push fwd (N)",
         "compute mean (ms)",
         "compute p99 (ms)",
+        "period (ms)",
         "real-time factor",
         "fallbacks",
     ]
     assert len(markdown) == 2 + 4  # header, rule, 2 scenarios x 2 controllers
-    assert "| noise x0.5 | lqr | 2 | 100% |" in markdown[2]
+    assert "| noise x0.5 | lqr | 2 | 100% | - |" in markdown[2]
+    # LQR is called every 5 ms simulation step: the period column says so; whether p99
+    # fits depends on the machine, and the column says which.
+    row = result.rows()[0]
+    assert row.period_ms == pytest.approx(5.0)
+    assert row.p99_fits == (row.compute_p99_ms <= 5.0)
+    assert ("(over)" in markdown[2]) != row.p99_fits
 
     path = tmp_path / "out" / "results.csv"
     text = result.to_csv(path)
@@ -106,6 +114,7 @@ def test_table_csv_and_plots(balance, tmp_path):
         "controller",
         "runs",
         "success_rate",
+        "outcomes",
         "mean_time_to_fall",
         "com_deviation_rms_cm",
         "tilt_rms_deg",
@@ -113,8 +122,12 @@ def test_table_csv_and_plots(balance, tmp_path):
         "largest_push_fwd",
         "compute_mean_ms",
         "compute_p99_ms",
+        "period_ms",
+        "p99_fits",
+        "offline_ms",
         "realtime_factor",
         "fallbacks",
+        "fallback_rate",
     ]
     assert len(rows) == 4
     # An instance and a factory of the same LQR measure the same thing.
@@ -167,8 +180,9 @@ def test_columns_follow_the_task_measures():
     header = result.to_markdown().splitlines()[0]
     assert "COM" not in header and "tilt" not in header
     assert result.to_csv().splitlines()[0] == (
-        "scenario,controller,runs,success_rate,mean_time_to_fall,control_effort,"
-        "compute_mean_ms,compute_p99_ms,realtime_factor,fallbacks"
+        "scenario,controller,runs,success_rate,outcomes,mean_time_to_fall,control_effort,"
+        "compute_mean_ms,compute_p99_ms,period_ms,p99_fits,offline_ms,realtime_factor,"
+        "fallbacks,fallback_rate"
     )
 
 

@@ -79,7 +79,7 @@ def test_bisection_below_float_resolution_ends(monkeypatch) -> None:
     def fake_trial(problem, controller, test, seed):
         def trial(force: float):
             calls.append(force)
-            return SimpleNamespace(survived=force <= limit)
+            return SimpleNamespace(metrics=SimpleNamespace(success=force <= limit))
 
         return trial
 

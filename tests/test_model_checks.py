@@ -10,6 +10,9 @@ import pytest
 
 import mpcbox
 from mpcbox.core.model import PLANNING_INTEGRATOR
+from mpcbox.tasks import scene_path
+
+PENDULUM_SCENE = scene_path("pendulum.xml")
 
 PENDULUM = """
 <mujoco>
@@ -118,6 +121,7 @@ def test_a_mujoco_fatal_error_becomes_an_mpcbox_error(monkeypatch):
         (pendulum(gear="nan"), "actuator_gear"),
         (compiled(body_mass=np.array([0.0, -1.0])), "body_mass"),
         (compiled(body_inertia=np.inf), "body_inertia"),
+        (compiled(body_inertia=np.array([[0.0, 0, 0], [0.1, -0.1, 0.1]])), "body_inertia"),
         (compiled(actuator_gainprm=np.nan), "actuator_gainprm"),
         (compiled(actuator_biasprm=np.inf), "actuator_biasprm"),
     ],
@@ -130,6 +134,7 @@ def test_a_mujoco_fatal_error_becomes_an_mpcbox_error(monkeypatch):
         "gear-nan",
         "mass-negative",
         "inertia-inf",
+        "inertia-negative",
         "gain-nan",
         "bias-inf",
     ],
@@ -147,5 +152,117 @@ def test_a_broken_planning_model_is_rejected_too():
 
 
 def test_a_model_without_actuators_gets_a_clear_error():
-    with pytest.raises(mpcbox.InvalidArgumentError, match=r"no actuators \(nu = 0\)"):
+    with pytest.raises(mpcbox.InvalidArgumentError, match=r"no actuators \(nu = 0\).*'hinge'"):
         mpcbox.Problem(pendulum(actuated=False))
+
+
+# ---------------------------------------------------------------------- names and controls
+def test_an_unknown_keyframe_or_site_lists_what_exists():
+    with pytest.raises(mpcbox.UnknownNameError, match=r"keyframe 'nope'.*'down', 'up'"):
+        mpcbox.Problem(str(PENDULUM_SCENE), keyframe="nope")
+    with pytest.raises(mpcbox.UnknownNameError, match=r"frame: unknown site or body 'nope'.*'tip'"):
+        mpcbox.Problem(
+            str(PENDULUM_SCENE),
+            cost=mpcbox.Cost([mpcbox.FramePosition("nope", np.zeros(3), weight=1.0)]),
+        )
+    with pytest.raises(mpcbox.InvalidTypeError, match="keyframe"):
+        mpcbox.Problem(str(PENDULUM_SCENE), keyframe=[0])  # a list used to reach MuJoCo
+
+
+@pytest.fixture(scope="module")
+def pendulum_problem():
+    return mpcbox.Problem(str(PENDULUM_SCENE))
+
+
+@pytest.mark.parametrize("ctrl", [1.5e10, -1e12])
+def test_controls_beyond_mujocos_limit_are_refused_not_zeroed(pendulum_problem, ctrl):
+    # MuJoCo would zero them (BADCTRL) and step/linearize as if the control were 0.
+    problem, x = pendulum_problem, np.array([0.3, 0.0])
+    with pytest.raises(mpcbox.InvalidArgumentError, match=r"ctrl has a magnitude .*mjMAXVAL"):
+        problem.step(x, [ctrl])
+    with pytest.raises(mpcbox.InvalidArgumentError, match=r"ctrl has a magnitude"):
+        problem.linearize(x, [ctrl])
+    with pytest.raises(mpcbox.InvalidArgumentError, match=r"ctrls has a magnitude"):
+        problem.rollout(x, np.full((3, 1), ctrl))
+    with pytest.raises(mpcbox.InvalidArgumentError, match=r"ctrls has a magnitude"):
+        problem.linearize_trajectory(np.tile(x, (2, 1)), np.full((2, 1), ctrl))
+    # Below the limit a large control is applied: on this unlimited motor the step moves.
+    unlimited = mpcbox.Problem(pendulum())
+    moved = unlimited.step(np.zeros(2), [1e8])[1] - unlimited.step(np.zeros(2), [0.0])[1]
+    assert moved > 1e6
+
+
+def test_lqr_at_an_operating_point_outside_ctrlrange_is_an_error(pendulum_problem):
+    # It used to return K = 0: the clamped control has no effect in the finite differences.
+    with pytest.raises(
+        mpcbox.InvalidArgumentError, match=r"ctrl\[0\] = 100 is outside .*ctrlrange"
+    ):
+        mpcbox.LQR(pendulum_problem, ctrl=[100.0])
+    # At the limit itself MuJoCo differentiates one-sidedly: a working gain.
+    K = mpcbox.LQR(pendulum_problem, ctrl=[2.0], state=np.array([np.pi, 0.0])).K
+    assert np.all(np.isfinite(K)) and np.any(K != 0)
+
+
+def test_a_linearization_without_control_authority_is_an_error():
+    problem = mpcbox.Problem(compiled(actuator_gear=np.array([[0.0, 0, 0, 0, 0, 0]])))
+    with pytest.raises(mpcbox.NoControlAuthorityError, match="B = 0"):
+        problem.linearize(np.zeros(2), np.zeros(1))
+    with pytest.raises(mpcbox.NoControlAuthorityError, match="B = 0"):
+        problem.linearize_trajectory(np.zeros((3, 2)), np.zeros((3, 1)))
+    with pytest.raises(mpcbox.NoControlAuthorityError):
+        mpcbox.LQR(problem)
+
+
+# ---------------------------------------------------------------------- disturbances
+@pytest.mark.parametrize(
+    ("kwargs", "argument"),
+    [
+        ({"force": [np.nan, 0, 0]}, "force"),
+        ({"force": [np.inf, 0, 0]}, "force"),
+        ({"force": [1e9, 0, 0]}, "force"),
+        ({"force": [1e12, 0, 0]}, "force"),
+        ({"force": [1, 0, 0], "duration": 0.0}, "duration"),
+        ({"force": [1, 0, 0], "duration": -0.1}, "duration"),
+        ({"force": [1, 0, 0], "start": np.nan}, "start"),
+        ({"force": [1, 0, 0], "torque": [0, np.nan, 0]}, "torque"),
+    ],
+)
+def test_bad_pushes_are_refused_naming_the_argument(kwargs, argument):
+    with pytest.raises(mpcbox.InvalidArgumentError, match=argument):
+        mpcbox.Push(**kwargs)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "argument"),
+    [
+        ({"std": np.nan}, "std"),
+        ({"std": -0.1}, "std"),
+        ({"std": [0.1, np.nan]}, "std"),
+        ({"std": 0.1, "scale": np.nan}, "scale"),
+        ({"std": 0.1, "width": 0.0}, "width"),
+    ],
+)
+def test_bad_actuator_noise_is_refused_naming_the_argument(kwargs, argument):
+    with pytest.raises(mpcbox.InvalidArgumentError, match=argument):
+        mpcbox.ActuatorNoise(**kwargs)
+
+
+@pytest.mark.parametrize("fall_height", [np.nan, np.inf, "low"])
+def test_a_non_finite_fall_height_is_refused(fall_height):
+    from mpcbox.registry import task_class
+
+    with pytest.raises(mpcbox.InvalidArgumentError, match="fall_height"):
+        task_class("humanoid_balance")(fall_height=fall_height)
+
+
+def test_push_searches_are_bounded():
+    from mpcbox.comparison.push_limits import push_grid
+    from mpcbox.comparison.scenario import PushTest
+    from mpcbox.sim.disturbances import MAX_FORCE
+
+    with pytest.raises(mpcbox.InvalidArgumentError, match="max_force"):
+        PushTest(max_force=1e300)
+    PushTest(max_force=MAX_FORCE)  # the bound itself is allowed
+    problem = mpcbox.Problem(str(PENDULUM_SCENE))
+    with pytest.raises(mpcbox.InvalidArgumentError, match="forces"):
+        push_grid(problem, mpcbox.LQR(problem), [1.0, 1e300], PushTest(body="pole"))

@@ -6,7 +6,10 @@ Commands::
     mpcbox compare TASK [options]                 compare controllers on a task
     mpcbox simulate TASK --controller NAME [...]  one controller, one seed, its measures
     mpcbox options CONTROLLER                     a controller's options and their defaults
+    mpcbox replay FILE [--video OUT.mp4|OUT.gif]  re-simulate or render a saved run
     mpcbox --version
+
+``mpcbox simulate`` also takes ``--save-trajectory PATH`` and ``--video FILE``.
 
 ``mpcbox compare TASK --help`` lists every option, the task's own ones included (for example
 ``--leg`` of ``humanoid_balance``). A user error (a bad name, value or folder) prints one line
@@ -23,6 +26,7 @@ A problem script is one call, e.g. ``problems/pendulum_swingup.py``::
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Sequence
 
@@ -44,13 +48,14 @@ __all__ = [
     "run_task_script",
 ]
 
-COMMANDS = ("list", "compare", "simulate", "options")
-USAGE = """usage: mpcbox {list,compare,simulate,options} ... | --version
+COMMANDS = ("list", "compare", "simulate", "options", "replay")
+USAGE = """usage: mpcbox {list,compare,simulate,options,replay} ... | --version
 
   mpcbox list                                   tasks and controllers
   mpcbox compare TASK [options]                 compare controllers on a task (--help)
   mpcbox simulate TASK --controller NAME [...]  one run of one controller (--help)
   mpcbox options CONTROLLER                     a controller's options and defaults
+  mpcbox replay FILE [--video OUT]              re-simulate or render a saved run (--help)
 """
 
 
@@ -84,9 +89,10 @@ def _options(rest: Sequence[str], stream) -> int:
     return 0
 
 
-def _simulate(rest: Sequence[str]) -> int:
+def _simulate(rest: Sequence[str], command: Sequence[str]) -> int:
     import argparse
 
+    from mpcbox.cli.outputs import add_single_run_flags
     from mpcbox.registry import TASKS
 
     pre = argparse.ArgumentParser(prog="mpcbox simulate", add_help=False)
@@ -99,9 +105,41 @@ def _simulate(rest: Sequence[str]) -> int:
     if known.task not in TASKS:
         raise UnknownNameError("task", known.task, TASKS)
     parser = build_parser(known.task, prog=f"mpcbox simulate {known.task}", seeds=1)
+    add_single_run_flags(parser)
     args = parser.parse_args(remaining)
     args.controllers = known.controller
-    return run_comparison(known.task, args, controller_defaults=quick_sampling_options())
+    return run_comparison(
+        known.task, args, controller_defaults=quick_sampling_options(), command=command
+    )
+
+
+def _prepare_gl(argv: Sequence[str]) -> None:
+    """Default ``MUJOCO_GL=egl`` for a video on a Linux machine without a display.
+
+    MuJoCo reads ``MUJOCO_GL`` once, on import; this runs before that import.
+    """
+    if (
+        any(a == "--video" or a.startswith("--video=") for a in argv)
+        and sys.platform.startswith("linux")
+        and "MUJOCO_GL" not in os.environ
+        and not os.environ.get("DISPLAY")
+        and "mujoco" not in sys.modules
+    ):
+        os.environ["MUJOCO_GL"] = "egl"
+
+
+def _import_mujoco() -> None:
+    """Import MuJoCo, turning a failure (a bad ``MUJOCO_GL``) into a named error."""
+    try:
+        import mujoco  # noqa: F401
+    except Exception as exc:  # a broken GL backend raises AttributeError, RuntimeError, ...
+        from mpcbox.errors import BackendUnavailableError
+
+        gl = os.environ.get("MUJOCO_GL")
+        raise BackendUnavailableError(
+            f"cannot import mujoco (MUJOCO_GL={gl!r}): {type(exc).__name__}: {exc}; unset "
+            "MUJOCO_GL or set it to egl or osmesa with that library installed"
+        ) from exc
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -125,13 +163,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"mpcbox {__version__}")
         return 0
     command, rest = argv[0], argv[1:]
+    line = ["mpcbox", *argv]
+    _prepare_gl(rest)
     try:
+        _import_mujoco()
         if command == "list":
             return _list(sys.stdout)
         if command == "options":
             return _options(rest, sys.stdout)
         if command == "simulate":
-            return _simulate(rest)
+            return _simulate(rest, line)
+        if command == "replay":
+            from mpcbox.cli.replay import run_replay
+
+            return run_replay(rest)
         if command != "compare":
             raise UnknownNameError("command", command, COMMANDS)
         if not rest or rest[0].startswith("-"):
@@ -141,7 +186,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if task not in TASKS:
             raise UnknownNameError("task", task, TASKS)
         args = build_parser(task, prog=f"mpcbox compare {task}").parse_args(rest[1:])
-        return run_comparison(task, args, controller_defaults=quick_sampling_options())
+        return run_comparison(
+            task, args, controller_defaults=quick_sampling_options(), command=line
+        )
     except (MpcboxError, ImportError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

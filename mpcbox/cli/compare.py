@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from mpcbox.cli.checks import check_arguments, check_options, check_output_folder
-from mpcbox.errors import MpcboxError, UnknownNameError
+from mpcbox.errors import InvalidArgumentError, MpcboxError, UnknownNameError
 
 #: Defaults of ``mpcbox compare``; :func:`run_task_script` takes overrides by these names.
 DEFAULTS: dict[str, Any] = {
@@ -48,6 +48,8 @@ DEFAULTS: dict[str, Any] = {
     "push_tolerance": 2.0,
     "set": (),
     "workers": 0,
+    "executor": "",
+    "address": None,
     "out": "results",
     "plots": True,
     "progress": True,
@@ -152,6 +154,19 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
         help="controller option override, e.g. mppi.num_samples=256 (repeatable)",
     )
     add("--workers", type=int, default=d["workers"], help="worker processes (0: one per core)")
+    add(
+        "--executor",
+        default=d["executor"],
+        metavar="NAME",
+        help="where runs go: serial, processes (default with --workers) or ray "
+        '(pip install "mpcbox[ray]")',
+    )
+    add(
+        "--address",
+        default=d["address"],
+        metavar="auto|HOST:PORT",
+        help="Ray cluster to join with --executor ray (default: start a local Ray)",
+    )
     add("--out", default=d["out"], help="output folder")
     add("--plots", action=argparse.BooleanOptionalAction, default=d["plots"], help="write PNGs")
     add(
@@ -228,6 +243,7 @@ def run_comparison(
     *,
     controller_defaults: dict[str, dict[str, Any]] | None = None,
     stream=None,
+    command: Sequence[str] | None = None,
 ) -> int:
     """Run :func:`mpcbox.compare` from parsed arguments, print the table and write files.
 
@@ -237,10 +253,17 @@ def run_comparison(
         controller_defaults: Controller option overrides applied to the chosen controllers
             that have an entry (before ``--set``, which must name chosen controllers).
         stream (typing.TextIO | None): Where the table is printed (default: stdout).
+        command: The command line recorded in ``run.json`` (default: ``sys.argv``).
 
     Returns:
         The exit status (0).
     """
+    from mpcbox.cli.outputs import (
+        check_single_run_flags,
+        cpu_reductions,
+        mark_reduced,
+        write_outputs,
+    )
     from mpcbox.comparison.plots import plot_comparison
     from mpcbox.comparison.runner import compare, resolve_controllers
     from mpcbox.comparison.scenario import PushTest
@@ -249,11 +272,15 @@ def run_comparison(
     stream = stream or sys.stdout
     out = check_output_folder(args.out)
     check_arguments(args)
+    check_single_run_flags(args)
     chosen = list(resolve_controllers(task_class(task), args.controllers or None))
-    overrides = {k: dict(v) for k, v in (controller_defaults or {}).items() if k in chosen}
-    for name, options in _parse_sets(args.set).items():
+    defaults = {k: dict(v) for k, v in (controller_defaults or {}).items() if k in chosen}
+    overrides = {k: dict(v) for k, v in defaults.items()}
+    sets = _parse_sets(args.set)
+    for name, options in sets.items():
         check_options(name, options, chosen)
         overrides.setdefault(name, {}).update(options)
+    reductions = cpu_reductions(task_class(task), defaults, sets)
     task_options = {name: getattr(args, name) for name in _task_parameters(task)}
     push_tests = ()
     if args.largest_push:
@@ -279,6 +306,8 @@ def run_comparison(
         problem_options=task_options,
         controller_options=overrides,
         workers=args.workers or None,
+        executor=_executor(args),
+        checkpoint=out / "runs",
         progress=args.progress,
     )
     elapsed = time.perf_counter() - t0
@@ -290,18 +319,51 @@ def run_comparison(
         f"{args.duration:g} s per run, {elapsed:.1f} s wall\n",
         file=stream,
     )
-    table = result.to_markdown()
+    table = mark_reduced(result.to_markdown(), reductions)
     print(table, file=stream)
     (out / "results.md").write_text(table + "\n")
     result.to_csv(out / "results.csv")
     written = [out / "results.md", out / "results.csv"]
     if args.plots:
         written += plot_comparison(result, out)
-    print("\nwrote " + ", ".join(str(p) for p in written), file=stream)
+    written += write_outputs(
+        result,
+        args,
+        task=task,
+        task_options=task_options,
+        overrides=overrides,
+        reductions=reductions,
+        command=command,
+    )
+    folder = out / "trajectories"
+    direct = [p for p in written if p.parent == out]
+    traced = [p for p in written if p.parent == folder and p.suffix == ".csv"]
+    print("\nwrote " + ", ".join(str(p) for p in direct), file=stream)
+    if traced:
+        print(f"saved {len(traced)} trajectories in {folder} (mpcbox replay FILE)", file=stream)
+    for path in written:
+        if path.parent not in (out, folder):
+            print(f"wrote {path}", file=stream)
+    places = ", ".join(f"{n} on {where}" for where, n in result.placement.items())
+    print(f"jobs: {places}", file=stream)
     failed = {r.controller: r.failure for r in result.runs if r.failure}
     for name, reason in failed.items():
         print(f"{name}: first failure: {reason}", file=stream)
     return 0
+
+
+def _executor(args: argparse.Namespace) -> Any:
+    """The executor of ``--executor`` and ``--address`` (``None``: from ``--workers``)."""
+    from mpcbox.comparison.executors import EXECUTORS, RayExecutor
+
+    name = args.executor or None
+    if args.address is not None and name != "ray":
+        raise InvalidArgumentError("--address needs --executor ray")
+    if name is not None and name not in EXECUTORS:
+        raise UnknownNameError("--executor", name, EXECUTORS)
+    if name == "ray":
+        return RayExecutor(address=args.address, workers=args.workers or None)
+    return name
 
 
 def quick_sampling_options() -> dict[str, dict]:

@@ -17,8 +17,12 @@ import numpy as np
 
 from mpcbox.comparison.report import Comparison, Trace
 from mpcbox.errors import InvalidArgumentError
+from mpcbox.sim.disturbances import Push
 from mpcbox.sim.measures import Measure
 from mpcbox.sim.simulation import SimulationResult
+
+#: Shading of the intervals in which a push acts.
+PUSH_SHADE = {"color": "tab:red", "alpha": 0.15, "lw": 0}
 
 
 def _pyplot():
@@ -46,8 +50,25 @@ def _slug(text: str) -> str:
 def _control_series(ctrls: np.ndarray, ctrl_ref: np.ndarray) -> tuple[np.ndarray, str]:
     """Per-step RMS over actuators of ``ctrls - ctrl_ref``, or the control itself if nu == 1."""
     if ctrls.shape[1] == 1:
-        return ctrls[:, 0], "control"
-    return np.sqrt(np.mean((ctrls - ctrl_ref) ** 2, axis=1)), "RMS control - reference"
+        return ctrls[:, 0], "control (actuator units)"
+    rms = np.sqrt(np.mean((ctrls - ctrl_ref) ** 2, axis=1))
+    return rms, "RMS control - reference\n(actuator units)"
+
+
+def mark_pushes(axes: Sequence, pushes: Sequence[Push]) -> None:
+    """Shade each push's interval and mark its start on every axis; the first axis gets a
+    legend entry per push.
+
+    Args:
+        axes: Matplotlib axes sharing the time axis (s).
+        pushes: The pushes of the run(s).
+    """
+    for push in pushes:
+        force = float(np.linalg.norm(np.asarray(push.force, dtype=float)))
+        for j, ax in enumerate(axes):
+            label = f"push {force:g} N on {push.body}" if j == 0 else None
+            ax.axvspan(push.start, push.start + push.duration, label=label, **PUSH_SHADE)
+            ax.axvline(push.start, color="tab:red", lw=0.8)  # visible however short the push
 
 
 def _axis_label(measure: Measure) -> str:
@@ -60,7 +81,7 @@ def plot_measures(results: Sequence[SimulationResult], path: str | Path, title: 
 
     The panels follow the first run's :attr:`~mpcbox.SimulationResult.measures` (e.g. COM
     deviation from the support and torso tilt for the humanoid tasks), in their display
-    units.
+    units; the first run's pushes are shaded.
 
     Args:
         results: Runs to plot (typically one per controller on the same scenario).
@@ -83,9 +104,12 @@ def plot_measures(results: Sequence[SimulationResult], path: str | Path, title: 
     fig, axes = plt.subplots(len(measures), 1, figsize=(9, 3 * len(measures)), sharex=True)
     axes = np.atleast_1d(axes)
     for res in results:
-        label = res.controller + ("" if res.survived else f" (fell at {res.time[-1]:.2f} s)")
+        label = res.controller + (
+            "" if res.metrics.success else f" ({res.metrics.outcome} at {res.time[-1]:.2f} s)"
+        )
         for ax, measure in zip(axes, measures):
             ax.plot(res.time, res.series[measure.name] * measure.display_scale, label=label)
+    mark_pushes(axes, results[0].pushes)
     for ax, measure in zip(axes, measures):
         ax.set_ylabel(_axis_label(measure))
         ax.grid(alpha=0.3)
@@ -102,6 +126,7 @@ def plot_time_series(
     title: str = "",
     failures: dict[str, str | None] | None = None,
     measures: Sequence[Measure] = (),
+    pushes: Sequence[Push] = (),
 ) -> Path:
     """The task's measures and the control activity over time, one line per controller.
 
@@ -111,6 +136,7 @@ def plot_time_series(
         title: Figure title.
         failures: ``{controller label: failure reason or None}`` for the legend.
         measures: The task's measures, one panel each above the control panel.
+        pushes: Pushes of the runs, shaded over their intervals.
 
     Returns:
         The written path.
@@ -128,6 +154,7 @@ def plot_time_series(
         series, ylabel = _control_series(tr.ctrls, tr.ctrl_ref)
         # The last row of a run holds no applied control.
         axes[-1].plot(tr.time[:-1], series[:-1], label=label)
+    mark_pushes(axes, pushes)
     for ax, measure in zip(axes, measures):
         ax.set_ylabel(_axis_label(measure))
     axes[-1].set_ylabel(ylabel)
@@ -163,9 +190,9 @@ def plot_survival(comparison: Comparison, path: str | Path) -> Path:
                 if s.noise_scale == scale and any(s is u for u in used)
                 for r in comparison.runs_of(name, i)
             ]
-            rates.append(100.0 * np.mean([r.metrics.survived for r in runs]) if runs else np.nan)
+            rates.append(100.0 * np.mean([r.metrics.success for r in runs]) if runs else np.nan)
         ax.plot(scales, rates, marker="o", label=name)
-    ax.set_xlabel("noise scale (x recipe)")
+    ax.set_xlabel("noise scale (x the task's noise standard deviation)")
     ax.set_ylabel(f"success rate over {len(comparison.seeds)} seeds (%)")
     ax.set_ylim(-5, 105)
     ax.grid(alpha=0.3)
@@ -175,7 +202,8 @@ def plot_survival(comparison: Comparison, path: str | Path) -> Path:
 
 
 def plot_compute_times(comparison: Comparison, path: str | Path) -> Path:
-    """Distribution of the controller time per call (log scale), one box per controller.
+    """Distribution of the controller time per call (log scale), one box per controller,
+    with each controller's control period (ms) as a dashed red line.
 
     Returns:
         The written path.
@@ -193,6 +221,15 @@ def plot_compute_times(comparison: Comparison, path: str | Path) -> Path:
         ax.boxplot(data, whis=(1, 99), showfliers=False)
         ax.set_xticks(range(1, len(names) + 1), names)
         ax.set_yscale("log")
+        for i, name in enumerate(names, start=1):
+            periods = [getattr(r.metrics, "period_s", 0.0) for r in comparison.runs]
+            periods = [p for p, r in zip(periods, comparison.runs) if r.controller == name and p]
+            if periods:  # the budget of one call: p99 above this line does not fit
+                label = "control period" if i == 1 else None
+                ms = 1e3 * max(periods)
+                ax.hlines(ms, i - 0.4, i + 0.4, colors="tab:red", linestyles="--", label=label)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc="best")
     ax.set_ylabel("compute time per call (ms)")
     ax.grid(alpha=0.3, axis="y")
     ax.set_title(f"{comparison.problem}: compute per tick (whiskers: 1st-99th percentile)")
@@ -228,6 +265,7 @@ def plot_comparison(comparison: Comparison, folder: str | Path) -> list[Path]:
                     title,
                     failures,
                     comparison.measures,
+                    scenario.pushes,
                 )
             )
     paths.append(plot_survival(comparison, folder / "survival_vs_noise.png"))

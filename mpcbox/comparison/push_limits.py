@@ -2,7 +2,9 @@
 over a grid of push forces (which shows whether survival is monotone in the force).
 
 The pushes are described by :class:`~mpcbox.comparison.scenario.PushTest`, the same object
-that :func:`mpcbox.compare` takes.
+that :func:`mpcbox.compare` takes. A run "survives" here when its outcome is ``"success"``
+(:data:`mpcbox.sim.simulation.OUTCOMES`): a run that diverged, or whose controller fell back
+on most calls, does not count, whatever the state at the end.
 """
 
 from __future__ import annotations
@@ -15,9 +17,10 @@ import numpy as np
 from mpcbox.comparison.scenario import PushTest, task_noise
 from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError
-from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError
+from mpcbox.sim.disturbances import MAX_FORCE, ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.simulation import SimulationResult, simulate
+from mpcbox.validation import checked_keywords, instance, integer, integers, number, positive
 
 #: The push test used when none is given (every :class:`PushTest` default).
 DEFAULT_PUSH = PushTest()
@@ -79,6 +82,7 @@ class PushLimit(NamedTuple):
     simulations: int
 
 
+@checked_keywords
 def survival(
     problem: Problem,
     controller: Controller,
@@ -102,9 +106,9 @@ def survival(
         mismatch: Model mismatch applied in every run.
         progress: Show a progress bar.
     """
-    seeds = np.asarray(list(seeds), dtype=int)
-    if seeds.size == 0:
-        raise InvalidArgumentError("seeds must hold at least one seed")
+    _check_runner(problem, controller)
+    seeds = np.asarray(integers("seeds", seeds), dtype=int)
+    positive("duration", duration)
     iterator = seeds
     if progress:
         from tqdm import tqdm
@@ -121,20 +125,28 @@ def survival(
             mismatch=mismatch,
             seed=int(seed),
         )
-        survived.append(res.metrics.survived)
+        survived.append(res.metrics.success)
         times.append(res.metrics.time_to_fall)
     surv, t = np.array(survived), np.array(times)
     return SurvivalSummary(seeds, surv, t, float(surv.mean()), float(t.mean()))
+
+
+def _check_runner(problem: object, controller: object) -> None:
+    """``problem`` must be a Problem and ``controller`` a Controller (or a callable)."""
+    instance("problem", problem, Problem, "an mpcbox.Problem")
+    if not (isinstance(controller, Controller) or callable(controller)):
+        raise InvalidTypeError(
+            f"controller must be an mpcbox.Controller, got {type(controller).__name__}"
+        )
 
 
 def _push_trial(
     problem: Problem, controller: Controller, test: PushTest, seed: int
 ) -> Callable[[float], SimulationResult]:
     """``trial(force) -> SimulationResult`` for the push of ``test`` at a force magnitude."""
-    if not isinstance(test, PushTest):
-        raise InvalidArgumentError(
-            f"test must be an mpcbox.comparison.scenario.PushTest, got {type(test).__name__}"
-        )
+    _check_runner(problem, controller)
+    instance("test", test, PushTest, "an mpcbox.comparison.scenario.PushTest")
+    seed = integer("seed", seed)
     noise = task_noise(problem, test.noise_scale)
 
     def trial(force: float) -> SimulationResult:
@@ -145,6 +157,7 @@ def _push_trial(
     return trial
 
 
+@checked_keywords
 def push_grid(
     problem: Problem,
     controller: Controller,
@@ -164,24 +177,26 @@ def push_grid(
     Args:
         problem: The Problem.
         controller: The controller (reset by each simulation).
-        forces: Force magnitudes, at least one, non-negative (N); sorted here.
+        forces: Force magnitudes, at least one, in ``[0, MAX_FORCE]`` (N); sorted here.
         test: The push (direction, duration, start, settle, body) and the trials' noise.
         seed: Noise seed.
         progress: Show a progress bar.
     """
-    grid = np.sort(np.asarray(list(forces), dtype=float).ravel())
-    if grid.size == 0 or not np.all(np.isfinite(grid)) or np.any(grid < 0):
-        raise InvalidArgumentError(
-            f"forces must hold at least one finite non-negative force, got {list(forces)!r}"
-        )
     trial = _push_trial(problem, controller, test, seed)
+    if isinstance(forces, (str, bytes)) or not isinstance(forces, Sequence | np.ndarray):
+        raise InvalidTypeError(f"forces must be a sequence of numbers, got {type(forces).__name__}")
+    grid = np.sort(np.array([number("forces", f) for f in np.ravel(forces)], dtype=float))
+    if grid.size == 0 or not np.all((grid >= 0) & (grid <= MAX_FORCE)):
+        raise InvalidArgumentError(
+            f"forces must hold at least one force in [0, {MAX_FORCE:g}] N, got {list(forces)!r}"
+        )
     iterator = grid
     if progress:
         from tqdm import tqdm
 
         iterator = tqdm(grid, desc=f"{getattr(controller, 'name', 'controller')} push grid")
     results = [trial(float(f)) for f in iterator]
-    survived = np.array([r.survived for r in results], dtype=bool)
+    survived = np.array([r.metrics.success for r in results], dtype=bool)
     times = np.array([r.metrics.time_to_fall for r in results])
     return summarize_push_grid(grid, survived, times)
 
@@ -216,6 +231,7 @@ def summarize_push_grid(
     return PushGrid(forces, survived, times, limit, largest, monotone)
 
 
+@checked_keywords
 def largest_push(
     problem: Problem, controller: Controller, test: PushTest = DEFAULT_PUSH, *, seed: int = 0
 ) -> PushLimit:
@@ -239,7 +255,7 @@ def largest_push(
     def survives(force: float) -> bool:
         nonlocal count
         count += 1
-        return trial(force).survived
+        return trial(force).metrics.success
 
     if not survives(0.0):
         return PushLimit(0.0, 0.0, 0.0, count)

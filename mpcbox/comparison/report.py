@@ -30,12 +30,14 @@ class Trace(NamedTuple):
         series: Samples ``(T,)`` of each task measure, by measure name, in its unit.
         ctrls: Applied controls ``(T, nu)``.
         ctrl_ref: The problem's reference control ``(nu,)``.
+        states: States ``(T, nstate)`` (for saving the trajectory), or ``None``.
     """
 
     time: np.ndarray
     series: dict[str, np.ndarray]
     ctrls: np.ndarray
     ctrl_ref: np.ndarray
+    states: np.ndarray | None = None
 
 
 class Run(NamedTuple):
@@ -67,7 +69,11 @@ class Row(NamedTuple):
         scenario: Scenario label.
         controller: Controller label.
         runs: Number of seeds.
-        success_rate: Fraction of runs that did not fail.
+        success_rate: Fraction of runs whose outcome is ``"success"`` (see
+            :data:`~mpcbox.sim.simulation.OUTCOMES`): no fall, no divergence, no controller
+            error, the task's goal met, and at most half of the controller's calls fell back.
+        outcomes: Number of runs per outcome other than ``"success"`` (e.g.
+            ``{"goal missed": 2}``).
         mean_time_to_fall: Mean of the failure times, counting survived runs at the full
             duration (s).
         measures: Mean over runs of each task measure's summary, in its display unit, by
@@ -76,24 +82,35 @@ class Row(NamedTuple):
         control_effort: Mean over runs of the RMS control.
         largest_push: Largest survived force per :class:`~mpcbox.comparison.scenario.PushTest`
             label (N); empty when no push test ran.
-        compute_mean_ms: Mean controller time per call over all runs (ms).
-        compute_p99_ms: 99th percentile of the controller time per call (ms).
+        compute_mean_ms: Mean time of the controller's online solves over all runs (ms);
+            calls that held the plan and offline solves are left out.
+        compute_p99_ms: 99th percentile of the online solve times (ms).
+        period_ms: Control period: seconds between controller calls, in ms.
+        p99_fits: Whether ``compute_p99_ms <= period_ms`` (the controller keeps up in real
+            time on this machine).
+        offline_ms: Mean time of the offline solves per run (ms), e.g. IPOPT's one solve.
         realtime_factor: Total simulated time over total wall time.
         fallbacks: Controller fallbacks summed over runs.
+        fallback_rate: ``fallbacks`` over all controller calls of all runs.
     """
 
     scenario: str
     controller: str
     runs: int
     success_rate: float
+    outcomes: dict[str, int]
     mean_time_to_fall: float
     measures: dict[str, float]
     control_effort: float
     largest_push: dict[str, float]
     compute_mean_ms: float
     compute_p99_ms: float
+    period_ms: float
+    p99_fits: bool
+    offline_ms: float
     realtime_factor: float
     fallbacks: int
+    fallback_rate: float
 
 
 @dataclass
@@ -111,6 +128,7 @@ class Comparison:
         push_limits: ``{controller: {push test label: PushLimit}}``.
         measures: The task's measures (:meth:`~mpcbox.Problem.measures`).
         wall_time: Seconds the whole comparison took.
+        placement: Jobs run per host (and GPU ids, where workers had GPUs).
     """
 
     problem: str
@@ -121,6 +139,7 @@ class Comparison:
     push_limits: dict[str, dict[str, PushLimit]] = field(default_factory=dict)
     measures: tuple[Measure, ...] = ()
     wall_time: float = 0.0
+    placement: dict[str, int] = field(default_factory=dict)
 
     def runs_of(self, controller: str, scenario: int) -> list[Run]:
         """The runs of one controller on one scenario (by index), in seed order."""
@@ -146,25 +165,37 @@ class Comparison:
                     if m.realtime_factor > 0 and math.isfinite(m.realtime_factor)
                 )
                 measures = {
-                    measure.display_key(summary): measure.display_scale
-                    * float(np.mean([m.measures[measure.key(summary)] for m in metrics]))
+                    measure.display_key(summary): measure.scale_of(summary)
+                    * _mean([m.measures[measure.key(summary)] for m in metrics])
                     for measure, summary in self._measure_columns()
                 }
+                outcomes: dict[str, int] = {}
+                for m in metrics:
+                    if m.outcome != "success":
+                        outcomes[m.outcome] = outcomes.get(m.outcome, 0) + 1
+                calls = sum(m.solve_ticks + m.held_ticks for m in metrics)
+                p99 = float(np.percentile(ticks, 99) * 1e3) if ticks.size else 0.0
+                period_ms = 1e3 * float(np.mean([m.period_s for m in metrics]))
                 pushes = self.push_limits.get(name, {})
                 rows.append(
                     Row(
                         scenario=scenario.label,
                         controller=name,
                         runs=len(runs),
-                        success_rate=float(np.mean([m.survived for m in metrics])),
+                        success_rate=float(np.mean([m.success for m in metrics])),
+                        outcomes=outcomes,
                         mean_time_to_fall=float(np.mean([m.time_to_fall for m in metrics])),
                         measures=measures,
                         control_effort=float(np.mean([m.control_effort for m in metrics])),
                         largest_push={k: v.force for k, v in pushes.items()},
                         compute_mean_ms=float(ticks.mean() * 1e3) if ticks.size else 0.0,
-                        compute_p99_ms=float(np.percentile(ticks, 99) * 1e3) if ticks.size else 0.0,
+                        compute_p99_ms=p99,
+                        period_ms=period_ms,
+                        p99_fits=p99 <= period_ms,
+                        offline_ms=float(np.mean([m.offline_ms for m in metrics])),
                         realtime_factor=sim_time / wall if wall > 0 else float("inf"),
                         fallbacks=int(sum(m.fallbacks for m in metrics)),
+                        fallback_rate=sum(m.fallbacks for m in metrics) / max(calls, 1),
                     )
                 )
         return rows
@@ -183,12 +214,14 @@ class Comparison:
             "controller",
             "seeds",
             "success",
+            "not successful",
             "mean time to fall (s)",
             *[measure.header(summary) for measure, summary in columns],
             "effort",
             *[f"largest push {k} (N)" for k in labels],
             "compute mean (ms)",
             "compute p99 (ms)",
+            "period (ms)",
             "real-time factor",
             "fallbacks",
         ]
@@ -204,14 +237,16 @@ class Comparison:
                     row.controller,
                     str(row.runs),
                     f"{100 * row.success_rate:.0f}%",
+                    ", ".join(f"{n} {k}" for k, n in row.outcomes.items()) or "-",
                     f"{row.mean_time_to_fall:.2f}",
                     *[f"{row.measures[m.display_key(s)]:.2f}" for m, s in columns],
                     f"{row.control_effort:.3f}",
                     *pushes,
                     f"{row.compute_mean_ms:.2f}",
-                    f"{row.compute_p99_ms:.2f}",
+                    f"{row.compute_p99_ms:.2f}" + ("" if row.p99_fits else " (over)"),
+                    f"{row.period_ms:.1f}",
                     f"{row.realtime_factor:.1f}",
-                    str(row.fallbacks),
+                    f"{row.fallbacks} ({100 * row.fallback_rate:.0f}%)",
                 ]
             )
         return header, body
@@ -226,10 +261,10 @@ class Comparison:
     def to_csv(self, path: str | Path | None = None) -> str:
         """The rows as CSV with full precision; also written to ``path`` when given.
 
-        Columns: ``scenario, controller, runs, success_rate, mean_time_to_fall``, one column
-        per task measure and summary (e.g. ``com_deviation_rms_cm, tilt_rms_deg``),
-        ``control_effort, largest_push_<label>..., compute_mean_ms, compute_p99_ms,
-        realtime_factor, fallbacks``.
+        Columns: the fields of :class:`Row`, with ``measures`` spread to one column per task
+        measure and summary (e.g. ``com_deviation_rms_cm, tilt_rms_deg``), ``largest_push``
+        to one ``largest_push_<label>`` column per push test, and ``outcomes`` written as
+        ``"<count> <outcome>; ..."``.
         """
         measures = [m.display_key(s) for m, s in self._measure_columns()]
         labels = self._push_labels()
@@ -247,6 +282,8 @@ class Comparison:
                     values += [row.measures[k] for k in measures]
                 elif name == "largest_push":
                     values += [row.largest_push.get(k, "") for k in labels]
+                elif name == "outcomes":
+                    values.append("; ".join(f"{n} {k}" for k, n in row.outcomes.items()))
                 else:
                     values.append(getattr(row, name))
             writer.writerow(values)
@@ -259,3 +296,9 @@ class Comparison:
 
     def __str__(self) -> str:
         return self.to_markdown()
+
+
+def _mean(values: list[float]) -> float:
+    """Mean of the finite values (NaN when none is finite, e.g. a settle time never reached)."""
+    finite = [v for v in values if math.isfinite(v)]
+    return float(np.mean(finite)) if finite else float("nan")

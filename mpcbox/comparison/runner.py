@@ -7,149 +7,52 @@ for every seed, optionally finds each controller's largest survived push
 :class:`~mpcbox.comparison.report.Comparison` that prints as a markdown table and writes CSV;
 :func:`~mpcbox.comparison.plots.plot_comparison` draws it.
 
-Runs are spread over worker processes when everything needed to rebuild them in a worker is
-picklable: the problem given as a task name (see :data:`mpcbox.registry.TASKS`) and the
-controllers as names or module-level factories. Each worker rebuilds the problem and each
-controller once and reuses them across runs (:func:`mpcbox.simulate` resets the controller
-before every run), so a run's numbers depend only on its controller, scenario and seed, not
-on which process ran it. Timing columns (compute per tick, real-time factor) naturally vary.
+Runs are spread over worker processes (or a Ray cluster, :mod:`mpcbox.comparison.executors`)
+when everything needed to rebuild them in a worker is picklable: the problem given as a task
+name (see :data:`mpcbox.registry.TASKS`) and the controllers as names or module-level
+factories. Each worker rebuilds the problem and each controller once and reuses them across
+runs (:mod:`mpcbox.comparison.jobs`), so a run's numbers depend only on its controller,
+scenario and seed, not on where it ran. Timing columns (compute per tick, real-time factor)
+naturally vary. With a ``checkpoint`` folder, finished jobs are kept as they finish and a
+re-run skips them (:mod:`mpcbox.comparison.checkpoint`).
 """
 
 from __future__ import annotations
 
 import os
-import pickle
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
-from typing import Any, NamedTuple
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from mpcbox.comparison.push_limits import PushLimit, largest_push
-from mpcbox.comparison.report import Comparison, Run, Trace
+from mpcbox.comparison.checkpoint import Checkpoint
+from mpcbox.comparison.executors import (
+    EXECUTORS,
+    Executor,
+    ProcessExecutor,
+    SerialExecutor,
+)
+from mpcbox.comparison.jobs import Done, Job, Setup, picklable
+from mpcbox.comparison.push_limits import PushLimit
+from mpcbox.comparison.report import Comparison
 from mpcbox.comparison.scenario import PushTest, Scenario, check_noise_models
+from mpcbox.config import check_option_names
 from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError, UnknownNameError
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError, UnknownNameError
 from mpcbox.registry import (
     CONTROLLERS,
     TASKS,
     available_controllers,
-    make_controller,
+    controller_class,
     task_class,
 )
-from mpcbox.sim.measures import Measure
-from mpcbox.sim.simulation import simulate
-from mpcbox.validation import positive_int
+from mpcbox.validation import boolean, check_class_options, checked_keywords, integers, positive_int
+from mpcbox.validation import instance as instance_of
 
 ControllerFactory = Callable[[Problem], Controller]
 ControllerSpec = str | Controller | ControllerFactory
-
-
-@dataclass(frozen=True)
-class _Setup:
-    """What a worker needs to rebuild the problem and the controllers (picklable)."""
-
-    task: str | None
-    task_options: dict[str, Any]
-    controllers: dict[str, ControllerSpec]
-    overrides: dict[str, dict[str, Any]]
-    scenarios: tuple[Scenario, ...]
-    push_tests: tuple[PushTest, ...]
-    trace_seed: int
-
-
-@dataclass(frozen=True)
-class _Job:
-    controller: str
-    scenario: int = -1
-    seed: int = 0
-    push: int = -1
-
-
-class _Done(NamedTuple):
-    """A finished job: its run or push limit, and the task's measures (for the tables)."""
-
-    job: _Job
-    result: Run | PushLimit
-    measures: tuple[Measure, ...]
-
-
-class _Runner:
-    """Builds the problem and controllers on first use, then runs jobs."""
-
-    def __init__(self, setup: _Setup, problem: Problem | None = None) -> None:
-        self.setup = setup
-        self._problem = problem
-        self._controllers: dict[str, Controller] = {}
-
-    @property
-    def problem(self) -> Problem:
-        if self._problem is None:
-            self._problem = task_class(self.setup.task)(**self.setup.task_options)
-        return self._problem
-
-    def controller(self, label: str) -> Controller:
-        if label not in self._controllers:
-            spec = self.setup.controllers[label]
-            if isinstance(spec, str):
-                ctrl = make_controller(spec, self.problem, **self.setup.overrides.get(label, {}))
-            elif isinstance(spec, Controller):
-                ctrl = spec
-            else:
-                ctrl = spec(self.problem)
-            self._controllers[label] = ctrl
-        return self._controllers[label]
-
-    def __call__(self, job: _Job) -> _Done:
-        problem, controller = self.problem, self.controller(job.controller)
-        if job.push >= 0:
-            limit = largest_push(problem, controller, self.setup.push_tests[job.push], seed=0)
-            return _Done(job, limit, tuple(problem.measures()))
-        scenario = self.setup.scenarios[job.scenario]
-        res = simulate(
-            problem,
-            controller,
-            scenario.duration,
-            noise=scenario.resolve_noise(problem),
-            pushes=scenario.pushes,
-            mismatch=scenario.mismatch,
-            seed=job.seed,
-        )
-        trace = None
-        if job.seed == self.setup.trace_seed:
-            trace = Trace(res.time, res.series, res.ctrls, problem.ctrl_ref.copy())
-        run = Run(
-            job.controller,
-            job.scenario,
-            job.seed,
-            res.metrics,
-            res.failure,
-            res.compute_times,
-            trace,
-        )
-        return _Done(job, run, res.measures)
-
-
-_WORKER: _Runner | None = None
-
-
-def _init_worker(setup: _Setup) -> None:
-    global _WORKER
-    _WORKER = _Runner(setup)
-
-
-def _run_in_worker(job: _Job) -> _Done:
-    assert _WORKER is not None
-    return _WORKER(job)
-
-
-def _picklable(obj: object) -> bool:
-    try:
-        pickle.dumps(obj)
-    except Exception:  # any failure means "run serially"
-        return False
-    return True
 
 
 def _controller_label(spec: ControllerSpec, index: int) -> str:
@@ -181,15 +84,19 @@ def resolve_controllers(
             )
     elif isinstance(controllers, str):
         controllers = [c.strip() for c in controllers.split(",") if c.strip()]
+    elif not isinstance(controllers, Sequence):
+        raise InvalidTypeError(
+            f"controllers must be a sequence of controllers, got {type(controllers).__name__}"
+        )
     if len(controllers) == 0:
         raise InvalidArgumentError("controllers must hold at least one controller")
     out: dict[str, ControllerSpec] = {}
     for i, spec in enumerate(controllers):
         if isinstance(spec, str):
             if spec not in CONTROLLERS:
-                raise UnknownNameError("controller", spec, CONTROLLERS)
+                raise UnknownNameError("controller", spec, CONTROLLERS, "controllers")
         elif not (isinstance(spec, Controller) or callable(spec)):
-            raise InvalidArgumentError(
+            raise InvalidTypeError(
                 "controllers must hold names, mpcbox.Controller instances or factories "
                 f"problem -> Controller, got {type(spec).__name__}"
             )
@@ -200,6 +107,7 @@ def resolve_controllers(
     return out
 
 
+@checked_keywords
 def compare(
     problem: Problem | str,
     controllers: Sequence[ControllerSpec] | str | None = None,
@@ -210,6 +118,8 @@ def compare(
     problem_options: Mapping[str, Any] | None = None,
     controller_options: Mapping[str, Mapping[str, Any]] | None = None,
     workers: int | None = None,
+    executor: str | Executor | None = None,
+    checkpoint: str | Path | None = None,
     progress: bool = True,
 ) -> Comparison:
     """Run each controller on identical seeded scenarios and collect the metrics.
@@ -231,7 +141,13 @@ def compare(
             ``{"ilqr": {"horizon": 0.5}}``.
         workers: Worker processes (default: ``os.cpu_count()``, at most one per job); ``1``
             runs everything in this process. Runs are also serial when the problem is an
-            instance or a controller cannot be pickled.
+            instance or a controller cannot be pickled. Ignored when ``executor`` is given.
+        executor: Where the jobs run: ``"serial"``, ``"processes"``, ``"ray"`` (a local Ray;
+            pass a :class:`~mpcbox.comparison.executors.RayExecutor` for a cluster
+            address) or an :class:`~mpcbox.comparison.executors.Executor`; default from
+            ``workers``.
+        checkpoint: A folder where each finished job is kept as it finishes; a re-run with
+            the same folder and setup skips those jobs.
         progress: Show a tqdm progress bar.
 
     Returns:
@@ -258,39 +174,53 @@ def compare(
             raise InvalidArgumentError("problem_options only applies when problem is a task name")
         instance, task, problem_class, problem_name = problem, None, type(problem), problem.name
     else:
-        raise InvalidArgumentError(
+        raise InvalidTypeError(
             f"problem must be an mpcbox.Problem or a task name ({', '.join(TASKS)}), "
             f"got {type(problem).__name__}"
         )
+    if problem_options is not None:
+        instance_of("problem_options", problem_options, Mapping, "a mapping of options")
+        check_class_options(problem_class, problem_options, f"problem_options ({problem})")
     specs = resolve_controllers(instance or problem_class, controllers)
+    if controller_options is not None:
+        instance_of("controller_options", controller_options, Mapping, "a mapping of mappings")
     overrides = {k: dict(v) for k, v in (controller_options or {}).items()}
-    for name in overrides:
+    for name, options in overrides.items():
         if name not in specs:
             raise UnknownNameError("controller in controller_options", name, specs)
+        spec = specs[name]
+        if isinstance(spec, str) and controller_class(spec).config_class is not None:
+            check_option_names(
+                controller_class(spec).config_class, options, f"controller_options[{name!r}]"
+            )
 
     if scenarios is None:
         scenarios = (Scenario(),)
     elif isinstance(scenarios, Scenario):
         scenarios = (scenarios,)
-    scenarios = tuple(scenarios)
-    if not scenarios or not all(isinstance(s, Scenario) for s in scenarios):
+    elif not isinstance(scenarios, Sequence):
+        raise InvalidTypeError(
+            f"scenarios must be Scenario objects, got {type(scenarios).__name__}"
+        )
+    scenarios = tuple(instance_of("scenarios", s, Scenario, "mpcbox.Scenario") for s in scenarios)
+    if not scenarios:
         raise InvalidArgumentError("scenarios must hold at least one mpcbox.Scenario")
-    seed_list = (
-        tuple(range(positive_int("seeds", seeds)))
-        if isinstance(seeds, int | np.integer)
-        else tuple(int(s) for s in seeds)
+    seed_list = tuple(
+        range(positive_int("seeds", seeds))
+        if isinstance(seeds, int | np.integer) and not isinstance(seeds, bool)
+        else integers("seeds", seeds)
     )
-    if not seed_list:
-        raise InvalidArgumentError("seeds must hold at least one seed")
-    tests = (push_tests,) if isinstance(push_tests, PushTest) else tuple(push_tests)
-    if not all(isinstance(t, PushTest) for t in tests):
-        raise InvalidArgumentError("push_tests must hold mpcbox.comparison.scenario.PushTest")
+    tests = (push_tests,) if isinstance(push_tests, PushTest) else push_tests
+    if not isinstance(tests, Sequence):
+        raise InvalidTypeError(f"push_tests must be PushTest objects, got {type(tests).__name__}")
+    tests = tuple(instance_of("push_tests", t, PushTest, "mpcbox PushTest objects") for t in tests)
+    progress = boolean("progress", progress)
     labels = [t.label for t in tests]
     if len(set(labels)) != len(labels):
         raise InvalidArgumentError(f"push_tests need distinct labels, got {labels}")
     check_noise_models(instance or problem_class, [*scenarios, *tests])
 
-    setup = _Setup(
+    setup = Setup(
         task=task,
         task_options=dict(problem_options or {}),
         controllers=specs,
@@ -299,38 +229,33 @@ def compare(
         push_tests=tests,
         trace_seed=seed_list[0],
     )
-    jobs = [_Job(name, push=p) for name in specs for p in range(len(tests))]
+    jobs = [Job(name, push=p) for name in specs for p in range(len(tests))]
     jobs += [
-        _Job(name, scenario=s, seed=seed)
+        Job(name, scenario=s, seed=seed)
         for name in specs
         for s in range(len(scenarios))
         for seed in seed_list
     ]
-    workers = (os.cpu_count() or 1) if workers is None else positive_int("workers", workers)
-    workers = min(workers, len(jobs))
-    parallel = workers > 1 and instance is None and _picklable(setup)
+    runner = _executor(executor, workers, len(jobs), instance is None and picklable(setup))
+    store = None if checkpoint is None else Checkpoint(checkpoint, setup)
+    finished = {} if store is None else store.load(jobs)
+    todo = [job for job in jobs if job not in finished]
 
     from tqdm.auto import tqdm
 
-    bar = tqdm(total=len(jobs), desc=f"compare {problem_name}", disable=not progress)
-    done: list[_Done] = []
+    bar = tqdm(
+        total=len(jobs),
+        initial=len(finished),
+        desc=f"compare {problem_name} ({runner.name})",
+        disable=not progress,
+    )
+    done: list[Done] = list(finished.values())
     try:
-        if parallel:
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor, as_completed
-
-            context = multiprocessing.get_context("spawn")
-            with ProcessPoolExecutor(
-                max_workers=workers, mp_context=context, initializer=_init_worker, initargs=(setup,)
-            ) as pool:
-                futures = [pool.submit(_run_in_worker, job) for job in jobs]
-                for future in as_completed(futures):
-                    done.append(future.result())
-                    bar.update()
-        else:
-            runner = _Runner(setup, instance)
-            for job in jobs:
-                done.append(runner(job))
+        if todo:
+            for item in runner.run(setup, todo, instance):
+                if store is not None:
+                    store.save(item)
+                done.append(item)
                 bar.update()
     finally:
         bar.close()
@@ -349,6 +274,40 @@ def compare(
         seeds=seed_list,
         runs=runs,
         push_limits=push_limits,
-        measures=done[0].measures,
+        measures=next((d.measures for d in done if d.measures), ()),
         wall_time=time.perf_counter() - wall0,
+        placement=_placement(done),
     )
+
+
+def _executor(
+    executor: str | Executor | None, workers: int | None, jobs: int, portable: bool
+) -> Executor:
+    """The executor to use: the one asked for, or processes when ``workers`` allows it."""
+    if isinstance(executor, Executor):
+        return executor if portable else SerialExecutor()
+    if executor is not None:
+        if not isinstance(executor, str):
+            raise InvalidTypeError(
+                f"executor must be a name ({', '.join(EXECUTORS)}) or an Executor, got "
+                f"{type(executor).__name__}"
+            )
+        if executor not in EXECUTORS:
+            raise UnknownNameError("executor", executor, EXECUTORS)
+        if executor == "serial" or not portable:
+            return SerialExecutor()
+        if executor == "processes":
+            return ProcessExecutor(workers=workers)
+        return EXECUTORS[executor]()
+    count = (os.cpu_count() or 1) if workers is None else positive_int("workers", workers)
+    if min(count, jobs) > 1 and portable:
+        return ProcessExecutor(workers=min(count, jobs))
+    return SerialExecutor()
+
+
+def _placement(done: list[Done]) -> dict[str, int]:
+    """Jobs per place (host, Ray node, GPUs) they ran on."""
+    out: dict[str, int] = {}
+    for item in done:
+        out[item.where] = out.get(item.where, 0) + 1
+    return out

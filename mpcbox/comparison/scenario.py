@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
@@ -10,14 +9,20 @@ from typing import Any
 import numpy as np
 
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError
-from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
-from mpcbox.validation import positive
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError
+from mpcbox.sim.disturbances import MAX_FORCE, ActuatorNoise, ModelMismatch, Push
+from mpcbox.validation import (
+    checked_options,
+    finite_array,
+    instance,
+    non_negative,
+    positive,
+    string,
+)
 
 
 def _check_noise_scale(value: float) -> None:
-    if not (math.isfinite(value) and value >= 0):
-        raise InvalidArgumentError(f"noise_scale must be finite and >= 0, got {value!r}")
+    non_negative("noise_scale", value)
 
 
 def task_noise(problem: Problem, scale: float) -> ActuatorNoise | None:
@@ -35,6 +40,7 @@ def has_noise_model(problem: Problem | type[Problem]) -> bool:
     return cls.noise is not Problem.noise
 
 
+@checked_options
 @dataclass(frozen=True, kw_only=True)
 class Scenario:
     """One closed-loop test condition, run once per seed.
@@ -61,22 +67,20 @@ class Scenario:
     mismatch: ModelMismatch | None = None
 
     def __post_init__(self) -> None:
+        string("name", self.name)
         positive("duration", self.duration)
         _check_noise_scale(self.noise_scale)
+        if isinstance(self.pushes, (str, bytes)) or not isinstance(self.pushes, Sequence):
+            raise InvalidTypeError(
+                f"pushes must be a sequence of mpcbox.Push, got {type(self.pushes).__name__}"
+            )
         object.__setattr__(self, "pushes", tuple(self.pushes))
         for push in self.pushes:
-            if not isinstance(push, Push):
-                raise InvalidArgumentError(
-                    f"pushes must hold mpcbox.Push objects, got {type(push).__name__}"
-                )
-        if self.noise is not None and not isinstance(self.noise, ActuatorNoise):
-            raise InvalidArgumentError(
-                f"noise must be an mpcbox.ActuatorNoise, got {type(self.noise).__name__}"
-            )
-        if self.mismatch is not None and not isinstance(self.mismatch, ModelMismatch):
-            raise InvalidArgumentError(
-                f"mismatch must be an mpcbox.ModelMismatch, got {type(self.mismatch).__name__}"
-            )
+            instance("pushes", push, Push, "an mpcbox.Push (one per item)")
+        if self.noise is not None:
+            instance("noise", self.noise, ActuatorNoise, "an mpcbox.ActuatorNoise")
+        if self.mismatch is not None:
+            instance("mismatch", self.mismatch, ModelMismatch, "an mpcbox.ModelMismatch")
 
     @property
     def label(self) -> str:
@@ -120,6 +124,7 @@ class Scenario:
         return [cls(noise_scale=float(s), **kwargs) for s in scales]
 
 
+@checked_options
 @dataclass(frozen=True, kw_only=True)
 class PushTest:
     """A push-recovery test: the push, and the bisection that finds the largest survived one.
@@ -156,14 +161,19 @@ class PushTest:
     name: str = ""
 
     def __post_init__(self) -> None:
-        direction = tuple(float(d) for d in self.direction)
-        if len(direction) != 3 or not any(direction) or not all(map(math.isfinite, direction)):
-            raise InvalidArgumentError(
-                f"direction must be a finite non-zero 3-vector, got {direction}"
-            )
+        direction = tuple(float(d) for d in finite_array("direction", self.direction, (3,)))
+        if not any(direction):
+            raise InvalidArgumentError(f"direction must be a non-zero 3-vector, got {direction}")
         object.__setattr__(self, "direction", direction)
         for name in ("duration", "settle", "max_force", "tolerance"):
             positive(name, getattr(self, name))
+        if self.max_force > MAX_FORCE:
+            raise InvalidArgumentError(
+                f"max_force must be at most {MAX_FORCE:g} N (MAX_FORCE), got {self.max_force!r}"
+            )
+        non_negative("start", self.start)
+        string("body", self.body)
+        string("name", self.name)
         _check_noise_scale(self.noise_scale)
 
     @property

@@ -47,6 +47,12 @@ class Controller(abc.ABC):
     #: Optional modules the controller imports when built (not when its class is imported);
     #: :func:`mpcbox.registry.available_controllers` leaves it out when one is missing.
     requires: tuple[str, ...] = ()
+    #: What the last call did: ``"solve"`` (computed a new control online), ``"hold"``
+    #: (followed the current plan without solving: a feedback law or a spline between
+    #: replans) or ``"offline"`` (a one-off solve before the loop, e.g. IPOPT's).
+    #: :func:`mpcbox.simulate` times only ``"solve"`` calls as ticks and reports the others
+    #: on their own.
+    last_call: str = "solve"
 
     def reset(self) -> None:  # noqa: B027 - optional hook
         """Forget internal state (warm starts, filters) before a new simulation."""

@@ -14,17 +14,26 @@ from typing import Any
 
 import numpy as np
 
-from mpcbox.config import resolve_config
+from mpcbox.config import check_option_names, resolve_config
 from mpcbox.controllers.base import Controller, check_problem
 from mpcbox.controllers.ilqr.backward_pass import backward_pass
+from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.ilqr.controller import ILQR
 from mpcbox.controllers.ipopt import IpoptSolution, require_casadi, solve_ipopt
 from mpcbox.controllers.lqr import dlqr
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError, MpcboxError, SolverError
-from mpcbox.validation import as_array, positive, positive_int
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError, MpcboxError, SolverError
+from mpcbox.validation import (
+    as_array,
+    boolean,
+    checked_options,
+    integer,
+    positive,
+    positive_int,
+)
 
 
+@checked_options
 @dataclass(frozen=True, kw_only=True)
 class IpoptConfig:
     """Options of :class:`IpoptController`.
@@ -65,10 +74,25 @@ class IpoptConfig:
     nlpsol_options: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "horizon", positive_int("horizon", self.horizon))
-        object.__setattr__(self, "regularization", positive("regularization", self.regularization))
+        def put(name: str, value: Any) -> None:
+            object.__setattr__(self, name, value)
+
+        for name in ("horizon", "max_iterations", "lbfgs_history"):
+            put(name, positive_int(name, getattr(self, name)))
+        put("print_level", integer("print_level", self.print_level))
+        put("regularization", positive("regularization", self.regularization))
+        put("tolerance", positive("tolerance", self.tolerance))
+        put("warm_start_ilqr", boolean("warm_start_ilqr", self.warm_start_ilqr))
         if self.planning_timestep is not None:
             positive("planning_timestep", self.planning_timestep)
+        for name in ("ilqr_options", "nlpsol_options"):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, Mapping):
+                raise InvalidTypeError(
+                    f"{name} must be a mapping of options, got {type(value).__name__}"
+                )
+        if self.ilqr_options:
+            check_option_names(ILQRConfig, self.ilqr_options, "ilqr_options (ILQRConfig)")
 
 
 class IpoptController(Controller):
@@ -189,7 +213,9 @@ class IpoptController(Controller):
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
         p = self.problem
         state = as_array("state", state, (p.nstate,))
+        self.last_call = "solve"
         if self._K is None or time < self._plan_time - 1e-9:
+            self.last_call = "offline"
             try:
                 self.plan(state)
             except (SolverError, InvalidArgumentError, RuntimeError):

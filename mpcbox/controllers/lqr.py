@@ -19,7 +19,7 @@ from mpcbox.config import resolve_config
 from mpcbox.controllers.base import Controller, check_problem
 from mpcbox.core.problem import Problem
 from mpcbox.errors import CostDefinitionError, NotStabilizableError, ShapeError, SolverError
-from mpcbox.validation import as_array
+from mpcbox.validation import as_array, checked_options
 
 
 def check_symmetric(name: str, mat: np.ndarray, rtol: float = 1e-9) -> None:
@@ -135,6 +135,7 @@ def dlqr(
     return K, P
 
 
+@checked_options
 @dataclass(frozen=True, kw_only=True)
 class LQRConfig:
     """Options of :class:`LQR`.

@@ -228,6 +228,10 @@ class Dynamics:
         nbatch, horizon = ctrls.shape[:2]
         padded = np.concatenate([ctrls, ctrls[:, -1:]], axis=1)
         init = self.full_physics_state(state)
+        # Start the clock at 1 s: a reset (time 0, then one step) then always reads as time
+        # stepping back, even on the first step. The state carries no time, so nothing else
+        # sees the offset.
+        init[0] = 1.0
         if self._rollout_datas is None:
             self._rollout_datas = [mujoco.MjData(self.model) for _ in range(self.threads)]
         models = self.model if model is None else model

@@ -18,8 +18,9 @@ from mpcbox.core.actuation import (
     control_owner,
     solve_actuation,
 )
+from mpcbox.core.model import check_mjmodel
 from mpcbox.errors import EquilibriumWarning, InfeasibleEquilibriumError, SolverError
-from mpcbox.validation import as_array, one_of, positive
+from mpcbox.validation import checked_keywords, finite_array, one_of, positive
 
 __all__ = ["Equilibrium", "actuator_moment", "find_equilibrium"]
 
@@ -70,6 +71,7 @@ def _free_root(model: mujoco.MjModel) -> tuple[int, int] | None:
     return None
 
 
+@checked_keywords
 def find_equilibrium(
     model: mujoco.MjModel,
     qpos: np.ndarray,
@@ -122,7 +124,8 @@ def find_equilibrium(
         UnsupportedModelError: If an actuator's force is not affine in its control at rest
             (e.g. user dynamics, delays).
     """
-    qpos = as_array("qpos", qpos, (model.nq,)).copy()
+    model = check_mjmodel(model)
+    qpos = finite_array("qpos", qpos, (model.nq,)).copy()
     tolerance = positive("tolerance", tolerance)
     search_range = positive("search_range", search_range)
     feasibility_tolerance = positive("feasibility_tolerance", feasibility_tolerance)

@@ -198,7 +198,7 @@ def check_model(model: mujoco.MjModel, name: str = "model") -> None:
     Raises:
         InvalidArgumentError: If the model has no degree of freedom or no actuator, or,
             naming the field, a timestep that is not positive and finite, non-finite
-            gravity, a non-finite or negative body mass, non-finite body inertia, actuator
+            gravity, a non-finite or negative body mass or inertia, non-finite actuator
             gains, biases or gears.
     """
     if model.nv == 0:
@@ -207,9 +207,11 @@ def check_model(model: mujoco.MjModel, name: str = "model") -> None:
             "or free body to predict and control"
         )
     if model.nu == 0:
+        joints = ", ".join(repr(j) for j in names(model, "joint")[:10]) or "(unnamed)"
         raise InvalidArgumentError(
-            f"{name} has no actuators (nu = 0): mpcbox controls a model through its "
-            "actuators, so it needs at least one (add an <actuator> element)"
+            f"{name} has no actuators (nu = 0), only {model.njnt} joint(s) ({joints}) and "
+            f"{model.nv} degree(s) of freedom: mpcbox controls a model through its actuators, "
+            'so it needs at least one (add an <actuator> element, e.g. <motor joint="..."/>)'
         )
     timestep = float(model.opt.timestep)
     if not (np.isfinite(timestep) and timestep > 0.0):
@@ -227,11 +229,26 @@ def check_model(model: mujoco.MjModel, name: str = "model") -> None:
             raise InvalidArgumentError(
                 f"{name}: {field} must be finite; non-finite at {_ids(model, field, bad)}"
             )
-    negative = np.flatnonzero(model.body_mass < 0.0)
-    if negative.size:
-        raise InvalidArgumentError(
-            f"{name}: body_mass must be >= 0; negative at {_ids(model, 'body_mass', negative)}"
+    for field in ("body_mass", "body_inertia"):
+        values = getattr(model, field)
+        negative = np.flatnonzero((values < 0.0).reshape(len(values), -1).any(axis=1))
+        if negative.size:
+            raise InvalidArgumentError(
+                f"{name}: {field} must be >= 0; negative at {_ids(model, field, negative)}"
+            )
+
+
+def check_mjmodel(model: object, name: str = "model") -> mujoco.MjModel:
+    """Check that ``model`` is a compiled :class:`mujoco.MjModel` and return it.
+
+    Raises:
+        InvalidTypeError: Otherwise (a path or spec must be compiled first, e.g. by a Problem).
+    """
+    if not isinstance(model, mujoco.MjModel):
+        raise InvalidTypeError(
+            f"{name} must be a compiled mujoco.MjModel, got {type(model).__name__}"
         )
+    return model
 
 
 def _ids(model: mujoco.MjModel, field: str, ids: np.ndarray) -> str:
@@ -283,38 +300,65 @@ def names(model: mujoco.MjModel, kind: str) -> list[str]:
     return out
 
 
-def object_id(model: mujoco.MjModel, kind: str, name: str | int) -> int:
+def object_id(
+    model: mujoco.MjModel, kind: str, name: str | int, argument: str | None = None
+) -> int:
     """The id of a named object; an integer is checked and returned.
 
+    Args:
+        model: The model.
+        kind: Object kind (``"body"``, ``"site"``, ...).
+        name: Its name, or an id.
+        argument: The argument that gave ``name``, for error messages (default: ``kind``).
+
     Raises:
+        InvalidTypeError: If ``name`` is neither a string nor an integer.
         UnknownNameError: If no object of that kind has that name (lists the valid names).
     """
+    argument = argument or kind
     if kind not in _OBJ_KINDS:
         raise InvalidArgumentError(f"kind must be one of {sorted(_OBJ_KINDS)}, got {kind!r}")
     count = getattr(model, _COUNTS[kind])
-    if isinstance(name, int):
+    if isinstance(name, bool) or not isinstance(name, (str, int, np.integer)):
+        # mj_name2id crashes the interpreter on None.
+        raise InvalidTypeError(
+            f"{argument} must be a {kind} name or id, got {type(name).__name__} {name!r}"
+        )
+    if isinstance(name, (int, np.integer)):
+        name = int(name)
         if not 0 <= name < count:
-            raise InvalidArgumentError(f"{kind} id must be in [0, {count}), got {name}")
+            raise InvalidArgumentError(f"{argument}: {kind} id must be in [0, {count}), got {name}")
         return name
     idx = mujoco.mj_name2id(model, _OBJ_KINDS[kind], name)
     if idx < 0:
-        raise UnknownNameError(kind, name, names(model, kind))
+        raise UnknownNameError(
+            kind, name, names(model, kind), argument if argument != kind else None
+        )
     return idx
 
 
-def frame_object(model: mujoco.MjModel, name: str) -> tuple[str, int]:
+def frame_object(model: mujoco.MjModel, name: str, argument: str = "frame") -> tuple[str, int]:
     """Resolve a point-like frame: a site if one has this name, else a body.
+
+    Args:
+        model: The model.
+        name: Site or body name.
+        argument: The argument that gave ``name``, for error messages.
 
     Returns:
         ``("site", id)`` or ``("body", id)``.
     """
+    if not isinstance(name, str):  # mj_name2id crashes the interpreter on None
+        raise InvalidTypeError(f"{argument} must be a site or body name, got {type(name).__name__}")
     sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
     if sid >= 0:
         return "site", sid
     bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
     if bid >= 0:
         return "body", bid
-    raise UnknownNameError("site or body", name, names(model, "site") + names(model, "body"))
+    raise UnknownNameError(
+        "site or body", name, names(model, "site") + names(model, "body"), argument
+    )
 
 
 def frame_position(model: mujoco.MjModel, data: mujoco.MjData, name: str) -> np.ndarray:

@@ -7,9 +7,17 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from mpcbox.core.model import frame_object
+from mpcbox.core.model import check_mjmodel, frame_object, object_id
 from mpcbox.errors import InvalidArgumentError, SolverError
-from mpcbox.validation import as_array, positive, positive_int
+from mpcbox.validation import (
+    as_array,
+    checked_keywords,
+    finite_array,
+    integer,
+    one_of,
+    positive,
+    positive_int,
+)
 
 
 class StancePosture(NamedTuple):
@@ -28,11 +36,12 @@ class StancePosture(NamedTuple):
     iterations: int
 
 
-def _mink_frame(model: mujoco.MjModel, name: str) -> tuple[str, str]:
-    kind, _ = frame_object(model, name)
+def _mink_frame(model: mujoco.MjModel, name: str, argument: str) -> tuple[str, str]:
+    kind, _ = frame_object(model, name, argument)
     return name, kind
 
 
+@checked_keywords
 def stance_posture(
     model: mujoco.MjModel,
     qpos_init: np.ndarray,
@@ -68,14 +77,23 @@ def stance_posture(
         SolverError: If the COM stays farther than 1 cm from the stance point.
     """
     import mink
+    import qpsolvers
 
-    qpos_init = as_array("qpos_init", qpos_init, (model.nq,))
-    positive("lift", lift)
+    model = check_mjmodel(model)
+    qpos_init = finite_array("qpos_init", qpos_init, (model.nq,))
+    lift = positive("lift", lift)
     positive_int("iterations", iterations)
+    tolerance = positive("tolerance", tolerance)
+    com_body = integer("com_body", com_body)
+    if com_body >= model.nbody:
+        raise InvalidArgumentError(f"com_body must be a body id < {model.nbody}, got {com_body}")
+    if upright_body is not None:
+        object_id(model, "body", upright_body, "upright_body")
+    one_of("solver", solver, qpsolvers.available_solvers)
     config = mink.Configuration(model, q=qpos_init.copy())
     data = config.data
-    stance_name, stance_kind = _mink_frame(model, stance)
-    swing_name, swing_kind = _mink_frame(model, swing)
+    stance_name, stance_kind = _mink_frame(model, stance, "stance")
+    swing_name, swing_kind = _mink_frame(model, swing, "swing")
     stance_task = mink.FrameTask(
         stance_name, stance_kind, position_cost=100.0, orientation_cost=10.0
     )
@@ -162,7 +180,8 @@ def self_collisions(
     Returns:
         ``(geom_a, geom_b)`` labels, one per touching pair.
     """
-    qpos = as_array("qpos", qpos, (model.nq,))
+    model = check_mjmodel(model)
+    qpos = finite_array("qpos", qpos, (model.nq,))
     data = mujoco.MjData(model)
     data.qpos[:] = qpos
     mujoco.mj_forward(model, data)
@@ -176,6 +195,7 @@ def self_collisions(
     return tuple(pairs)
 
 
+@checked_keywords
 def reach_posture(
     model: mujoco.MjModel,
     qpos_init: np.ndarray,
@@ -213,8 +233,9 @@ def reach_posture(
     """
     import mink
 
-    qpos_init = as_array("qpos_init", qpos_init, (model.nq,))
-    target_pos = as_array("position", position, (3,))
+    model = check_mjmodel(model)
+    qpos_init = finite_array("qpos_init", qpos_init, (model.nq,))
+    target_pos = finite_array("position", position, (3,))
     if orientation is not None:
         quat = as_array("orientation", orientation, (4,))
         norm = float(np.linalg.norm(quat))

@@ -25,7 +25,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from mpcbox.core import derivatives
+from mpcbox.core import derivatives, inputs
 from mpcbox.core.cost import ControlCost, Cost, Features, StateCost
 from mpcbox.core.derivatives import Quadratization
 from mpcbox.core.dynamics import Dynamics, Linearization, Rollout, mujoco_errors
@@ -42,13 +42,17 @@ from mpcbox.core.model import (
     with_sensors,
 )
 from mpcbox.core.tangent import TangentSpace
-from mpcbox.errors import (
-    DivergenceError,
-    InvalidArgumentError,
-    ModelLoadError,
-    ShapeError,
+from mpcbox.errors import DivergenceError, InvalidArgumentError, ModelLoadError, ShapeError
+from mpcbox.validation import (
+    as_array,
+    boolean,
+    checked_options,
+    finite_array,
+    instance,
+    positive,
+    positive_int,
+    string,
 )
-from mpcbox.validation import as_array, positive, positive_int
 
 __all__ = ["Linearization", "Problem", "Quadratization", "Rollout"]
 
@@ -99,6 +103,7 @@ class Problem:
     #: :func:`mpcbox.make_controller` uses; a comparison runs these controllers by default.
     controller_configs: Mapping[str, Any] = MappingProxyType({})
 
+    @checked_options
     def __init__(
         self,
         model: ModelSource,
@@ -115,9 +120,9 @@ class Problem:
         name: str | None = None,
     ) -> None:
         if name is not None:
-            self.name = name
+            self.name = string("name", name)
         self.fd_eps = positive("fd_eps", fd_eps)
-        self.fd_centered = bool(fd_centered)
+        self.fd_centered = boolean("fd_centered", fd_centered)
         self.threads = positive_int(
             "threads", threads if threads is not None else os.cpu_count() or 1
         )
@@ -139,16 +144,14 @@ class Problem:
             self.qpos_ref = base.qpos0.copy()
             key_ctrl = np.zeros(self.nu)
         if qpos_ref is not None:
-            self.qpos_ref = as_array("qpos_ref", qpos_ref, (self.nq,)).copy()
-        self.ctrl_ref = key_ctrl if ctrl_ref is None else as_array("ctrl_ref", ctrl_ref, (self.nu,))
+            self.qpos_ref = finite_array("qpos_ref", qpos_ref, (self.nq,)).copy()
+        self.ctrl_ref = (
+            key_ctrl if ctrl_ref is None else finite_array("ctrl_ref", ctrl_ref, (self.nu,))
+        )
         self.qvel_ref = np.zeros(self.nv)
         self.prepare(base)
 
-        self.cost = cost if cost is not None else self.build_cost(base)
-        if not isinstance(self.cost, Cost):
-            raise InvalidArgumentError(
-                f"cost must be an mpcbox.Cost, got {type(self.cost).__name__}"
-            )
+        self.cost = instance("cost", self.build_cost(base) if cost is None else cost, Cost)
         requests = self.cost.sensors(base)
         self.model = with_sensors(base if spec is None else spec, requests)
         pm = build_planning_model(self.model, spec, requests, planning_model, planning_timestep)
@@ -162,18 +165,12 @@ class Problem:
         self.dynamics = Dynamics(self.planning_model, self.threads)
 
     def prepare(self, model: mujoco.MjModel) -> None:
-        """Hook run before the cost is built: set ``qpos_ref`` / ``ctrl_ref`` here.
-
-        Args:
-            model: The compiled model without cost sensors.
-        """
+        """Hook run before the cost is built, on the compiled ``model`` without cost sensors:
+        set ``qpos_ref`` / ``ctrl_ref`` here."""
 
     def build_cost(self, model: mujoco.MjModel) -> Cost:
-        """Default cost: state deviation from the reference plus control effort.
-
-        Args:
-            model: The compiled model without cost sensors.
-        """
+        """Default cost: state deviation from the reference plus control effort (``model``:
+        compiled, without cost sensors)."""
         return Cost(
             [
                 StateCost(self.qpos_ref, weight_qpos=1.0, weight_qvel=0.1),
@@ -216,12 +213,12 @@ class Problem:
         Returns:
             Deviations, shape ``(..., nx)`` (``out`` when given).
         """
-        state = np.asarray(state, dtype=np.float64)
-        state_ref = np.asarray(state_ref, dtype=np.float64)
-        if state.shape[-1] != self.nstate or state_ref.shape[-1] != self.nstate:
+        state = as_array("state", state, (None,) * max(1, np.ndim(state)))
+        state_ref = as_array("state_ref", state_ref, (None,) * max(1, np.ndim(state_ref)))
+        if state.shape[-1] != self.nstate or state_ref.shape not in ((self.nstate,), state.shape):
             raise ShapeError(
-                f"state and state_ref must end in nstate={self.nstate}, "
-                f"got {state.shape} and {state_ref.shape}"
+                f"state must have shape (..., {self.nstate}) and state_ref ({self.nstate},) or "
+                f"the shape of state, got {state.shape} and {state_ref.shape}"
             )
         if out is not None and out.shape != (*state.shape[:-1], self.nx):
             raise ShapeError(f"out must have shape {(*state.shape[:-1], self.nx)}, got {out.shape}")
@@ -238,30 +235,14 @@ class Problem:
         return np.clip(ctrl, self.ctrl_low, self.ctrl_high)
 
     def check_state(self, state: np.ndarray, name: str = "state") -> np.ndarray:
-        """Check a state ``(nstate,)`` of this Problem: its shape and that it is finite.
-
-        Args:
-            state: ``[qpos, qvel, act]``.
-            name: Argument name used in error messages.
-
-        Returns:
-            The state as a float64 array.
-
-        Raises:
-            ShapeError: If the shape is not ``(nstate,)``.
-            DivergenceError: If it holds NaN or infinity.
-        """
-        state = as_array(name, state, (self.nstate,))
-        if not np.all(np.isfinite(state)):
-            raise DivergenceError(f"{name} holds non-finite values (NaN or inf)")
-        return state
+        """A state ``[qpos, qvel, act]`` as float64, checked: :class:`ShapeError` for another
+        shape than ``(nstate,)``, :class:`DivergenceError` for NaN or infinity (``name``: the
+        argument's name in messages)."""
+        return inputs.check_state(name, state, self.nstate)
 
     def check_ctrl(self, ctrl: np.ndarray, name: str = "ctrl") -> np.ndarray:
-        """Check a control ``(nu,)``: its shape and that it is finite (see :meth:`check_state`)."""
-        ctrl = as_array(name, ctrl, (self.nu,))
-        if not np.all(np.isfinite(ctrl)):
-            raise DivergenceError(f"{name} holds non-finite values (NaN or inf)")
-        return ctrl
+        """Check a control ``(nu,)``: shape, finite, within MuJoCo's limit (:mod:`.inputs`)."""
+        return inputs.check_ctrl(name, ctrl, (self.nu,))
 
     # ------------------------------------------------------------------ dynamics
     def scratch_data(self) -> mujoco.MjData:
@@ -291,10 +272,15 @@ class Problem:
         """Jacobians ``A`` ``(nx, nx)``, ``B`` ``(nx, nu)`` of one planning step at a state.
 
         Finite differences of ``mjd_transitionFD`` with step ``eps`` (default ``fd_eps``),
-        centered or not (default ``fd_centered``); see :meth:`Dynamics.linearize`.
+        centered or not (default ``fd_centered``); see :meth:`Dynamics.linearize`. A control
+        outside ``ctrlrange`` or ``B = 0`` raises (see :mod:`mpcbox.core.inputs`).
         """
         state, ctrl = self.check_state(state), self.check_ctrl(ctrl)
-        return self.dynamics.linearize(state, ctrl, *self._fd_options(eps, centered))
+        eps, centered = self._fd_options(eps, centered)
+        inputs.check_in_range("ctrl", ctrl, self.ctrl_low, self.ctrl_high, eps)
+        lin = self.dynamics.linearize(state, ctrl, eps, centered)
+        inputs.check_authority(lin.B, "linearize")
+        return lin
 
     def linearize_trajectory(
         self,
@@ -311,15 +297,18 @@ class Problem:
         ``B`` ``(T, nx, nu)``; MuJoCo drops the GIL, each thread has its own ``MjData``.
         """
         states = as_array("states", states, (None, self.nstate))
-        ctrls = as_array("ctrls", ctrls, (states.shape[0], self.nu))
-        if not (np.all(np.isfinite(states)) and np.all(np.isfinite(ctrls))):
-            raise DivergenceError("states or ctrls hold non-finite values")
+        if not (states.shape[0] and np.all(np.isfinite(states))):
+            raise DivergenceError("states must hold at least one finite state")
+        ctrls = inputs.check_ctrl("ctrls", ctrls, (states.shape[0], self.nu))
         eps, centered = self._fd_options(eps, centered)
-        return self.dynamics.linearize_trajectory(states, ctrls, eps, centered, threads)
+        threads = None if threads is None else positive_int("threads", threads)
+        lin = self.dynamics.linearize_trajectory(states, ctrls, eps, centered, threads)
+        inputs.check_authority(lin.B, "linearize_trajectory")
+        return lin
 
     def _fd_options(self, eps: float | None, centered: bool | None) -> tuple[float, bool]:
         eps = self.fd_eps if eps is None else positive("eps", eps)
-        return eps, self.fd_centered if centered is None else bool(centered)
+        return eps, self.fd_centered if centered is None else boolean("centered", centered)
 
     def rollout(
         self,
@@ -336,12 +325,12 @@ class Problem:
         :meth:`Dynamics.rollout`).
         """
         state = self.check_state(state)
-        ctrls = np.asarray(ctrls, dtype=np.float64)
-        if ctrls.ndim == 2:
-            ctrls = ctrls[None]
-        if ctrls.ndim != 3 or ctrls.shape[2] != self.nu or ctrls.shape[1] < 1:
+        ctrls = inputs.check_ctrl("ctrls", ctrls, (None,) * max(2, min(3, np.ndim(ctrls))))
+        ctrls = ctrls[None] if ctrls.ndim == 2 else ctrls
+        if ctrls.shape[2] != self.nu or ctrls.shape[1] < 1 or ctrls.shape[0] < 1:
             raise ShapeError(
-                f"ctrls must have shape (T, {self.nu}) or (B, T, {self.nu}), got {ctrls.shape}"
+                f"ctrls must have shape (T, {self.nu}) or (B, T, {self.nu}), T >= 1, got "
+                f"{ctrls.shape}"
             )
         return self.dynamics.rollout(state, self.clip_ctrl(ctrls), model)
 
@@ -377,7 +366,7 @@ class Problem:
         Jacobians :math:`J_x, J_u` (see :mod:`mpcbox.core.derivatives`).
         """
         state, ctrl = self.check_state(state), self.check_ctrl(ctrl)
-        terms = self.cost.terminal if terminal else self.cost.running
+        terms = self.cost.terminal if boolean("terminal", terminal) else self.cost.running
         out = derivatives.quadratize_knots(
             self.dynamics, self.tangent, terms, state[None], ctrl[None], self.fd_eps
         )
@@ -413,6 +402,12 @@ class Problem:
         """
         if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
             return "non-finite state"
+        return None
+
+    def goal_failure(self, time: np.ndarray, states: np.ndarray) -> str | None:
+        """Why a run without :meth:`failure` misses the task's goal, or ``None`` (the default:
+        surviving is the goal). ``time`` ``(T,)`` (s) and ``states`` ``(T, nstate)`` are the
+        run's record; swing-up and reach tasks check the final error here."""
         return None
 
     def measures(self) -> Sequence[Any]:
@@ -471,8 +466,7 @@ class Problem:
         The new cost may only use sensors the models already have. Controllers use this to add
         terms of their own, e.g. an LQR value function as terminal cost.
         """
-        if not isinstance(cost, Cost):
-            raise InvalidArgumentError(f"cost must be an mpcbox.Cost, got {type(cost).__name__}")
+        instance("cost", cost, Cost)
         missing = [
             r.name
             for r in cost.sensors(self.planning_model)

@@ -3,17 +3,22 @@
 from __future__ import annotations
 
 import copy
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
 from mpcbox.core.model import object_id
-from mpcbox.errors import InvalidArgumentError
-from mpcbox.validation import as_array, positive
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError
+from mpcbox.validation import checked_options, finite_array, integer, non_negative, positive, string
+
+#: Largest push force or torque magnitude accepted (N, N m): beyond it a push is an input
+#: error (a 1e12 N push only makes MuJoCo diverge), and push searches stop there.
+MAX_FORCE = 1e8
 
 
+@checked_options
 @dataclass(frozen=True, kw_only=True)
 class ActuatorNoise:
     r"""Smooth actuator noise added to the control at every simulation step.
@@ -34,14 +39,23 @@ class ActuatorNoise:
     width: float = 0.8
     scale: float = 1.0
 
+    def __post_init__(self) -> None:
+        std = finite_array("std", self.std, (None,) * min(1, np.ndim(self.std)))
+        if np.any(std < 0):
+            raise InvalidArgumentError(f"std must be non-negative, got {std.tolist()}")
+        positive("width", self.width)
+        non_negative("scale", self.scale)
+
     def sample(self, steps: int, nu: int, dt: float, seed: int) -> np.ndarray:
-        """Noise ``(steps, nu)`` for a simulation with timestep ``dt``."""
+        """Noise ``(steps, nu)`` for a simulation with timestep ``dt`` (s), drawn from ``seed``.
+
+        Raises:
+            ShapeError: If ``std`` has one value per actuator and ``nu`` differs.
+        """
+        steps, nu = integer("steps", steps, 1), integer("nu", nu, 1)
+        dt, seed = positive("dt", dt), integer("seed", seed)
         std = np.asarray(self.std, dtype=np.float64)
-        std = np.full(nu, float(std)) if std.ndim == 0 else as_array("std", std, (nu,))
-        if np.any(std < 0) or not np.all(np.isfinite(std)):
-            raise InvalidArgumentError(f"std must be finite and non-negative, got {std}")
-        if self.scale < 0:
-            raise InvalidArgumentError(f"scale must be >= 0, got {self.scale}")
+        std = np.full(nu, float(std)) if std.ndim == 0 else finite_array("std", std, (nu,))
         white = np.random.RandomState(seed).randn(steps, nu)
         width = max(1, int(positive("width", self.width) / dt))
         kernel = np.exp(-0.5 * np.linspace(-3.0, 3.0, width) ** 2)
@@ -55,6 +69,7 @@ class ActuatorNoise:
         return smooth * std * self.scale
 
 
+@checked_options
 @dataclass(frozen=True, kw_only=True)
 class Push:
     """A constant force on a body's center of mass over a time interval (``xfrc_applied``).
@@ -73,6 +88,18 @@ class Push:
     body: str = "torso"
     torque: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0)
 
+    def __post_init__(self) -> None:
+        for name in ("force", "torque"):
+            value = finite_array(name, getattr(self, name), (3,))
+            if np.linalg.norm(value) > MAX_FORCE:
+                raise InvalidArgumentError(
+                    f"{name} magnitude must be at most {MAX_FORCE:g} (MAX_FORCE), got "
+                    f"{np.linalg.norm(value):.3g}"
+                )
+        non_negative("start", self.start)
+        positive("duration", self.duration)
+        string("body", self.body)
+
     @property
     def impulse(self) -> float:
         """Magnitude of the linear impulse (N s)."""
@@ -85,10 +112,11 @@ class Push:
     def wrench(self) -> np.ndarray:
         """``[force, torque]`` of shape ``(6,)``."""
         return np.concatenate(
-            [as_array("force", self.force, (3,)), as_array("torque", self.torque, (3,))]
+            [finite_array("force", self.force, (3,)), finite_array("torque", self.torque, (3,))]
         )
 
 
+@checked_options
 @dataclass(frozen=True, kw_only=True)
 class ModelMismatch:
     """Differences between the simulated plant and the model the controller plans with.
@@ -103,12 +131,25 @@ class ModelMismatch:
     friction_scale: float = 1.0
     body_mass_scale: dict[str, float] | None = None
 
+    def __post_init__(self) -> None:
+        positive("mass_scale", self.mass_scale)
+        positive("friction_scale", self.friction_scale)
+        if self.body_mass_scale is not None:
+            if not isinstance(self.body_mass_scale, Mapping):
+                raise InvalidTypeError(
+                    "body_mass_scale must be a mapping of body names to factors, got "
+                    f"{type(self.body_mass_scale).__name__}"
+                )
+            for name, value in self.body_mass_scale.items():
+                string("body_mass_scale", name)
+                positive(f"body_mass_scale[{name!r}]", value)
+
     def apply(self, model: mujoco.MjModel) -> mujoco.MjModel:
         """A modified copy of ``model``."""
         out = copy.copy(model)
         scale = np.full(model.nbody, positive("mass_scale", self.mass_scale))
         for name, value in (self.body_mass_scale or {}).items():
-            scale[object_id(model, "body", name)] *= positive(f"body_mass_scale[{name!r}]", value)
+            scale[object_id(model, "body", name, "body_mass_scale")] *= value
         out.body_mass[:] = model.body_mass * scale
         out.body_inertia[:] = model.body_inertia * scale[:, None]
         out.geom_friction[:, 0] = model.geom_friction[:, 0] * positive(

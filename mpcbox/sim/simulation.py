@@ -19,29 +19,58 @@ import numpy as np
 from mpcbox.controllers.base import Controller
 from mpcbox.core.model import object_id
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError, MpcboxError
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError, MpcboxError
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
+from mpcbox.sim.divergence import DivergenceMonitor
 from mpcbox.sim.measures import Measure, check_measures
-from mpcbox.validation import as_array, positive
+from mpcbox.validation import (
+    boolean,
+    checked_keywords,
+    in_range,
+    instance,
+    integer,
+    positive,
+)
+
+#: Outcomes of a run, in :attr:`Metrics.outcome`.
+OUTCOMES: dict[str, str] = {
+    "success": "no failure, the task's goal met, the controller mostly did its own work",
+    "failed": "the task's failure (a fall, for example) before the end",
+    "diverged": "the simulation blew up (MuJoCo warning or reset, non-finite state)",
+    "controller error": "the controller raised or returned an invalid control",
+    "goal missed": "survived but missed the task's goal (Problem.goal_failure)",
+    "degraded": "survived, but more than the allowed share of the controller's solves fell back",
+}
 
 
 class Metrics(NamedTuple):
     r"""Summary of one closed-loop run.
 
     Attributes:
-        survived: No failure (fall, non-finite state) before the end.
+        survived: No failure (fall, divergence, controller error) before the end.
         time_to_fall: Time of the failure, or the duration when the run survived (s).
         cost: Mean running cost :math:`\frac1N \sum_k \ell(x_k, u_k)` of the task's cost
             over the ``N`` applied controls (NaN when a state is not finite).
         control_effort: RMS of the applied controls over time and actuators.
-        compute_mean_ms: Mean controller time per call (ms).
-        compute_p50_ms: Median controller time per call (ms).
-        compute_p99_ms: 99th percentile controller time per call (ms).
+        compute_mean_ms: Mean time of the controller's online solves (ms); calls that only
+            held the plan and offline solves are left out (see ``held_ticks``,
+            ``offline_ms``).
+        compute_p50_ms: Median time of the online solves (ms).
+        compute_p99_ms: 99th percentile time of the online solves (ms).
         realtime_factor: Simulated seconds per wall-clock second (controller included).
-        fallbacks: Controller fallbacks (failed solves, divergences), from its ``stats``.
+        fallbacks: Controller fallbacks (failed solves, divergences) in this run, from the
+            change of its ``stats["fallbacks"]``.
         measures: Summaries of the task's measures over the run, by
             :meth:`~mpcbox.sim.measures.Measure.key` (e.g. ``"tilt_rms_deg"``), in their
             units; empty when the task declares none.
+        success: ``outcome == "success"``.
+        outcome: One of :data:`OUTCOMES`.
+        degraded_ticks: Calls whose solve fell back (equal to ``fallbacks``).
+        solve_ticks: Calls that solved online (``Controller.last_call == "solve"``).
+        held_ticks: Calls that followed the current plan without solving.
+        offline_ms: Total time of offline solves (ms), e.g. IPOPT's before the loop.
+        period_s: Seconds between controller calls (the simulation step when the controller
+            sets no ``period``).
     """
 
     survived: bool
@@ -54,6 +83,13 @@ class Metrics(NamedTuple):
     realtime_factor: float
     fallbacks: int
     measures: dict[str, float]
+    success: bool = False
+    outcome: str = "success"
+    degraded_ticks: int = 0
+    solve_ticks: int = 0
+    held_ticks: int = 0
+    offline_ms: float = 0.0
+    period_s: float = 0.0
 
 
 @dataclass
@@ -66,12 +102,17 @@ class SimulationResult:
         time: Times ``(T,)`` (s).
         states: States ``(T, nstate)``.
         ctrls: Applied controls ``(T, nu)``; the last row holds no applied control.
-        compute_times: Controller time per call ``(calls,)`` (s).
+        compute_times: Time of each online solve ``(solves,)`` (s); held and offline
+            calls are counted in :class:`Metrics` but not listed here.
         failure: Why the run stopped early, or ``None``.
         metrics: The run's :class:`Metrics`.
         series: Samples ``(T,)`` of each task measure, by measure name, in its unit.
         measures: The task's measures (:meth:`~mpcbox.Problem.measures`).
         controller_stats: The controller's ``stats`` after the run.
+        pushes: The pushes applied during the run.
+        mismatch: The model mismatch of the simulated plant, or ``None``.
+        noise: The actuator noise (already added to ``ctrls``), or ``None``.
+        seed: Seed of the noise.
     """
 
     problem: str
@@ -85,6 +126,10 @@ class SimulationResult:
     series: dict[str, np.ndarray] = field(default_factory=dict)
     measures: tuple[Measure, ...] = ()
     controller_stats: dict[str, float] = field(default_factory=dict)
+    pushes: tuple[Push, ...] = ()
+    mismatch: ModelMismatch | None = None
+    noise: ActuatorNoise | None = None
+    seed: int = 0
 
     @property
     def survived(self) -> bool:
@@ -92,6 +137,7 @@ class SimulationResult:
         return self.metrics.survived
 
 
+@checked_keywords
 def simulate(
     problem: Problem,
     controller: Controller,
@@ -103,12 +149,32 @@ def simulate(
     seed: int = 0,
     initial_state: np.ndarray | None = None,
     stop_on_failure: bool = True,
+    degraded_limit: float = 0.5,
 ) -> SimulationResult:
     """Simulate ``problem.model`` in closed loop with ``controller``.
 
     The controller is called every ``controller.period`` seconds (rounded to whole simulation
     steps; every step when ``None``) and its control is held in between. Actuator noise is
     added to the held control at every step; MuJoCo clamps the sum to ``ctrlrange``.
+
+    A run ends as one of :data:`OUTCOMES`:
+
+    - ``"diverged"``: MuJoCo warned about a NaN, infinite or huge acceleration, position,
+      velocity or control (and reset the state or zeroed the control), time failed to
+      advance, or the state is not finite (:class:`~mpcbox.sim.divergence.DivergenceMonitor`);
+    - ``"controller error"``: the controller raised (any exception; the message is kept in
+      ``failure``) or returned a control of the wrong shape or not finite;
+    - ``"failed"``: :meth:`Problem.failure <mpcbox.Problem.failure>` reported a failure
+      (a fall);
+    - ``"goal missed"``: none of the above, but
+      :meth:`Problem.goal_failure <mpcbox.Problem.goal_failure>` says the task's goal was not
+      met (a pole left hanging, an arm short of its target);
+    - ``"degraded"``: none of the above, but more than ``degraded_limit`` of the
+      controller's calls fell back (``stats["fallbacks"]``): the run is not that
+      controller's success;
+    - ``"success"`` otherwise.
+
+    Whatever ends the run, the trajectory recorded up to that point is kept.
 
     Args:
         problem: The Problem (its simulation model is simulated).
@@ -119,28 +185,42 @@ def simulate(
         mismatch: Changes to the simulated model that the controller does not know about.
         seed: Seed of the noise (numpy's legacy generator, as in the published recipe).
         initial_state: Start state (default ``problem.initial_state()``).
-        stop_on_failure: Stop at the first failure reported by ``problem.failure``.
+        stop_on_failure: Stop at the first task failure (falls; divergence and controller
+            errors always stop the run).
+        degraded_limit: Largest share of fallbacks among the controller's calls, in
+            ``[0, 1]``, for a run to count as a success.
 
     Returns:
         A :class:`SimulationResult`.
     """
+    instance("problem", problem, Problem, "an mpcbox.Problem")
     duration = positive("duration", duration)
     if not isinstance(controller, Controller) and not callable(controller):
-        raise InvalidArgumentError(
-            f"controller must be an mpcbox.Controller, got {type(controller)}"
-        )
+        raise InvalidTypeError(f"controller must be an mpcbox.Controller, got {type(controller)}")
+    seed = integer("seed", seed)
+    degraded_limit = in_range(
+        "degraded_limit", degraded_limit, 0.0, 1.0, low_open=False, high_open=False
+    )
+    stop_on_failure = boolean("stop_on_failure", stop_on_failure)
+    if noise is not None:
+        instance("noise", noise, ActuatorNoise, "an mpcbox.ActuatorNoise")
+    if mismatch is not None:
+        instance("mismatch", mismatch, ModelMismatch, "an mpcbox.ModelMismatch")
+    if isinstance(pushes, (str, bytes)) or not isinstance(pushes, Sequence):
+        raise InvalidTypeError(f"pushes must be a sequence of Push, got {type(pushes).__name__}")
+    pushes = tuple(pushes)
     for push in pushes:
         if not isinstance(push, Push):
-            raise InvalidArgumentError(f"pushes must hold Push objects, got {type(push).__name__}")
+            raise InvalidTypeError(f"pushes must hold Push objects, got {type(push).__name__}")
     model = problem.model if mismatch is None else mismatch.apply(problem.model)
     data = mujoco.MjData(model)
     dt = float(model.opt.timestep)
     steps = math.ceil(duration / dt - 1e-9)
     state0 = problem.initial_state() if initial_state is None else initial_state
-    state0 = as_array("initial_state", state0, (problem.nstate,))
+    state0 = problem.check_state(state0, "initial_state")
     problem.set_state(data, state0)
     mujoco.mj_forward(model, data)
-    push_ids = [object_id(model, "body", p.body) for p in pushes]
+    push_ids = [object_id(model, "body", p.body, f"pushes[{i}].body") for i, p in enumerate(pushes)]
     measures = check_measures(problem.measures(), type(problem).__name__)
 
     period = getattr(controller, "period", None)
@@ -150,17 +230,22 @@ def simulate(
         if noise is None
         else noise.sample(steps, problem.nu, dt, seed)
     )
+    if not np.all(np.isfinite(noise_seq)):
+        raise InvalidArgumentError("noise produced non-finite samples: check its std values")
     if hasattr(controller, "reset"):
         controller.reset()
+    fallbacks0 = _fallbacks(controller)
 
     times = np.empty(steps + 1)
     states = np.empty((steps + 1, problem.nstate))
     ctrls = np.zeros((steps + 1, problem.nu))
     samples = np.empty((len(measures), steps + 1))
-    compute: list[float] = []
+    calls: dict[str, list[float]] = {"solve": [], "hold": [], "offline": []}
     failure: str | None = None
+    outcome = "success"
     fail_time = duration
     ctrl = problem.ctrl_ref.copy()
+    monitor = DivergenceMonitor(data)
     wall0 = _time.perf_counter()
     last = steps
     for k in range(steps + 1):
@@ -168,22 +253,27 @@ def simulate(
         states[k] = problem.get_state(data)
         for i, measure in enumerate(measures):
             samples[i, k] = measure.sample(model, data)
-        reason = problem.failure(model, data)
-        if reason is not None:
-            failure, fail_time = reason, float(data.time)
-            if stop_on_failure:
-                last = k
-                break
+        if failure is None:
+            reason = problem.failure(model, data)
+            if reason is not None:
+                failure, fail_time, outcome = reason, float(data.time), "failed"
+                if reason.startswith("non-finite"):
+                    outcome = "diverged"
+                if stop_on_failure or outcome == "diverged":
+                    last = k
+                    break
         if k == steps:
             break
         if k % every == 0:
             t0 = _time.perf_counter()
             try:
                 out = controller(states[k].copy(), float(data.time))
-            except MpcboxError as exc:
-                failure, fail_time, last = f"controller error: {exc}", float(data.time), k
+            except Exception as exc:  # any controller error ends the run, recorded
+                failure, fail_time, last = _error_text(exc), float(data.time), k
+                outcome = "controller error"
                 break
-            compute.append(_time.perf_counter() - t0)
+            kind = getattr(controller, "last_call", "solve")
+            calls[kind if kind in calls else "solve"].append(_time.perf_counter() - t0)
             out = np.asarray(out, dtype=np.float64)
             if out.shape != (problem.nu,) or not np.all(np.isfinite(out)):
                 failure, fail_time, last = (
@@ -192,6 +282,7 @@ def simulate(
                     float(data.time),
                     k,
                 )
+                outcome = "controller error"
                 break
             ctrl = out
         data.ctrl[:] = problem.clip_ctrl(ctrl + noise_seq[k])
@@ -200,7 +291,14 @@ def simulate(
         for push, bid in zip(pushes, push_ids):
             if push.active(float(data.time)):
                 data.xfrc_applied[bid] += push.wrench()
+        monitor.before_step()
         mujoco.mj_step(model, data)
+        reason = monitor.after_step()
+        if reason is not None:
+            # Keep the step that diverged in the record: what MuJoCo left (often a reset).
+            failure, fail_time, outcome = reason, float(times[k]), "diverged"
+            last = k
+            break
     wall = _time.perf_counter() - wall0
 
     n = last + 1
@@ -208,22 +306,39 @@ def simulate(
     series = {m.name: samples[i] for i, m in enumerate(measures)}
     summaries: dict[str, float] = {}
     for measure in measures:
-        summaries.update(measure.summarize(series[measure.name]))
-    ctimes = np.asarray(compute)
+        summaries.update(measure.summarize(series[measure.name], times))
     stats = dict(getattr(controller, "stats", {}) or {})
+    fallbacks = max(0, round(_fallbacks(controller) - fallbacks0))
+    ncalls = sum(len(v) for v in calls.values())
+    if failure is None:
+        goal = problem.goal_failure(times, states)
+        if goal is not None:
+            failure, outcome = goal, "goal missed"
+        elif ncalls and fallbacks > degraded_limit * ncalls:
+            failure = f"degraded: {fallbacks} of {ncalls} controller calls fell back"
+            outcome = "degraded"
+    ctimes = np.asarray(calls["solve"])
     sim_time = float(times[-1]) if n else 0.0
     applied = max(1, n - 1)
+    survived = outcome in ("success", "goal missed", "degraded")
     metrics = Metrics(
-        survived=failure is None,
-        time_to_fall=fail_time if failure is not None else duration,
+        survived=survived,
+        time_to_fall=duration if survived else fail_time,
         cost=_mean_cost(problem, states[:applied], ctrls[:applied]),
         control_effort=float(np.sqrt(np.mean(ctrls[:applied] ** 2))),
         compute_mean_ms=float(ctimes.mean() * 1e3) if ctimes.size else 0.0,
         compute_p50_ms=float(np.percentile(ctimes, 50) * 1e3) if ctimes.size else 0.0,
         compute_p99_ms=float(np.percentile(ctimes, 99) * 1e3) if ctimes.size else 0.0,
         realtime_factor=sim_time / wall if wall > 0 else float("inf"),
-        fallbacks=round(stats.get("fallbacks", 0)),
+        fallbacks=fallbacks,
         measures=summaries,
+        success=outcome == "success",
+        outcome=outcome,
+        degraded_ticks=fallbacks,
+        solve_ticks=len(calls["solve"]),
+        held_ticks=len(calls["hold"]),
+        offline_ms=float(sum(calls["offline"]) * 1e3),
+        period_s=every * dt,
     )
     return SimulationResult(
         problem=problem.name,
@@ -237,15 +352,37 @@ def simulate(
         series=series,
         measures=measures,
         controller_stats=stats,
+        pushes=tuple(pushes),
+        mismatch=mismatch,
+        noise=noise,
+        seed=seed,
     )
+
+
+def _fallbacks(controller: Controller) -> float:
+    """The controller's fallback counter (0 when it keeps none)."""
+    try:
+        return float((getattr(controller, "stats", {}) or {}).get("fallbacks", 0.0))
+    except Exception:  # a broken stats property must not end the run
+        return 0.0
+
+
+def _error_text(exc: BaseException) -> str:
+    """``"controller error: <type>: <message>"``; the type is left out for mpcbox errors."""
+    if isinstance(exc, MpcboxError):
+        return f"controller error: {exc}"
+    return f"controller error: {type(exc).__name__}: {exc}"
 
 
 def _mean_cost(problem: Problem, states: np.ndarray, ctrls: np.ndarray) -> float:
     """Mean running cost over the rows of ``states`` ``(N, nstate)`` and ``ctrls`` ``(N, nu)``.
 
     Each row is evaluated on the planning model (``mj_forward``, then the cost's features);
-    NaN when a row is not finite.
+    NaN when a row is not finite or cannot be evaluated (a control beyond MuJoCo's limit).
     """
     if not (np.all(np.isfinite(states)) and np.all(np.isfinite(ctrls))):
         return float("nan")
-    return float(np.mean([problem.running_cost(x, u) for x, u in zip(states, ctrls)]))
+    try:
+        return float(np.mean([problem.running_cost(x, u) for x, u in zip(states, ctrls)]))
+    except MpcboxError:
+        return float("nan")

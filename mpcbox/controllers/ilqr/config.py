@@ -8,8 +8,19 @@ from typing import Literal
 
 import numpy as np
 
-from mpcbox.errors import InvalidArgumentError
-from mpcbox.validation import one_of, positive, positive_int
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError
+from mpcbox.validation import (
+    as_array,
+    boolean,
+    checked_options,
+    finite_array,
+    in_range,
+    non_negative,
+    number,
+    one_of,
+    positive,
+    positive_int,
+)
 
 LineSearch = Literal["backtracking", "parallel"]
 TerminalValue = Literal["lqr"]
@@ -19,6 +30,7 @@ LINE_SEARCHES: tuple[str, ...] = ("backtracking", "parallel")
 TERMINAL_VALUES: tuple[str, ...] = ("lqr",)
 
 
+@checked_options
 @dataclass(frozen=True, kw_only=True)
 class ILQRConfig:
     r"""Options of :class:`~mpcbox.controllers.ilqr.controller.ILQR`.
@@ -111,11 +123,17 @@ class ILQRConfig:
             put(name, positive(name, getattr(self, name)))
         if self.planning_timestep is not None:
             put("planning_timestep", positive("planning_timestep", self.planning_timestep))
-        put("feedback", bool(self.feedback))
+        put("feedback", boolean("feedback", self.feedback))
         if self.fd_centered is not None:
-            put("fd_centered", bool(self.fd_centered))
+            put("fd_centered", boolean("fd_centered", self.fd_centered))
         self._check_regularization()
-        steps = np.asarray(self.step_sizes, dtype=np.float64).ravel()
+        if isinstance(self.step_sizes, (str, bytes)) or not isinstance(
+            self.step_sizes, Sequence | np.ndarray
+        ):
+            raise InvalidTypeError(
+                f"step_sizes must be a sequence of numbers, got {type(self.step_sizes).__name__}"
+            )
+        steps = np.array([number("step_sizes", s) for s in np.ravel(self.step_sizes)])
         if steps.size == 0 or not np.all((steps > 0) & (steps <= 1)):
             raise InvalidArgumentError(
                 "step_sizes must be a non-empty sequence of numbers in (0, 1], "
@@ -123,21 +141,18 @@ class ILQRConfig:
             )
         put("step_sizes", tuple(float(s) for s in steps))
         one_of("line_search", self.line_search, LINE_SEARCHES)
-        if not 0.0 <= self.armijo < 1.0:
-            raise InvalidArgumentError(f"armijo must be in [0, 1), got {self.armijo}")
-        put("armijo", float(self.armijo))
-        if self.terminal_value is not None and self.terminal_value not in TERMINAL_VALUES:
-            raise InvalidArgumentError(
-                f"terminal_value must be None or 'lqr', got {self.terminal_value!r}"
-            )
+        put("armijo", in_range("armijo", self.armijo, 0.0, 1.0, low_open=False, high_open=True))
+        if self.terminal_value is not None:
+            one_of("terminal_value", self.terminal_value, TERMINAL_VALUES)
+        for name in ("ctrl_low", "ctrl_high", "ctrls_init"):  # shapes: by the controller
+            value = getattr(self, name)
+            if value is not None:  # infinite bounds mean none; an initial guess is finite
+                check = finite_array if name == "ctrls_init" else as_array
+                put(name, check(name, value, (None,) * max(1, min(2, np.ndim(value)))))
 
     def _check_regularization(self) -> None:
-        reg = self.regularization
-        if isinstance(reg, bool) or not isinstance(reg, (int, float, np.number)):
-            raise InvalidArgumentError(f"regularization must be a number >= 0, got {reg!r}")
-        if not np.isfinite(reg) or reg < 0:
-            raise InvalidArgumentError(f"regularization must be a finite number >= 0, got {reg!r}")
-        object.__setattr__(self, "regularization", float(reg))
+        reg = non_negative("regularization", self.regularization)
+        object.__setattr__(self, "regularization", reg)
         if self.regularization_max <= self.regularization_min:
             raise InvalidArgumentError(
                 "regularization_max must exceed regularization_min, got "

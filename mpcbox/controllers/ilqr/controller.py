@@ -122,6 +122,7 @@ class ILQR(ILQRSolver, Controller):
         if self._last_result is not None and time < self._plan_time - 1e-9:
             self.reset()  # a new simulation started
         due = self._last_result is None or time - self._plan_time >= self.replan_period - 1e-9
+        self.last_call = "solve" if due else "hold"
         if not np.all(np.isfinite(state)):
             self._counts["fallbacks"] += 1
             return self._last_ctrl.copy()
@@ -129,6 +130,8 @@ class ILQR(ILQRSolver, Controller):
             warm = self._shifted_ctrls(time)
             first = self._last_result is None
             iters = cfg.effective_first_iterations if first else cfg.mpc_iterations
+            if first and iters > cfg.mpc_iterations:
+                self.last_call = "offline"  # the warm-up solve a real robot does beforehand
             try:
                 result = self._optimize(state, warm, iters, self._regularization, None)
             except MpcboxError:

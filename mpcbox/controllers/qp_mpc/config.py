@@ -10,8 +10,17 @@ from typing import Any, Literal
 import numpy as np
 
 from mpcbox.controllers.qp_mpc.solvers import check_backend
-from mpcbox.errors import InvalidArgumentError
-from mpcbox.validation import one_of, positive, positive_int
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError, UnknownOptionError
+from mpcbox.validation import (
+    boolean,
+    checked_options,
+    finite_array,
+    in_range,
+    one_of,
+    positive,
+    positive_int,
+    string,
+)
 
 StanceModelName = Literal["soft", "rigid"]
 Fallback = Literal["lqr", "plan"]
@@ -23,6 +32,21 @@ FALLBACKS: tuple[str, ...] = ("lqr", "plan")
 LIFTED_POINTS: tuple[str, ...] = ("drop", "keep")
 
 
+def _check_osqp_settings(settings: object) -> None:
+    """``osqp_settings`` must be a mapping of OSQP setting names (OSQP's own list)."""
+    if not isinstance(settings, Mapping):
+        raise InvalidTypeError(
+            f"osqp_settings must be a mapping of OSQP settings, got {type(settings).__name__}"
+        )
+    from osqp.ext_builtin import OSQPSettings
+
+    valid = [name for name in dir(OSQPSettings()) if not name.startswith("_")]
+    unknown = set(settings) - set(valid)
+    if unknown:
+        raise UnknownOptionError("osqp_settings", unknown, valid)
+
+
+@checked_options
 @dataclass(frozen=True, kw_only=True)
 class QPMPCConfig:
     r"""Options of :class:`~mpcbox.controllers.qp_mpc.controller.QPMPC`.
@@ -118,7 +142,11 @@ class QPMPCConfig:
         put("horizon", positive_int("horizon", self.horizon))
         put("dt", positive("dt", self.dt))
         if self.contacts is not None and not isinstance(self.contacts, str):
-            put("contacts", tuple(self.contacts))
+            if not isinstance(self.contacts, Sequence):
+                raise InvalidTypeError(
+                    f"contacts must be names (str), got {type(self.contacts).__name__}"
+                )
+            put("contacts", tuple(string("contacts", c) for c in self.contacts))
         put("friction", positive("friction", self.friction))
         facets = positive_int("facets", self.facets)
         if facets < 4 or facets % 2:
@@ -133,13 +161,15 @@ class QPMPCConfig:
                 "terminal must be 'stance', 'lqr', 'cost' or an (nx, nx) matrix, "
                 f"got {self.terminal!r}"
             )
+        if not isinstance(self.terminal, str):  # the size is checked by the controller
+            put("terminal", finite_array("terminal", self.terminal, (None, None)))
         put("terminal_scale", positive("terminal_scale", self.terminal_scale))
         if self.stance_weight is not None:
             put("stance_weight", positive("stance_weight", self.stance_weight))
-        drift = float(self.drift_gain)
-        if not 0.0 <= drift <= 1.0:
-            raise InvalidArgumentError(f"drift_gain must be in [0, 1], got {self.drift_gain!r}")
-        put("drift_gain", drift)
+        put(
+            "drift_gain",
+            in_range("drift_gain", self.drift_gain, 0, 1, low_open=False, high_open=False),
+        )
         put("contact_margin", positive("contact_margin", self.contact_margin))
         if self.period is not None:
             put("period", positive("period", self.period))
@@ -149,8 +179,14 @@ class QPMPCConfig:
         if self.stance_model == "soft" and self.stance_weight is None:
             raise InvalidArgumentError("stance_model='soft' needs a finite stance_weight")
         if self.export_dir is not None:
+            if not isinstance(self.export_dir, (str, Path)):
+                raise InvalidTypeError(
+                    f"export_dir must be a path, got {type(self.export_dir).__name__}"
+                )
             put("export_dir", Path(self.export_dir))
         one_of("fallback", self.fallback, FALLBACKS)
         one_of("lifted_points", self.lifted_points, LIFTED_POINTS)
         for name in ("relinearize", "joint_limits", "cost_gradient", "warm_start", "fd_centered"):
-            put(name, bool(getattr(self, name)))
+            put(name, boolean(name, getattr(self, name)))
+        if self.osqp_settings is not None:
+            _check_osqp_settings(self.osqp_settings)

@@ -16,7 +16,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from mpcbox.errors import UnknownNameError
+from mpcbox.errors import InvalidTypeError, UnknownNameError
 
 #: OSQP settings of the controller (``QPMPCConfig.osqp_settings`` overrides them).
 OSQP_DEFAULTS: dict[str, Any] = dict(
@@ -186,6 +186,8 @@ def check_backend(name: str) -> str:
     Raises:
         UnknownNameError: Otherwise; the message lists the installed backends.
     """
+    if not isinstance(name, str):
+        raise InvalidTypeError(f"solver must be a QP backend name, got {type(name).__name__}")
     if name == "osqp":
         return name
     valid = backend_names()

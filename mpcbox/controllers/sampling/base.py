@@ -287,6 +287,7 @@ class SamplingController(Controller):
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
         replan = self.replan_period
+        self.last_call = "solve"
         if replan is None or self.knots is None or self._plan_time is None:
             knots = self.plan(state, time)
             return self.problem.clip_ctrl(self.weights[0] @ knots)
@@ -294,6 +295,7 @@ class SamplingController(Controller):
         if elapsed < 0.0 or elapsed >= replan - 1e-9:
             knots = self.plan(state, time)
             return self.problem.clip_ctrl(self.weights[0] @ knots)
+        self.last_call = "hold"
         return self.action(elapsed)
 
     def action(self, time_offset: float) -> np.ndarray:

@@ -15,8 +15,21 @@ import numpy as np
 
 from mpcbox.controllers.sampling.backends import BACKENDS
 from mpcbox.controllers.sampling.splines import INTERPOLATIONS, Interpolation
-from mpcbox.errors import InvalidArgumentError
-from mpcbox.validation import one_of, positive, positive_int
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError
+from mpcbox.validation import (
+    as_array,
+    boolean,
+    checked_options,
+    finite_array,
+    in_range,
+    instance,
+    integer,
+    non_negative,
+    one_of,
+    positive,
+    positive_int,
+    string,
+)
 
 Backend = Literal["cpu", "warp"]
 Risk = Literal["mean", "worst", "cvar"]
@@ -41,12 +54,18 @@ def disable_bits(names: Sequence[str]) -> int:
         raise InvalidArgumentError(
             f"planning_disable must be a sequence of names, got the string {names!r}"
         )
+    if not isinstance(names, Sequence):
+        raise InvalidTypeError(
+            f"planning_disable must be a sequence of names, got {type(names).__name__}"
+        )
     bits = 0
     for name in names:
-        bits |= valid[one_of("planning_disable", str(name).lower(), sorted(valid))]
+        name = string("planning_disable", name)
+        bits |= valid[one_of("planning_disable", name.lower(), sorted(valid))]
     return bits
 
 
+@checked_options
 @dataclass(frozen=True, kw_only=True)
 class Randomization:
     """Per-world model perturbations for robust planning.
@@ -75,16 +94,16 @@ class Randomization:
             InvalidArgumentError: Naming the offending field.
         """
         positive_int("randomization.num_models", self.num_models)
-        for label, (lo, hi) in (
-            ("mass_scale", self.mass_scale),
-            ("friction_scale", self.friction_scale),
-        ):
+        integer("randomization.seed", self.seed)
+        for label in ("mass_scale", "friction_scale"):
+            lo, hi = finite_array(f"randomization.{label}", getattr(self, label), (2,))
             if not 0.0 < lo <= hi:
                 raise InvalidArgumentError(
                     f"randomization.{label} must satisfy 0 < low <= high, got {(lo, hi)}"
                 )
 
 
+@checked_options
 @dataclass(frozen=True, kw_only=True)
 class SamplingConfig:
     """Options shared by all sampling controllers.
@@ -189,11 +208,15 @@ class SamplingConfig:
         if self.replan_period is not None:
             positive("replan_period", self.replan_period)
         one_of("risk", self.risk, RISKS)
-        if not 0.0 < self.cvar_alpha <= 1.0:
-            raise InvalidArgumentError(f"cvar_alpha must be in (0, 1], got {self.cvar_alpha}")
+        in_range("cvar_alpha", self.cvar_alpha, 0.0, 1.0, low_open=True, high_open=False)
         positive("headroom", self.headroom)
         one_of("backend", self.backend, BACKENDS)
+        if self.device is not None:
+            string("device", self.device)
+        integer("seed", self.seed)
+        boolean("use_graph", self.use_graph)
         if self.randomization is not None:
+            instance("randomization", self.randomization, Randomization)
             self.randomization.validate()
 
     def horizon_steps(self, dt: float) -> int:
@@ -216,7 +239,9 @@ class SamplingConfig:
         Raises:
             InvalidArgumentError: For a wrong shape, a negative or a non-finite value.
         """
-        scale = np.asarray(self.noise_scale, dtype=np.float64)
+        scale = as_array(
+            "noise_scale", self.noise_scale, (None,) * min(1, np.ndim(self.noise_scale))
+        )
         if scale.ndim == 0:
             scale = np.full(nu, float(scale))
         if scale.shape != (nu,) or not np.all(np.isfinite(scale)) or np.any(scale < 0):
@@ -227,11 +252,13 @@ class SamplingConfig:
         return scale
 
 
+@checked_options
 @dataclass(frozen=True, kw_only=True)
 class PredictiveSamplingConfig(SamplingConfig):
     """Predictive sampling: keep the best of the nominal and ``N - 1`` perturbations."""
 
 
+@checked_options
 @dataclass(frozen=True, kw_only=True)
 class MPPIConfig(SamplingConfig):
     """MPPI options.
@@ -246,10 +273,10 @@ class MPPIConfig(SamplingConfig):
     def validate(self, nu: int, dt: float) -> None:
         """The shared checks (:meth:`SamplingConfig.validate`) and ``temperature > 0``."""
         super().validate(nu, dt)
-        if not self.temperature > 0:
-            raise InvalidArgumentError(f"temperature must be positive, got {self.temperature!r}")
+        positive("temperature", self.temperature)
 
 
+@checked_options
 @dataclass(frozen=True, kw_only=True)
 class CEMConfig(SamplingConfig):
     """Cross-entropy method options.
@@ -271,11 +298,9 @@ class CEMConfig(SamplingConfig):
     def validate(self, nu: int, dt: float) -> None:
         """The shared checks (:meth:`SamplingConfig.validate`) and the elite/std options."""
         super().validate(nu, dt)
-        if not 1 <= self.num_elites <= self.num_samples:
+        if not 1 <= integer("num_elites", self.num_elites) <= self.num_samples:
             raise InvalidArgumentError(
                 f"num_elites must be in [1, num_samples={self.num_samples}], got {self.num_elites}"
             )
-        if self.std_min < 0:
-            raise InvalidArgumentError(f"std_min must be non-negative, got {self.std_min}")
-        if not 0.0 <= self.smoothing < 1.0:
-            raise InvalidArgumentError(f"smoothing must be in [0, 1), got {self.smoothing}")
+        non_negative("std_min", self.std_min)
+        in_range("smoothing", self.smoothing, 0.0, 1.0, low_open=False, high_open=True)

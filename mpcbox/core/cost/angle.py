@@ -10,6 +10,7 @@ import numpy as np
 from mpcbox.core.cost.base import CostTerm, Features, Jacobian
 from mpcbox.core.cost.rows import AngleRow, Row
 from mpcbox.core.model import object_id
+from mpcbox.validation import checked_options, finite
 
 
 class WrappedAngle(CostTerm):
@@ -28,10 +29,11 @@ class WrappedAngle(CostTerm):
         name: Short label used in reports.
     """
 
+    @checked_options
     def __init__(self, joint: str, target: float, *, weight: float, name: str = "") -> None:
         super().__init__(weight, name or f"angle_{joint}")
         self.joint = joint
-        self.target = float(target)
+        self.target = finite("target", target)
         self._qadr = self._vadr = 0
 
     def size(self, model: mujoco.MjModel) -> int:

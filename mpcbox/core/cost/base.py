@@ -26,8 +26,13 @@ import numpy as np
 
 from mpcbox.core.cost.rows import Row
 from mpcbox.core.model import object_id
-from mpcbox.errors import CostDefinitionError, InvalidArgumentError, UnsupportedCostTermError
-from mpcbox.validation import as_weights
+from mpcbox.errors import (
+    CostDefinitionError,
+    InvalidArgumentError,
+    InvalidTypeError,
+    UnsupportedCostTermError,
+)
+from mpcbox.validation import as_weights, checked_options, instance, string
 
 
 class Features(NamedTuple):
@@ -99,7 +104,7 @@ class CostTerm(abc.ABC):
 
     def __init__(self, weight: float | Sequence[float] | np.ndarray, name: str) -> None:
         self._weight_arg = weight
-        self.name = name
+        self.name = string("name", name)
         self.weight: np.ndarray = np.zeros(0)
         self._sensor_adr: dict[str, slice] = {}
 
@@ -198,13 +203,15 @@ class Cost:
         terminal: Terms evaluated at the final state (controls are ignored there).
     """
 
+    @checked_options
     def __init__(self, running: Sequence[CostTerm], terminal: Sequence[CostTerm] = ()) -> None:
         for label, terms in (("running", running), ("terminal", terminal)):
+            if isinstance(terms, (str, bytes)) or not isinstance(terms, Sequence):
+                raise InvalidTypeError(
+                    f"Cost {label} must be a sequence of CostTerm, got {type(terms).__name__}"
+                )
             for term in terms:
-                if not isinstance(term, CostTerm):
-                    raise InvalidArgumentError(
-                        f"Cost {label} terms must be CostTerm instances, got {type(term).__name__}"
-                    )
+                instance(label, term, CostTerm, "a sequence of CostTerm instances")
         if not running:
             raise InvalidArgumentError("Cost running must hold at least one term")
         self.running = list(running)

@@ -11,6 +11,7 @@ from mpcbox.core.cost.base import CostTerm, Features, Jacobian, SensorRequest
 from mpcbox.core.cost.frames import frame_sensor, point_jacobian
 from mpcbox.core.cost.rows import Row, SensorRow
 from mpcbox.core.model import object_id
+from mpcbox.validation import checked_options
 
 
 class ComOverSupport(CostTerm):
@@ -26,6 +27,7 @@ class ComOverSupport(CostTerm):
         name: Short label used in sensor names and reports.
     """
 
+    @checked_options
     def __init__(
         self,
         support: str,
@@ -47,8 +49,8 @@ class ComOverSupport(CostTerm):
         return 2
 
     def sensors(self, model: mujoco.MjModel) -> Sequence[SensorRequest]:
-        object_id(model, "body", self._root(model))
-        objtype, objname = frame_sensor(model, self.support)
+        object_id(model, "body", self._root(model), "root")
+        objtype, objname = frame_sensor(model, self.support, "support")
         return (
             SensorRequest(
                 f"mpcbox_{self.name}_com",

@@ -9,7 +9,7 @@ import numpy as np
 
 from mpcbox.core.cost.base import CostTerm, Features, Jacobian
 from mpcbox.core.cost.rows import ControlRow, Row
-from mpcbox.validation import as_array
+from mpcbox.validation import as_array, checked_options, finite_array
 
 
 class ControlCost(CostTerm):
@@ -23,6 +23,7 @@ class ControlCost(CostTerm):
 
     constant_jacobian = True
 
+    @checked_options
     def __init__(
         self,
         ctrl_ref: np.ndarray | None = None,
@@ -31,7 +32,7 @@ class ControlCost(CostTerm):
         name: str = "control",
     ) -> None:
         super().__init__(weight, name)
-        self.ctrl_ref = None if ctrl_ref is None else np.asarray(ctrl_ref, dtype=np.float64)
+        self.ctrl_ref = None if ctrl_ref is None else finite_array("ctrl_ref", ctrl_ref, (None,))
 
     def size(self, model: mujoco.MjModel) -> int:
         return model.nu

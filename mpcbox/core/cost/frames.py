@@ -10,12 +10,14 @@ import numpy as np
 from mpcbox.core.cost.base import CostTerm, Features, Jacobian, SensorRequest
 from mpcbox.core.cost.rows import Row, SensorRow
 from mpcbox.core.model import frame_object, object_id
-from mpcbox.validation import as_array
+from mpcbox.validation import checked_options, finite, finite_array
 
 
-def frame_sensor(model: mujoco.MjModel, name: str) -> tuple[mujoco.mjtObj, str]:
+def frame_sensor(
+    model: mujoco.MjModel, name: str, argument: str = "frame"
+) -> tuple[mujoco.mjtObj, str]:
     """Sensor object type and name of a site or body frame called ``name``."""
-    kind, _ = frame_object(model, name)
+    kind, _ = frame_object(model, name, argument)
     return (mujoco.mjtObj.mjOBJ_SITE if kind == "site" else mujoco.mjtObj.mjOBJ_XBODY), name
 
 
@@ -40,12 +42,13 @@ class FramePosition(CostTerm):
         name: Short label used in sensor names and reports.
     """
 
+    @checked_options
     def __init__(
         self, frame: str, target: np.ndarray, *, weight: float | np.ndarray, name: str = ""
     ) -> None:
         super().__init__(weight, name or f"pos_{frame}")
         self.frame = frame
-        self.target = as_array("target", target, (3,))
+        self.target = finite_array("target", target, (3,))
 
     def size(self, model: mujoco.MjModel) -> int:
         return 3
@@ -84,10 +87,11 @@ class FrameHeight(CostTerm):
         name: Short label used in sensor names and reports.
     """
 
+    @checked_options
     def __init__(self, frame: str, target: float, *, weight: float, name: str = "") -> None:
         super().__init__(weight, name or f"height_{frame}")
         self.frame = frame
-        self.target = float(target)
+        self.target = finite("target", target)
 
     def size(self, model: mujoco.MjModel) -> int:
         return 1
@@ -122,6 +126,7 @@ class Upright(CostTerm):
         name: Short label used in sensor names and reports.
     """
 
+    @checked_options
     def __init__(self, body: str, *, weight: float | np.ndarray, name: str = "") -> None:
         super().__init__(weight, name or f"upright_{body}")
         self.body = body

@@ -11,7 +11,7 @@ from mpcbox.core.cost.base import CostTerm, Features, Jacobian
 from mpcbox.core.cost.rows import PositionRow, QuaternionRow, Row, VelocityRow
 from mpcbox.core.tangent import TangentSpace
 from mpcbox.errors import UnsupportedCostTermError
-from mpcbox.validation import as_array, as_weights
+from mpcbox.validation import as_array, as_weights, checked_options, finite_array
 
 
 class StateCost(CostTerm):
@@ -27,6 +27,7 @@ class StateCost(CostTerm):
 
     constant_jacobian = True
 
+    @checked_options
     def __init__(
         self,
         qpos_ref: np.ndarray,
@@ -37,8 +38,8 @@ class StateCost(CostTerm):
         name: str = "state",
     ) -> None:
         super().__init__(0.0, name)
-        self.qpos_ref = np.asarray(qpos_ref, dtype=np.float64)
-        self.qvel_ref = None if qvel_ref is None else np.asarray(qvel_ref, dtype=np.float64)
+        self.qpos_ref = finite_array("qpos_ref", qpos_ref, (None,))
+        self.qvel_ref = None if qvel_ref is None else finite_array("qvel_ref", qvel_ref, (None,))
         self._wq, self._wv = weight_qpos, weight_qvel
         self._tangent: TangentSpace | None = None
 

@@ -8,7 +8,7 @@ import numpy as np
 from mpcbox.core.cost.base import CostTerm, Features, Jacobian
 from mpcbox.core.tangent import TangentSpace
 from mpcbox.errors import CostDefinitionError
-from mpcbox.validation import as_array
+from mpcbox.validation import as_array, checked_options, finite_array
 
 
 class QuadraticValue(CostTerm):
@@ -28,6 +28,7 @@ class QuadraticValue(CostTerm):
 
     constant_jacobian = True
 
+    @checked_options
     def __init__(
         self,
         qpos_ref: np.ndarray,
@@ -37,9 +38,9 @@ class QuadraticValue(CostTerm):
         name: str = "value",
     ) -> None:
         super().__init__(1.0, name)
-        self.P = np.asarray(P, dtype=np.float64)
-        self.qpos_ref = np.asarray(qpos_ref, dtype=np.float64)
-        self.qvel_ref = None if qvel_ref is None else np.asarray(qvel_ref, dtype=np.float64)
+        self.P = finite_array("P", P, (None, None))
+        self.qpos_ref = finite_array("qpos_ref", qpos_ref, (None,))
+        self.qvel_ref = None if qvel_ref is None else finite_array("qvel_ref", qvel_ref, (None,))
         self._L = np.zeros((0, 0))
         self._tangent: TangentSpace | None = None
 

@@ -13,9 +13,9 @@ from mpcbox.controllers.qp_mpc.config import QPMPCConfig
 from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, PredictiveSamplingConfig
 from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, StateCost
 from mpcbox.core.model import ModelSource, frame_object, object_id
-from mpcbox.errors import InvalidArgumentError
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.base import HumanoidProblem, balance_dofs, joint_weights
+from mpcbox.validation import finite, non_negative, one_of
 
 
 class HumanoidBalance(HumanoidProblem):
@@ -109,18 +109,16 @@ class HumanoidBalance(HumanoidProblem):
         fall_height: float = 0.8,
         **kwargs: Any,
     ) -> None:
-        if leg not in ("left", "right"):
-            raise InvalidArgumentError(f"leg must be 'left' or 'right', got {leg!r}")
-        self.leg = leg
+        self.leg = one_of("leg", leg, ("left", "right"))
         self.swing_leg = "right" if leg == "left" else "left"
         self.weights = dict(
-            balance=balance_cost,
-            balance_joint=balance_joint_cost,
-            other_joint=other_joint_cost,
-            velocity=velocity_cost,
-            ctrl=ctrl_cost,
+            balance=non_negative("balance_cost", balance_cost),
+            balance_joint=non_negative("balance_joint_cost", balance_joint_cost),
+            other_joint=non_negative("other_joint_cost", other_joint_cost),
+            velocity=non_negative("velocity_cost", velocity_cost),
+            ctrl=non_negative("ctrl_cost", ctrl_cost),
         )
-        self.fall_height = float(fall_height)
+        self.fall_height = finite("fall_height", fall_height)
         self.noise_stance = leg
         source: ModelSource = scene_path("humanoid.xml") if model is None else model
         if leg == "left":

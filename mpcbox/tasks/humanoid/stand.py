@@ -12,6 +12,7 @@ from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, FrameHeight, Sta
 from mpcbox.core.model import ModelSource
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.base import HumanoidProblem
+from mpcbox.validation import finite, non_negative
 
 
 class HumanoidStand(HumanoidProblem):
@@ -91,16 +92,16 @@ class HumanoidStand(HumanoidProblem):
         **kwargs: Any,
     ) -> None:
         self.weights = dict(
-            height=height_cost,
-            upright=upright_cost,
-            posture=posture_cost,
-            root=root_cost,
-            velocity=velocity_cost,
-            ctrl=ctrl_cost,
-            balance=balance_cost,
-            terminal=terminal_scale,
+            height=non_negative("height_cost", height_cost),
+            upright=non_negative("upright_cost", upright_cost),
+            posture=non_negative("posture_cost", posture_cost),
+            root=non_negative("root_cost", root_cost),
+            velocity=non_negative("velocity_cost", velocity_cost),
+            ctrl=non_negative("ctrl_cost", ctrl_cost),
+            balance=non_negative("balance_cost", balance_cost),
+            terminal=non_negative("terminal_scale", terminal_scale),
         )
-        self.fall_height = float(fall_height)
+        self.fall_height = finite("fall_height", fall_height)
         kwargs.setdefault("keyframe", "stand")
         super().__init__(scene_path("humanoid.xml") if model is None else model, **kwargs)
 

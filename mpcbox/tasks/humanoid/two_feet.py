@@ -12,6 +12,7 @@ from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, StateCost
 from mpcbox.core.model import ModelSource, compile_spec, load_spec, object_id
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.base import HumanoidProblem, balance_dofs, joint_weights
+from mpcbox.validation import finite, non_negative
 
 #: Name of the world site added midway between the feet.
 FEET_CENTER = "feet_center"
@@ -66,18 +67,19 @@ class HumanoidTwoFeet(HumanoidProblem):
         **kwargs: Any,
     ) -> None:
         self.weights = dict(
-            balance=balance_cost,
-            balance_joint=balance_joint_cost,
-            other_joint=other_joint_cost,
-            velocity=velocity_cost,
-            ctrl=ctrl_cost,
+            balance=non_negative("balance_cost", balance_cost),
+            balance_joint=non_negative("balance_joint_cost", balance_joint_cost),
+            other_joint=non_negative("other_joint_cost", other_joint_cost),
+            velocity=non_negative("velocity_cost", velocity_cost),
+            ctrl=non_negative("ctrl_cost", ctrl_cost),
         )
-        self.fall_height = float(fall_height)
+        self.fall_height = finite("fall_height", fall_height)
         spec = load_spec(scene_path("humanoid.xml") if model is None else model)
-        kwargs.setdefault("keyframe", "stand")
+        if kwargs.get("keyframe") is None:
+            kwargs["keyframe"] = "stand"
         base = compile_spec(spec)
         data = mujoco.MjData(base)
-        key = object_id(base, "keyframe", kwargs["keyframe"])
+        key = object_id(base, "keyframe", kwargs["keyframe"], "keyframe")
         data.qpos[:] = base.key_qpos[key]
         mujoco.mj_kinematics(base, data)
         feet = [data.site_xpos[object_id(base, "site", f"foot_{leg}")] for leg in ("left", "right")]

@@ -1,0 +1,97 @@
+r"""Checks of the states and controls given to a :class:`~mpcbox.Problem`.
+
+MuJoCo treats a control beyond its sanity limit ``mjMAXVAL`` (:data:`MAX_CTRL`, 1e10) or
+NaN as a sign of divergence: it sets every control to zero, raises the ``BADCTRL`` warning and
+carries on, so a step or a linearization would silently act as if the control were zero
+(``B = 0``). A control outside an actuator's ``ctrlrange`` is clamped, so at such an operating
+point the finite differences see no effect of that control either. These checks turn both
+into named errors, and :func:`check_authority` rejects a linearization with no control
+authority at all (:math:`B = 0`).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from mpcbox.errors import DivergenceError, InvalidArgumentError, NoControlAuthorityError
+from mpcbox.validation import as_array
+
+#: MuJoCo's sanity limit on controls (``mjMAXVAL``): it zeroes every control beyond it.
+MAX_CTRL = float(mujoco.mjMAXVAL)
+
+
+def check_state(name: str, state: object, nstate: int) -> np.ndarray:
+    """A state ``(nstate,)`` as float64.
+
+    Raises:
+        ShapeError: For another shape.
+        DivergenceError: If it holds NaN or infinity.
+    """
+    state = as_array(name, state, (nstate,))
+    if not np.all(np.isfinite(state)):
+        raise DivergenceError(f"{name} holds non-finite values (NaN or inf)")
+    return state
+
+
+def check_ctrl(name: str, ctrl: object, shape: tuple[int | None, ...]) -> np.ndarray:
+    """Controls of ``shape`` (``(nu,)``, ``(T, nu)``, ...) within MuJoCo's sanity limit.
+
+    Raises:
+        ShapeError: For another shape.
+        DivergenceError: If they hold NaN or infinity.
+        InvalidArgumentError: If a magnitude exceeds :data:`MAX_CTRL` (MuJoCo would zero
+            every control).
+    """
+    ctrl = as_array(name, ctrl, shape)
+    if ctrl.size and not np.abs(ctrl).max() <= MAX_CTRL:  # one pass; False for NaN too
+        if not np.all(np.isfinite(ctrl)):
+            raise DivergenceError(f"{name} holds non-finite values (NaN or inf)")
+        raise InvalidArgumentError(
+            f"{name} has a magnitude {np.abs(ctrl).max():.3g} beyond MuJoCo's limit "
+            f"{MAX_CTRL:.0e} (mjMAXVAL), at which MuJoCo sets every control to zero"
+        )
+    return ctrl
+
+
+def check_in_range(
+    name: str, ctrl: np.ndarray, low: np.ndarray, high: np.ndarray, tolerance: float
+) -> None:
+    """An operating control ``(..., nu)`` must lie inside the limited actuators' ``ctrlrange``.
+
+    Args:
+        name: Argument name for the message.
+        ctrl: Controls ``(..., nu)``.
+        low: Lower limits ``(nu,)`` (``-inf`` where unlimited).
+        high: Upper limits ``(nu,)`` (``inf`` where unlimited).
+        tolerance: Allowed excess (the finite-difference step: within it, MuJoCo's
+            one-sided differences still see the control).
+
+    Raises:
+        InvalidArgumentError: Naming the first control outside its range.
+    """
+    outside = (ctrl < low - tolerance) | (ctrl > high + tolerance)
+    if np.any(outside):
+        index = np.argwhere(outside)[0]
+        i = int(index[-1])
+        raise InvalidArgumentError(
+            f"{name}[{', '.join(map(str, index))}] = {ctrl[tuple(index)]:.6g} is outside "
+            f"actuator {i}'s ctrlrange [{low[i]:.6g}, {high[i]:.6g}]: MuJoCo clamps it, so "
+            "the linearization there would show no effect of that control (a zero column "
+            "of B); linearize at a control inside the range"
+        )
+
+
+def check_authority(B: np.ndarray, what: str) -> None:
+    """Raise :class:`NoControlAuthorityError` when ``B`` ``(..., nx, nu)`` is zero.
+
+    Args:
+        B: Control Jacobian(s) of a linearization.
+        what: The operation, for the message.
+    """
+    if B.size and not np.any(B):
+        raise NoControlAuthorityError(
+            f"{what}: B = 0, the controls have no effect on the next state here (no "
+            "control authority): check the actuators' gear, gain and transmission, and "
+            "that the operating control is inside ctrlrange"
+        )

@@ -1,0 +1,487 @@
+r"""Saved closed-loop runs: :class:`Trajectory`, CSV + JSON files, and open-loop replay.
+
+A trajectory holds what a run did (``T`` recorded steps): times, states
+:math:`x_k = [q_k, v_k, a_k]`, the applied controls :math:`u_k` (actuator noise included),
+the task's measures, the world positions of the model's sites, and what is needed to run it
+again: the initial state, the pushes, the model mismatch, the noise seed.
+
+:func:`save_trajectory` writes two files side by side:
+
+* ``NAME.csv``: one row per step, columns ``time, qpos_0.., qvel_0.., act_0.., ctrl_0..,
+  measure_<name>.., site_<name>_x/_y/_z..``, numbers with 17 significant digits (float64
+  values load back bit for bit);
+* ``NAME.json``: the metadata (problem, controller, task name and options, failure, seed,
+  noise, pushes, mismatch, model sizes and timestep, joint, actuator and site names).
+
+:func:`replay` applies the saved controls open loop, :math:`x_{k+1} = f(x_k, u_k)` with the
+saved pushes, on the task's simulation model from the saved initial state; as the controls
+already hold the noise and MuJoCo is deterministic, it reaches the saved final state.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import mujoco
+import numpy as np
+
+from mpcbox.core.model import object_id
+from mpcbox.core.problem import Problem
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError, MpcboxError
+from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
+from mpcbox.sim.simulation import SimulationResult
+from mpcbox.validation import as_array, checked_keywords, instance
+
+#: ``format`` entry of the JSON sidecar.
+FORMAT = "mpcbox-trajectory"
+#: Version of the file layout.
+VERSION = 1
+
+
+class Trajectory(NamedTuple):
+    """One closed-loop run, as saved and loaded (``T`` recorded steps).
+
+    Attributes:
+        problem: Problem name.
+        controller: Controller name.
+        time: Times ``(T,)`` (s).
+        states: States ``(T, nstate)``, ``[qpos, qvel, act]``.
+        ctrls: Applied controls ``(T, nu)`` (noise included); the last row was not applied.
+        series: Samples ``(T,)`` of each task measure, by name, in the measure's unit.
+        sites: World positions ``(T, 3)`` of the model's named sites (m), by site name.
+        failure: Why the run stopped early, or ``None``.
+        initial_state: The state the run started from ``(nstate,)``.
+        pushes: The pushes of the run.
+        mismatch: The model mismatch of the simulated plant, or ``None``.
+        noise: The actuator noise (already in ``ctrls``), or ``None``.
+        seed: Seed of the noise.
+        metadata: Everything else in the JSON sidecar (task name and options, scenario,
+            model sizes, names of joints, actuators and sites, ...).
+    """
+
+    problem: str
+    controller: str
+    time: np.ndarray
+    states: np.ndarray
+    ctrls: np.ndarray
+    series: dict[str, np.ndarray]
+    sites: dict[str, np.ndarray]
+    failure: str | None
+    initial_state: np.ndarray
+    pushes: tuple[Push, ...]
+    mismatch: ModelMismatch | None
+    noise: ActuatorNoise | None
+    seed: int
+    metadata: dict[str, Any]
+
+
+class Replay(NamedTuple):
+    r"""An open-loop re-simulation of a :class:`Trajectory`.
+
+    Attributes:
+        time: Times ``(T,)`` (s).
+        states: States ``(T, nstate)`` of the re-simulation.
+        final_error: :math:`\max_i |x_{T-1,i} - \hat x_{T-1,i}|` between the replayed and the
+            saved final state (0 when bit-exact; NaN where either is not finite).
+    """
+
+    time: np.ndarray
+    states: np.ndarray
+    final_error: float
+
+
+def _names(model: mujoco.MjModel, kind: str, count: int) -> list[str]:
+    obj = getattr(mujoco.mjtObj, f"mjOBJ_{kind.upper()}")
+    return [mujoco.mj_id2name(model, obj, i) or str(i) for i in range(count)]
+
+
+def site_positions(
+    problem: Problem, states: np.ndarray, sites: Sequence[str] | None = None
+) -> dict[str, np.ndarray]:
+    """World positions of sites along a run: forward kinematics of each state.
+
+    Args:
+        problem: The Problem whose simulation model the states belong to.
+        states: States ``(T, nstate)``.
+        sites: Site names (default: every named site of the model).
+
+    Returns:
+        ``{site name: positions (T, 3)}`` (m).
+    """
+    model = problem.model
+    if sites is None:
+        sites = [n for n in _names(model, "site", model.nsite) if not n.isdigit()]
+    ids = [object_id(model, "site", name) for name in sites]
+    if not ids:
+        return {}
+    data = mujoco.MjData(model)
+    out = np.full((len(states), len(ids), 3), np.nan)
+    nq = problem.nq
+    for k, state in enumerate(states):
+        if not np.all(np.isfinite(state)):
+            continue
+        data.qpos[:] = state[:nq]
+        mujoco.mj_kinematics(model, data)
+        out[k] = data.site_xpos[ids]
+    return {name: out[:, i] for i, name in enumerate(sites)}
+
+
+def make_trajectory(
+    problem: Problem,
+    *,
+    controller: str,
+    time: np.ndarray,
+    states: np.ndarray,
+    ctrls: np.ndarray,
+    series: Mapping[str, np.ndarray] | None = None,
+    failure: str | None = None,
+    pushes: Sequence[Push] = (),
+    mismatch: ModelMismatch | None = None,
+    noise: ActuatorNoise | None = None,
+    seed: int = 0,
+    sites: Sequence[str] | None = None,
+    metadata: Mapping[str, Any] | None = None,
+) -> Trajectory:
+    """A :class:`Trajectory` of ``problem`` from recorded arrays (site positions computed).
+
+    Args:
+        problem: The Problem that was simulated.
+        controller: Controller name.
+        time: Times ``(T,)`` (s).
+        states: States ``(T, nstate)``.
+        ctrls: Applied controls ``(T, nu)``.
+        series: Task measure samples ``(T,)`` by name.
+        failure: Why the run stopped early, or ``None``.
+        pushes: Pushes of the run.
+        mismatch: Model mismatch of the simulated plant.
+        noise: Actuator noise of the run (already in ``ctrls``).
+        seed: Noise seed.
+        sites: Sites whose positions are recorded (default: every named site).
+        metadata: Extra JSON-serializable entries (e.g. ``{"task": "pendulum_swingup"}``).
+
+    Raises:
+        ShapeError: If the arrays do not match the problem's sizes or each other.
+    """
+    time = as_array("time", time, (None,))
+    steps = len(time)
+    if steps == 0:
+        raise InvalidArgumentError("time must hold at least one step")
+    states = as_array("states", states, (steps, problem.nstate))
+    ctrls = as_array("ctrls", ctrls, (steps, problem.nu))
+    series = {k: as_array(f"series[{k!r}]", v, (steps,)) for k, v in (series or {}).items()}
+    model = problem.model
+    meta = {
+        "nq": problem.nq,
+        "nv": problem.nv,
+        "na": problem.na,
+        "nu": problem.nu,
+        "timestep": float(model.opt.timestep),
+        "joints": _names(model, "joint", model.njnt),
+        "actuators": _names(model, "actuator", model.nu),
+    }
+    meta.update(dict(metadata or {}))
+    return Trajectory(
+        problem=problem.name,
+        controller=str(controller),
+        time=time.copy(),
+        states=states.copy(),
+        ctrls=ctrls.copy(),
+        series=series,
+        sites=site_positions(problem, states, sites),
+        failure=failure,
+        initial_state=states[0].copy(),
+        pushes=tuple(pushes),
+        mismatch=mismatch,
+        noise=noise,
+        seed=int(seed),
+        metadata=meta,
+    )
+
+
+def trajectory_from_result(
+    result: SimulationResult,
+    problem: Problem,
+    *,
+    sites: Sequence[str] | None = None,
+    metadata: Mapping[str, Any] | None = None,
+) -> Trajectory:
+    """The :class:`Trajectory` of a :func:`~mpcbox.simulate` result on ``problem``.
+
+    Args:
+        result: The run.
+        problem: The Problem it ran on.
+        sites: Sites whose positions are recorded (default: every named site).
+        metadata: Extra JSON-serializable entries (e.g. the task name and options).
+    """
+    return make_trajectory(
+        problem,
+        controller=result.controller,
+        time=result.time,
+        states=result.states,
+        ctrls=result.ctrls,
+        series=result.series,
+        failure=result.failure,
+        pushes=result.pushes,
+        mismatch=result.mismatch,
+        noise=result.noise,
+        seed=result.seed,
+        sites=sites,
+        metadata=metadata,
+    )
+
+
+# ---------------------------------------------------------------- JSON of the disturbances
+def jsonable(value: Any) -> Any:
+    """``value`` with arrays and tuples as lists and non-finite floats as ``None``, for JSON."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: jsonable(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, np.generic):
+        return jsonable(value.item())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, tuple | list):
+        return [jsonable(v) for v in value]
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    return value
+
+
+def push_to_dict(push: Push) -> dict[str, Any]:
+    """A :class:`~mpcbox.Push` as a JSON-ready dict."""
+    return {
+        "force": jsonable(np.asarray(push.force, dtype=float)),
+        "torque": jsonable(np.asarray(push.torque, dtype=float)),
+        "start": float(push.start),
+        "duration": float(push.duration),
+        "body": push.body,
+    }
+
+
+def _disturbances(traj: Trajectory) -> dict[str, Any]:
+    noise = traj.noise
+    mismatch = traj.mismatch
+    return {
+        "seed": traj.seed,
+        "pushes": [push_to_dict(p) for p in traj.pushes],
+        "noise": None
+        if noise is None
+        else {"std": jsonable(noise.std), "width": noise.width, "scale": noise.scale},
+        "mismatch": None
+        if mismatch is None
+        else {
+            "mass_scale": mismatch.mass_scale,
+            "friction_scale": mismatch.friction_scale,
+            "body_mass_scale": mismatch.body_mass_scale,
+        },
+    }
+
+
+# ------------------------------------------------------------------------------ files
+def trajectory_paths(path: str | Path) -> tuple[Path, Path]:
+    """The CSV and JSON paths of a trajectory named ``path`` (with or without a suffix)."""
+    if not isinstance(path, (str, Path)):
+        raise InvalidTypeError(f"path must be a file path, got {type(path).__name__}")
+    path = Path(path)
+    if path.suffix.lower() in (".csv", ".json"):
+        path = path.with_suffix("")
+    return path.with_name(path.name + ".csv"), path.with_name(path.name + ".json")
+
+
+def _columns(traj: Trajectory) -> list[str]:
+    nq, nv = int(traj.metadata["nq"]), int(traj.metadata["nv"])
+    na, nu = int(traj.metadata["na"]), traj.ctrls.shape[1]
+    cols = ["time"]
+    cols += [f"qpos_{i}" for i in range(nq)] + [f"qvel_{i}" for i in range(nv)]
+    cols += [f"act_{i}" for i in range(na)] + [f"ctrl_{i}" for i in range(nu)]
+    cols += [f"measure_{name}" for name in traj.series]
+    for name in traj.sites:
+        cols += [f"site_{name}_{axis}" for axis in "xyz"]
+    return cols
+
+
+@checked_keywords
+def save_trajectory(traj: Trajectory, path: str | Path) -> tuple[Path, Path]:
+    """Write ``traj`` as ``PATH.csv`` and ``PATH.json`` (a ``.csv``/``.json`` suffix is dropped).
+
+    Args:
+        traj: The trajectory.
+        path: File name without suffix; folders are created.
+
+    Returns:
+        The CSV and JSON paths.
+
+    Raises:
+        InvalidArgumentError: If ``traj`` is not a Trajectory or the files cannot be written.
+    """
+    if not isinstance(traj, Trajectory):
+        raise InvalidArgumentError(f"traj must be an mpcbox Trajectory, got {type(traj).__name__}")
+    csv_path, json_path = trajectory_paths(path)
+    blocks = [traj.time[:, None], traj.states, traj.ctrls]
+    blocks += [v[:, None] for v in traj.series.values()]
+    blocks += list(traj.sites.values())
+    table = np.hstack(blocks)
+    meta = {
+        "format": FORMAT,
+        "version": VERSION,
+        "csv": csv_path.name,
+        "problem": traj.problem,
+        "controller": traj.controller,
+        "failure": traj.failure,
+        "steps": len(traj.time),
+        "final_time": float(traj.time[-1]),
+        "initial_state": jsonable(traj.initial_state),
+        "measures": list(traj.series),
+        "sites": list(traj.sites),
+        **_disturbances(traj),
+        **{k: jsonable(v) for k, v in traj.metadata.items()},
+    }
+    try:
+        csv_path.parent.mkdir(parents=True, exist_ok=True)
+        with csv_path.open("w", newline="") as f:
+            csv.writer(f, lineterminator="\n").writerow(_columns(traj))
+            np.savetxt(f, table, fmt="%.17g", delimiter=",")
+        json_path.write_text(json.dumps(meta, indent=2, allow_nan=True) + "\n")
+    except OSError as exc:
+        raise InvalidArgumentError(f"cannot write the trajectory {str(path)!r}: {exc}") from exc
+    return csv_path, json_path
+
+
+_SHARED = {"format", "version", "csv", "problem", "controller", "failure", "steps"}
+_SHARED |= {"final_time", "initial_state", "measures", "sites", "seed", "pushes"}
+_SHARED |= {"noise", "mismatch"}
+
+
+@checked_keywords
+def load_trajectory(path: str | Path) -> Trajectory:
+    """Read a trajectory written by :func:`save_trajectory`.
+
+    Args:
+        path: ``NAME.csv``, ``NAME.json`` or ``NAME``.
+
+    Raises:
+        InvalidArgumentError: If a file is missing, unreadable or not an mpcbox trajectory.
+    """
+    csv_path, json_path = trajectory_paths(path)
+    try:
+        meta = json.loads(json_path.read_text())
+        with csv_path.open(newline="") as f:
+            header = next(csv.reader(f))
+            table = np.loadtxt(f, delimiter=",", ndmin=2, dtype=np.float64)
+    except (OSError, ValueError, StopIteration) as exc:
+        raise InvalidArgumentError(
+            f"path: cannot read the trajectory {str(path)!r} ({csv_path.name} + {json_path.name}): "
+            f"{exc or type(exc).__name__}"
+        ) from exc
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        raise InvalidArgumentError(f"{str(json_path)!r} is not an mpcbox trajectory (no format)")
+    try:
+        nq, nv, na, nu = (int(meta[k]) for k in ("nq", "nv", "na", "nu"))
+        measures, sites = list(meta["measures"]), list(meta["sites"])
+        width = 1 + nq + nv + na + nu + len(measures) + 3 * len(sites)
+        if table.shape[1] != width or len(header) != width:
+            raise InvalidArgumentError(
+                f"{csv_path.name} has {table.shape[1]} columns, its JSON describes {width}"
+            )
+        cols = np.cumsum([1, nq + nv + na, nu, len(measures)])
+        noise = meta["noise"]
+        mismatch = meta["mismatch"]
+        return Trajectory(
+            problem=str(meta["problem"]),
+            controller=str(meta["controller"]),
+            time=table[:, 0].copy(),
+            states=table[:, 1 : cols[1]].copy(),
+            ctrls=table[:, cols[1] : cols[2]].copy(),
+            series={m: table[:, cols[2] + i].copy() for i, m in enumerate(measures)},
+            sites={
+                s: table[:, cols[3] + 3 * i : cols[3] + 3 * i + 3].copy()
+                for i, s in enumerate(sites)
+            },
+            failure=meta["failure"],
+            initial_state=np.asarray(meta["initial_state"], dtype=np.float64),
+            pushes=tuple(
+                Push(
+                    force=tuple(p["force"]),
+                    torque=tuple(p["torque"]),
+                    start=float(p["start"]),
+                    duration=float(p["duration"]),
+                    body=str(p["body"]),
+                )
+                for p in meta["pushes"]
+            ),
+            mismatch=None if mismatch is None else ModelMismatch(**mismatch),
+            noise=None if noise is None else ActuatorNoise(**noise),
+            seed=int(meta["seed"]),
+            metadata={k: v for k, v in meta.items() if k not in _SHARED},
+        )
+    except (KeyError, TypeError, ValueError) as exc:
+        if isinstance(exc, MpcboxError):
+            raise
+        raise InvalidArgumentError(
+            f"{str(json_path)!r} is not a complete mpcbox trajectory: {exc!r}"
+        ) from exc
+
+
+@checked_keywords
+def replay(traj: Trajectory, problem: Problem) -> Replay:
+    """Re-simulate ``traj`` open loop on ``problem``'s simulation model.
+
+    From ``traj.initial_state``, step ``k`` applies ``traj.ctrls[k]`` and the saved pushes
+    active at that time (on the model with the saved mismatch), exactly as
+    :func:`~mpcbox.simulate` did; ``T - 1`` steps for ``T`` recorded states.
+
+    Args:
+        traj: A saved run.
+        problem: The Problem it ran on (same sizes and timestep).
+
+    Returns:
+        A :class:`Replay` with the re-simulated states and the final-state error.
+
+    Raises:
+        InvalidArgumentError: If the problem's sizes or timestep differ from the saved ones.
+    """
+    instance("traj", traj, Trajectory, "an mpcbox Trajectory (load_trajectory)")
+    instance("problem", problem, Problem, "an mpcbox.Problem")
+    model = problem.model if traj.mismatch is None else traj.mismatch.apply(problem.model)
+    saved = {k: traj.metadata.get(k) for k in ("nq", "nv", "na", "nu", "timestep")}
+    have = {
+        "nq": problem.nq,
+        "nv": problem.nv,
+        "na": problem.na,
+        "nu": problem.nu,
+        "timestep": float(model.opt.timestep),
+    }
+    for key, value in have.items():
+        if saved[key] is not None and saved[key] != value:
+            raise InvalidArgumentError(
+                f"the trajectory was recorded with {key}={saved[key]}, but problem "
+                f"{problem.name!r} has {key}={value}: replay it on the task it ran on"
+            )
+    data = mujoco.MjData(model)
+    problem.set_state(data, traj.initial_state)
+    mujoco.mj_forward(model, data)
+    push_ids = [object_id(model, "body", p.body) for p in traj.pushes]
+    steps = len(traj.time)
+    times = np.empty(steps)
+    states = np.empty((steps, problem.nstate))
+    for k in range(steps):
+        times[k] = data.time
+        states[k] = problem.get_state(data)
+        if k == steps - 1:
+            break
+        data.ctrl[:] = traj.ctrls[k]
+        data.xfrc_applied[:] = 0.0
+        for push, bid in zip(traj.pushes, push_ids):
+            if push.active(float(data.time)):
+                data.xfrc_applied[bid] += push.wrench()
+        mujoco.mj_step(model, data)
+    diff = np.abs(states[-1] - traj.states[-1])
+    error = float(np.max(diff)) if np.all(np.isfinite(diff)) else math.nan
+    return Replay(times, states, error)
