@@ -131,6 +131,16 @@ def run_variant(robot: str, variant: str, args: argparse.Namespace) -> dict | No
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def _commit(tree: str | None) -> str | None:
+    """The git commit checked out at ``tree`` (``None`` when unknown)."""
+    if tree is None:
+        return None
+    out = subprocess.run(
+        ["git", "-C", tree, "rev-parse", "HEAD"], capture_output=True, text=True, check=False
+    )
+    return out.stdout.strip() or None
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--baseline", help="checkout of the earlier code (variant 'before')")
@@ -168,6 +178,8 @@ def main() -> None:
         seeds=args.seeds,
         duration_s=args.duration,
         baseline=args.baseline,
+        baseline_commit=_commit(args.baseline),
+        commit=_commit(str(HERE.parent)),
         wall_s=time.perf_counter() - t0,
         robots=robots,
     )

@@ -32,6 +32,9 @@ OSQP_DEFAULTS: dict[str, Any] = dict(
     check_termination=5,
     # A fixed rho: OSQP's adaptive rho moved it to values that needed 250-400 iterations on
     # this problem (with the warm start in place); rho = 3 takes 30-40 (benchmarks/qp_mpc.py).
+    # On Menagerie's Go1, A1 and ANYmal C standing under 1 N m torque noise rho = 3 fails no
+    # solve either; adaptive rho made the humanoid's ticks 1.2-3.7x slower (median; p99
+    # 2.9-3.6x), with 3.6% of the one-leg solves at the cap (benchmarks/qp_robots.py).
     adaptive_rho=False,
     rho=3.0,
     scaling=10,
