@@ -195,6 +195,27 @@ def test_failed_solve_falls_back_and_is_counted(one_leg):
     assert np.all(np.isfinite(res.ctrls))
 
 
+def test_rescue_backend_solves_what_osqp_fails(one_leg):
+    """OSQP limited to one iteration fails every solve; Clarabel re-solves each one, so no
+    tick falls back, and the rescued plan is the one Clarabel finds alone."""
+    ctl = QPMPC(one_leg, osqp_settings=dict(max_iter=1, check_termination=1), rescue="clarabel")
+    state = one_leg.reference_state()
+    state[one_leg.nq + 3] = 0.05  # roll rate of the root
+    u = ctl(state, 0.0)
+    alone = QPMPC(one_leg, solver="clarabel").solve(state)
+    np.testing.assert_allclose(u, one_leg.clip_ctrl(alone.ctrls[0]), atol=1e-6)
+    res = simulate(one_leg, ctl, 0.06)
+    stats = ctl.stats
+    assert res.survived and stats["fallbacks"] == 0 and stats["failed_solves"] == 0
+    assert (
+        stats["rescued_solves"]
+        == stats["solves"]
+        == sum(v for k, v in stats.items() if k.startswith("failed:"))
+    )
+    with pytest.raises(UnknownNameError, match="clarabel"):
+        QPMPCConfig(rescue="not-a-solver")
+
+
 @pytest.mark.parametrize("fallback", ["lqr", "plan"])
 def test_fallback_after_failed_solves(one_leg, fallback):
     ctl = QPMPC(one_leg, horizon=10, dt=0.02, period=0.02, fallback=fallback)

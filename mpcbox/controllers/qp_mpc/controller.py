@@ -6,7 +6,8 @@ prediction model of :mod:`~mpcbox.controllers.qp_mpc.prediction` first when
 ``relinearize`` is set), solves it with a backend of
 :mod:`~mpcbox.controllers.qp_mpc.solvers` (by default a persistent OSQP solver, warm-started
 from the previous solution shifted by one step) and applies the first planned control. A
-failed solve falls back to LQR (or to the last plan, ``fallback="plan"``) and is counted in
+failed solve is re-solved by the ``rescue`` backend when one is set; one that stays failed
+falls back to LQR (or to the last plan, ``fallback="plan"``). Both are counted in
 :attr:`QPMPC.stats`. Options: :class:`~mpcbox.controllers.qp_mpc.config.QPMPCConfig`.
 """
 
@@ -114,6 +115,11 @@ def grounded_points(
     return ContactPoints(
         points.body[keep], points.local[keep], tuple(points.label[i] for i in keep)
     )
+
+
+def _usable(x: np.ndarray | None) -> bool:
+    """Whether a solver returned a finite primal solution."""
+    return x is not None and bool(np.all(np.isfinite(x)))
 
 
 class QPMPC(Controller):
@@ -234,6 +240,7 @@ class QPMPC(Controller):
         )
         self.formulation.update_matrix(self.linearization)
         self.backend = make_backend(cfg.solver, dict(cfg.osqp_settings or {}))
+        self.rescue = None if cfg.rescue is None else make_backend(cfg.rescue)
         # Built now, not on the first failed (already slow) tick.
         self._lqr: LQR | None = LQR(problem) if cfg.fallback == "lqr" else None
         # Per-run state, set by reset().
@@ -241,7 +248,7 @@ class QPMPC(Controller):
         self._prev_y: np.ndarray | None = None
         self._last_ctrl = self.ctrl_ref.copy()
         self._plan_age = self._tick = self._fallbacks = 0
-        self._plan_fallbacks = self._inaccurate = 0
+        self._plan_fallbacks = self._inaccurate = self._unsolved = self._rescued = 0
         self._violation_max = 0.0
         self._failures: dict[str, int] = {}
         self._iters: list[int] = []
@@ -257,6 +264,7 @@ class QPMPC(Controller):
         self.prediction.reset()
         self._tick = 0
         self._fallbacks = self._plan_fallbacks = self._inaccurate = 0
+        self._unsolved = self._rescued = 0
         self._violation_max = 0.0
         self._failures = {}
         self._iters = []
@@ -269,8 +277,9 @@ class QPMPC(Controller):
         """Counters since :meth:`reset`; nothing the solver did wrong goes unreported.
 
         * ``solves``: QPs solved (one per call);
-        * ``failed_solves``: solves without a usable solution (each also counted under
-          ``failed:<status>``, the solver's status);
+        * ``failed_solves``: solves that ended without a usable solution;
+        * ``failed:<status>``: failures of ``solver`` by its status, rescued or not;
+        * ``rescued_solves``: failures of ``solver`` that the ``rescue`` backend solved;
         * ``fallbacks``: calls whose control did not come from a fresh solve;
           ``fallbacks_lqr`` and ``fallbacks_plan`` split them by what was applied;
         * ``inaccurate_solves``: accepted solves the solver flagged as inaccurate (OSQP's
@@ -286,7 +295,8 @@ class QPMPC(Controller):
             "fallbacks_lqr": self._fallbacks - self._plan_fallbacks,
             "fallbacks_plan": self._plan_fallbacks,
             "solves": self._tick,
-            "failed_solves": sum(self._failures.values()),
+            "failed_solves": self._unsolved,
+            "rescued_solves": self._rescued,
             "inaccurate_solves": self._inaccurate,
             "solver_iterations": float(np.mean(iters)) if iters else 0.0,
             "solver_iterations_max": float(max(iters)) if iters else 0.0,
@@ -322,6 +332,11 @@ class QPMPC(Controller):
         self.qp = QPData(self.formulation.P, q, self.formulation.A, lo, hi)
         t2 = _time.perf_counter()
         sol = self.backend.solve(self.qp, changed, self._warm_start())
+        if not _usable(sol.x):
+            self._failures[sol.status] = self._failures.get(sol.status, 0) + 1
+            if self.rescue is not None:
+                sol = self.rescue.solve(self.qp, changed, None)
+                self._rescued += _usable(sol.x)
         t3 = _time.perf_counter()
         self.timing = TickTiming(t1 - t0, t2 - t1, t3 - t2)
         self.last_status = sol.status
@@ -329,13 +344,15 @@ class QPMPC(Controller):
             self.export(self.config.export_dir / f"tick_{self._tick:05d}.npz")
         self._tick += 1
         z = sol.x
-        if z is None or not np.all(np.isfinite(z)):
-            self._failures[sol.status] = self._failures.get(sol.status, 0) + 1
+        if not _usable(z):
+            self._unsolved += 1
             return None
         self._iters.append(sol.iterations)
         if sol.inaccurate:
             self._inaccurate += 1
-        self._prev_z, self._prev_y = z, sol.y
+        # A rescue backend reports no dual: keep the last one for the next warm start.
+        y = sol.y if sol.y is not None else self._prev_y
+        self._prev_z, self._prev_y = z, (np.zeros(self.ncon) if y is None else y)
         N, nx, nu = L.horizon, L.nx, L.nu
         dx = np.vstack([p.state_difference(state, lin.state), z[: N * nx].reshape(N, nx)])
         ctrls = lin.ctrl + z[L.ou : L.ou + N * nu].reshape(N, nu)
