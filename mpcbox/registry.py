@@ -29,6 +29,8 @@ TASKS: dict[str, str] = {
     "humanoid_balance": "mpcbox.tasks.humanoid.balance:HumanoidBalance",
     "pendulum_swingup": "mpcbox.tasks.swingup:PendulumSwingup",
     "cartpole_swingup": "mpcbox.tasks.swingup:CartpoleSwingup",
+    "dm_cartpole_swingup": "mpcbox.tasks.swingup.dm_control:DmCartpoleSwingup",
+    "dm_acrobot_swingup": "mpcbox.tasks.swingup.dm_control:DmAcrobotSwingup",
     "humanoid_stand": "mpcbox.tasks.humanoid.stand:HumanoidStand",
     "humanoid_two_feet": "mpcbox.tasks.humanoid.two_feet:HumanoidTwoFeet",
 }

@@ -163,7 +163,7 @@ def test_unknown_names_list_the_valid_ones(balance):
 
 
 def test_columns_follow_the_task_measures():
-    """A swing-up declares no measures (no COM or tilt columns) and has no noise model."""
+    """A swing-up measures its upright error (no COM or tilt columns), and has no noise model."""
     with pytest.raises(InvalidArgumentError, match="no noise model"):
         compare("pendulum_swingup", ["lqr"], Scenario(duration=0.1), seeds=1, progress=False)
     result = compare(
@@ -174,13 +174,17 @@ def test_columns_follow_the_task_measures():
         workers=1,
         progress=False,
     )
-    assert result.measures == ()
-    assert result.runs[0].metrics.measures == {}
+    assert [m.name for m in result.measures] == ["upright_error"]
+    assert set(result.runs[0].metrics.measures) == {
+        "upright_error_final_rad",
+        "upright_error_settle_time_s",
+    }
     assert np.isfinite(result.runs[0].metrics.cost)
     header = result.to_markdown().splitlines()[0]
     assert "COM" not in header and "tilt" not in header
     assert result.to_csv().splitlines()[0] == (
-        "scenario,controller,runs,success_rate,outcomes,mean_time_to_fall,control_effort,"
+        "scenario,controller,runs,success_rate,outcomes,mean_time_to_fall,"
+        "upright_error_final_rad,upright_error_settle_time_s,control_effort,"
         "compute_mean_ms,compute_p99_ms,period_ms,p99_fits,offline_ms,realtime_factor,"
         "fallbacks,fallback_rate"
     )

@@ -12,7 +12,7 @@ class StopReason(enum.Enum):
     """Why :meth:`~mpcbox.controllers.ilqr.solver.ILQRSolver.solve` stopped.
 
     Two reasons are convergence (:attr:`converged`); three are stalls, where the solver gave
-    up improving and kept its current trajectory (:attr:`stalled`); the last two are neither.
+    up improving and kept its current trajectory (:attr:`stalled`); the others are neither.
 
     Attributes:
         COST_CHANGE: Converged: a full step (the largest step size) lowered the cost by less
@@ -24,6 +24,10 @@ class StopReason(enum.Enum):
             but only along a shortened step (``alpha`` below the largest step size), so the
             small change says that the quadratic model is poor, not that the solution is
             optimal.
+        SADDLE: Not converged: the backward pass predicts no decrease, but a small random
+            change of the controls lowers the cost: a saddle or maximum of the cost that the
+            (convex) Gauss-Newton model cannot see, such as a swing-up's pendulum at rest
+            hanging down under a cost periodic in the angle. Start from a guess that moves.
         ITERATION_LIMIT: The iteration cap was reached.
         REGULARIZATION_LIMIT: Stalled: the regularization grew past ``regularization_max``
             after failed backward passes or line searches.
@@ -36,6 +40,7 @@ class StopReason(enum.Enum):
     COST_CHANGE = "cost change"
     NO_PREDICTED_DECREASE = "no predicted decrease"
     SHORT_STEP = "short step"
+    SADDLE = "saddle"
     ITERATION_LIMIT = "iteration limit"
     REGULARIZATION_LIMIT = "regularization limit"
     RETRY_LIMIT = "retry limit"

@@ -21,9 +21,13 @@ from mpcbox.controllers.ilqr.backward_pass import backward_pass, interpolate_lin
 from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.ilqr.forward_pass import Candidate, ClosedLoopRollout, line_search
 from mpcbox.controllers.ilqr.result import ILQRResult, StopReason, Timing
+from mpcbox.core.divergence import check_planning_step
 from mpcbox.core.problem import Linearization, Problem, Quadratization
 from mpcbox.errors import DivergenceError, InvalidArgumentError, SolverError
 from mpcbox.validation import as_array, positive_int
+
+#: Random directions (each tried with both signs) of the saddle probe at a stationary point.
+PROBES = 4
 
 
 class ILQRSolver:
@@ -51,6 +55,8 @@ class ILQRSolver:
         UnknownOptionError: For an option that is not a config field; it lists the valid ones.
         InvalidArgumentError: Naming the option, for a value out of range.
         ShapeError: If ``ctrl_low``, ``ctrl_high`` or ``ctrls_init`` has the wrong shape.
+        PlanningDivergenceError: If the planning model diverges at its timestep
+            (:func:`~mpcbox.core.divergence.check_planning_step`).
     """
 
     #: The config dataclass of the options.
@@ -62,6 +68,8 @@ class ILQRSolver:
         cfg = resolve_config(ILQRConfig, config, options, owner)
         if cfg.planning_timestep is not None and abs(cfg.planning_timestep - problem.dt) > 1e-12:
             problem = problem.with_planning_timestep(cfg.planning_timestep)
+        else:
+            check_planning_step(problem)  # the copy above was checked when it was made
         if cfg.terminal_value == "lqr":
             problem = _with_lqr_terminal_value(problem)
         self.problem = problem
@@ -226,8 +234,17 @@ class ILQRSolver:
             k, K = bp.k, bp.K
             dv1, dv2 = bp.expected
             if -(dv1 + dv2) <= 1e-12 * max(1.0, abs(cost)):
-                reason = StopReason.NO_PREDICTED_DECREASE
-                status = "converged (no predicted decrease)"
+                t0 = _time.perf_counter()
+                if self._descent_probe(x0, ctrls, cost):
+                    reason = StopReason.SADDLE
+                    status = (
+                        "saddle (no predicted decrease, but a small change of the controls "
+                        "lowers the cost: start from an initial guess that moves)"
+                    )
+                else:
+                    reason = StopReason.NO_PREDICTED_DECREASE
+                    status = "converged (no predicted decrease)"
+                t_roll += _time.perf_counter() - t0
                 break
 
             t0 = _time.perf_counter()
@@ -282,6 +299,35 @@ class ILQRSolver:
             status=status,
             stop_reason=reason,
         )
+
+    def _descent_probe(self, x0: np.ndarray, ctrls: np.ndarray, cost: float) -> bool:
+        r"""Whether a small change of the controls lowers the cost at a stationary point.
+
+        The Gauss-Newton model is convex, so it sees no decrease at a saddle or maximum of the
+        true cost, e.g. at the hanging rest of a swing-up whose cost is periodic in the angle.
+        Tries smooth directions :math:`\pm\delta` (a constant per control, and
+        :data:`PROBES` random ones interpolated between four knots), scaled to ``1e-3`` of each
+        control's bound range (of 1 when unbounded) and kept within the bounds.
+        """
+        horizon, nu = ctrls.shape
+        span = self.ctrl_high - self.ctrl_low
+        span = np.where(np.isfinite(span), span, 1.0)
+        rng = np.random.default_rng(0)
+        knots = np.linspace(0.0, 1.0, 4)
+        grid = np.linspace(0.0, 1.0, horizon)
+        directions = [np.tile(np.eye(nu)[j], (horizon, 1)) for j in range(nu)]
+        for _ in range(PROBES):
+            values = rng.standard_normal((knots.size, nu))
+            directions.append(np.stack([np.interp(grid, knots, v) for v in values.T], axis=1))
+        threshold = cost - 1e-10 * max(1.0, abs(cost))
+        for direction in directions:
+            for sign in (1.0, -1.0):
+                trial = np.clip(
+                    ctrls + sign * 1e-3 * span * direction, self.ctrl_low, self.ctrl_high
+                )
+                if self._initial_rollout(x0, trial)[1] < threshold:
+                    return True
+        return False
 
     def _stall_reason(self, regularization: float, diverged: bool) -> StopReason:
         if diverged:

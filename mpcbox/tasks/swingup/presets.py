@@ -1,4 +1,4 @@
-"""Swing-up tasks: a torque-limited pendulum and a force-limited cart-pole.
+"""The shipped swing-up scenes as presets of :class:`~mpcbox.tasks.swingup.task.Swingup`.
 
 In both scenes a hinge angle of 0 means hanging down and pi means upright. The pole angle is
 penalized through :class:`~mpcbox.core.cost.WrappedAngle`, which is zero at every upright
@@ -10,28 +10,42 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-import mujoco
 import numpy as np
 
 from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.ipopt_controller import IpoptConfig
 from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, PredictiveSamplingConfig
-from mpcbox.core.cost import ControlCost, Cost, StateCost, WrappedAngle
-from mpcbox.core.problem import Problem
 from mpcbox.tasks import scene_path
+from mpcbox.tasks.swingup.task import Swingup
+from mpcbox.tasks.swingup.weights import SwingupWeights
 
 
-class PendulumSwingup(Problem):
+class PendulumSwingup(Swingup):
     """Swing a torque-limited pendulum (|u| <= 2 N m < m g l) from hanging to upright.
 
-    Running cost: wrapped angle (weight 1), angular velocity (0.1) and torque (0.01); the
-    terminal cost is heavier (100 and 10). Starts at rest hanging down.
+    Running cost: wrapped angle (weight 1), angular velocity (0.1) and torque (0.01 per
+    (N m)^2, i.e. 0.04 on the torque as a fraction of its 2 N m limit); the terminal cost is
+    heavier (100 and 10). Starts at rest hanging down; upright within 0.2 rad over the last
+    second counts as success.
 
     Args:
-        **kwargs: Passed to :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
+        **kwargs: Passed to :class:`~mpcbox.tasks.swingup.task.Swingup` (e.g.
+            ``planning_timestep``, ``tolerance``).
     """
 
     name = "pendulum_swingup"
+    #: The preset's weights (:class:`~mpcbox.tasks.swingup.weights.SwingupWeights`).
+    WEIGHTS = SwingupWeights(
+        angle=1.0,
+        velocity=0.1,
+        ctrl=0.04,
+        position=0.0,
+        site=0.0,
+        terminal_angle=100.0,
+        terminal_velocity=10.0,
+        terminal_position=0.0,
+        terminal_site=0.0,
+    )
     #: Tuned config of each controller that :func:`mpcbox.make_controller` builds.
     controller_configs: ClassVar[dict[str, Any]] = {
         "ilqr": ILQRConfig(
@@ -52,44 +66,35 @@ class PendulumSwingup(Problem):
     }
 
     def __init__(self, **kwargs: Any) -> None:
-        path = scene_path("pendulum.xml")
-        kwargs.setdefault("qpos_ref", np.array([np.pi]))
-        super().__init__(path, **kwargs)
-
-    def build_cost(self, model: mujoco.MjModel) -> Cost:
-        return Cost(
-            [
-                WrappedAngle("hinge", np.pi, weight=1.0),
-                StateCost(self.qpos_ref, weight_qpos=0.0, weight_qvel=0.1, name="velocity"),
-                ControlCost(weight=0.01),
-            ],
-            [
-                WrappedAngle("hinge", np.pi, weight=100.0, name="terminal_angle"),
-                StateCost(
-                    self.qpos_ref, weight_qpos=0.0, weight_qvel=10.0, name="terminal_velocity"
-                ),
-            ],
-        )
-
-    def initial_state(self) -> np.ndarray:
-        return np.zeros(self.nstate)
-
-    def upright_error(self, state: np.ndarray) -> float:
-        """Angle (rad) between the pole and upright, wrapped to [0, pi]."""
-        return float(abs(np.angle(np.exp(1j * (state[0] - np.pi)))))
+        kwargs.setdefault("joints", {"hinge": np.pi})
+        kwargs.setdefault("weights", self.WEIGHTS)
+        super().__init__(scene_path("pendulum.xml"), **kwargs)
 
 
-class CartpoleSwingup(Problem):
+class CartpoleSwingup(Swingup):
     """Swing up the pole of a force-limited cart-pole (|F| <= 10 N) and balance it.
 
     Running cost: cart position (weight 2), wrapped pole angle (10), both velocities (0.5) and
-    control (1); heavier terminal cost. Starts at rest hanging down.
+    control (1, the control being the force as a fraction of 10 N); heavier terminal cost.
+    Starts at rest hanging down; upright within 0.2 rad over the last second counts as success.
 
     Args:
-        **kwargs: Passed to :class:`~mpcbox.Problem`.
+        **kwargs: Passed to :class:`~mpcbox.tasks.swingup.task.Swingup`.
     """
 
     name = "cartpole_swingup"
+    #: The preset's weights (:class:`~mpcbox.tasks.swingup.weights.SwingupWeights`).
+    WEIGHTS = SwingupWeights(
+        angle=10.0,
+        position=2.0,
+        velocity=0.5,
+        ctrl=1.0,
+        site=0.0,
+        terminal_angle=100.0,
+        terminal_position=20.0,
+        terminal_velocity=10.0,
+        terminal_site=0.0,
+    )
     #: Tuned config of each controller that :func:`mpcbox.make_controller` builds.
     controller_configs: ClassVar[dict[str, Any]] = {
         "ilqr": ILQRConfig(
@@ -139,31 +144,6 @@ class CartpoleSwingup(Problem):
     }
 
     def __init__(self, **kwargs: Any) -> None:
-        path = scene_path("cartpole.xml")
-        kwargs.setdefault("qpos_ref", np.array([0.0, np.pi]))
-        super().__init__(path, **kwargs)
-
-    def build_cost(self, model: mujoco.MjModel) -> Cost:
-        return Cost(
-            [
-                StateCost(self.qpos_ref, weight_qpos=[2.0, 0.0], weight_qvel=[0.5, 0.5]),
-                WrappedAngle("hinge_1", np.pi, weight=10.0),
-                ControlCost(weight=1.0),
-            ],
-            [
-                StateCost(
-                    self.qpos_ref,
-                    weight_qpos=[20.0, 0.0],
-                    weight_qvel=[10.0, 10.0],
-                    name="terminal_state",
-                ),
-                WrappedAngle("hinge_1", np.pi, weight=100.0, name="terminal_angle"),
-            ],
-        )
-
-    def initial_state(self) -> np.ndarray:
-        return np.zeros(self.nstate)
-
-    def upright_error(self, state: np.ndarray) -> float:
-        """Angle (rad) between the pole and upright, wrapped to [0, pi]."""
-        return float(abs(np.angle(np.exp(1j * (state[1] - np.pi)))))
+        kwargs.setdefault("joints", {"hinge_1": np.pi})
+        kwargs.setdefault("weights", self.WEIGHTS)
+        super().__init__(scene_path("cartpole.xml"), **kwargs)

@@ -1,0 +1,191 @@
+"""Swing-up tasks: the generic task, its presets, its goal, and dm_control's suite models."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import mpcbox
+from mpcbox.cli import main as cli_main
+from mpcbox.controllers.ilqr.controller import ILQR
+from mpcbox.controllers.ilqr.result import StopReason
+from mpcbox.core.cost import ControlCost, Cost, StateCost, WrappedAngle
+from mpcbox.errors import InvalidArgumentError, PlanningModelWarning, UnknownNameError
+from mpcbox.registry import task_class
+from mpcbox.tasks import scene_path
+from mpcbox.tasks.swingup import CartpoleSwingup, PendulumSwingup, Swingup, SwingupWeights
+
+
+def previous_costs():
+    """The presets' costs as written before they became presets of :class:`Swingup`."""
+    pi = np.pi
+    pendulum = Cost(
+        [
+            WrappedAngle("hinge", pi, weight=1.0),
+            StateCost([pi], weight_qpos=0.0, weight_qvel=0.1, name="velocity"),
+            ControlCost(weight=0.01),
+        ],
+        [
+            WrappedAngle("hinge", pi, weight=100.0, name="terminal_angle"),
+            StateCost([pi], weight_qpos=0.0, weight_qvel=10.0, name="terminal_velocity"),
+        ],
+    )
+    cartpole = Cost(
+        [
+            StateCost([0.0, pi], weight_qpos=[2.0, 0.0], weight_qvel=[0.5, 0.5]),
+            WrappedAngle("hinge_1", pi, weight=10.0),
+            ControlCost(weight=1.0),
+        ],
+        [
+            StateCost([0.0, pi], weight_qpos=[20.0, 0.0], weight_qvel=[10.0, 10.0], name="t"),
+            WrappedAngle("hinge_1", pi, weight=100.0, name="terminal_angle"),
+        ],
+    )
+    return {"pendulum.xml": pendulum, "cartpole.xml": cartpole}
+
+
+@pytest.mark.parametrize("preset", [PendulumSwingup, CartpoleSwingup])
+def test_presets_keep_their_cost_start_and_error(preset) -> None:
+    problem = preset(threads=1)
+    scene = "pendulum.xml" if preset is PendulumSwingup else "cartpole.xml"
+    old = mpcbox.Problem(
+        str(scene_path(scene)), cost=previous_costs()[scene], qpos_ref=problem.qpos_ref, threads=1
+    )
+    np.testing.assert_array_equal(problem.initial_state(), np.zeros(problem.nstate))
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        state = rng.uniform(-4.0, 4.0, problem.nstate)
+        ctrl = rng.uniform(-1.0, 1.0, problem.nu)
+        assert problem.running_cost(state, ctrl) == old.running_cost(state, ctrl)
+        assert problem.terminal_cost(state) == old.terminal_cost(state)
+        pole = state[problem.nq - 1]
+        assert problem.upright_error(state) == abs(np.angle(np.exp(1j * (pole - np.pi))))
+
+
+def run_of(problem: Swingup, angles: np.ndarray, dt: float = 0.01):
+    states = np.zeros((angles.size, problem.nstate))
+    states[:, problem.nq - 1] = angles
+    return np.arange(angles.size) * dt, states
+
+
+def test_a_hanging_pole_at_the_end_is_a_goal_failure() -> None:
+    problem = PendulumSwingup(threads=1)
+    time, hanging = run_of(problem, np.zeros(300))
+    message = problem.goal_failure(time, hanging)
+    assert message == "not upright at the end: 3.14 rad from upright (tolerance 0.2 rad)"
+    # Upright at the end but not over the final second (hold = 1 s): still a failure.
+    angles = np.full(300, np.pi)
+    angles[250] = np.pi - 0.5
+    time, late = run_of(problem, angles)
+    assert problem.goal_failure(time, late).startswith("not held upright over the final 1 s")
+    angles[250] = np.pi + 2 * np.pi - 0.1  # a turn further and within tolerance: upright
+    time, up = run_of(problem, angles)
+    assert problem.goal_failure(time, up) is None
+    assert problem.time_to_upright(time, up) == 0.0
+    assert np.isnan(problem.time_to_upright(*run_of(problem, np.zeros(10))))
+    (measure,) = problem.measures()
+    data = mujoco_data(problem, hanging[0])
+    assert measure.sample(problem.model, data) == pytest.approx(np.pi)
+    errors = problem.upright_errors(up)
+    summary = measure.summarize(errors, time)
+    assert summary == {"upright_error_final_rad": errors[-1], "upright_error_settle_time_s": 0.0}
+
+
+def mujoco_data(problem: mpcbox.Problem, state: np.ndarray):
+    import mujoco
+
+    data = mujoco.MjData(problem.model)
+    problem.set_state(data, state)
+    return data
+
+
+def test_site_goal_and_hanging_start_by_lowest_center_of_mass() -> None:
+    # "Up" by a site: the pendulum's tip 0.5 m above the hinge (its height in the "up"
+    # keyframe); the start is the posture of lowest center of mass, hanging.
+    problem = Swingup(
+        str(scene_path("pendulum.xml")), sites={"tip": None}, keyframe="up", threads=1
+    )
+    assert problem.goal.unit == "m" and problem.goal.sites["tip"] == pytest.approx(0.5)
+    assert abs(np.angle(np.exp(1j * problem.initial_state()[0]))) < 1e-12
+    assert problem.upright_error(problem.initial_state()) == pytest.approx(1.0)
+    assert problem.upright_error(problem.reference_state()) == pytest.approx(0.0, abs=1e-12)
+    assert problem.goal_failure(*run_of(problem, np.zeros(5))).startswith(
+        "not upright at the end: 1 m from upright (tolerance 0.1 m)"
+    )
+    both = Swingup(
+        str(scene_path("pendulum.xml")), joints=["hinge"], sites={"tip": None}, keyframe="up"
+    )
+    assert both.goal.unit == "rad" and both.upright_error(both.initial_state()) == np.pi
+    by_site = Swingup(
+        str(scene_path("pendulum.xml")),
+        joints=["hinge"],
+        sites={"tip": None},
+        keyframe="up",
+        goal="sites",
+    )
+    assert by_site.upright_error(by_site.initial_state()) == pytest.approx(1.0)
+    with pytest.raises(InvalidArgumentError, match="goal"):
+        Swingup(str(scene_path("pendulum.xml")), joints=["hinge"], goal="sites")
+    cartpole = Swingup(str(scene_path("cartpole.xml")), joints=["hinge_1"], initial="up")
+    np.testing.assert_allclose(cartpole.initial_state()[:2], [0.0, np.pi])
+
+
+def test_names_that_do_not_exist_list_the_choices() -> None:
+    path = str(scene_path("cartpole.xml"))
+    with pytest.raises(UnknownNameError, match="nope") as info:
+        Swingup(path, joints={"nope": 0.0})
+    assert "hinge_1" in str(info.value) and "slider" in str(info.value)
+    with pytest.raises(UnknownNameError, match="nope") as info:
+        Swingup(path, sites={"nope": 1.0})
+    assert "tip" in str(info.value)
+    with pytest.raises(UnknownNameError, match="nope") as info:
+        Swingup(path, joints=["hinge_1"], initial="nope")
+    assert "down" in str(info.value) and "up" in str(info.value)
+    with pytest.raises(InvalidArgumentError, match="not a hinge"):
+        Swingup(path, joints=["slider"])
+    with pytest.raises(InvalidArgumentError, match="joints or sites"):
+        Swingup(path)
+    with pytest.raises(InvalidArgumentError, match="tolerance"):
+        Swingup(path, joints=["hinge_1"], tolerance=0.0)
+    with pytest.raises(InvalidArgumentError, match=r"weights\.angle"):
+        SwingupWeights(angle=-1.0)
+    with pytest.raises(UnknownNameError, match="dm_nope") as info:
+        task_class("dm_nope")
+    assert "dm_cartpole_swingup" in str(info.value)
+
+
+def test_ilqr_at_a_hanging_rest_says_saddle_not_converged() -> None:
+    problem = PendulumSwingup(planning_timestep=0.05, threads=1)
+    at_rest = ILQR(problem, horizon=40, threads=1).solve(problem.initial_state())
+    assert at_rest.stop_reason is StopReason.SADDLE and not at_rest.converged
+    assert at_rest.status.startswith("saddle") and len(at_rest.costs) == 1
+    # From a guess that moves, the same solve swings up and converges.
+    moving = ILQR(problem, horizon=40, threads=1, ctrls_init=np.array([0.5]))
+    assert moving.solve(problem.initial_state()).converged
+
+
+def test_noise_on_a_swingup_is_an_error(capsys) -> None:
+    code = cli_main(["compare", "pendulum_swingup", "--noise", "1,3", "--duration", "0.1"])
+    _, err = capsys.readouterr()
+    assert code == 2 and "no noise model" in err
+
+
+def test_dm_control_cartpole_swings_up_by_ilqr_within_3s_and_holds() -> None:
+    pytest.importorskip("dm_control")
+    from mpcbox.tasks.swingup.dm_control import DmCartpoleSwingup
+
+    with pytest.warns(PlanningModelWarning, match="RK4"):
+        problem = DmCartpoleSwingup(hold=1.0)
+    np.testing.assert_allclose(problem.initial_state(), [0.0, np.pi, 0.0, 0.0])
+    controller = mpcbox.make_controller("ilqr", problem)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PlanningModelWarning)
+        result = mpcbox.simulate(problem, controller, 4.0)
+    assert result.failure is None
+    assert problem.goal_failure(result.time, result.states) is None
+    assert problem.time_to_upright(result.time, result.states) <= 3.0
+    # Without control the pole stays down: the outcome is the controller's.
+    idle = np.tile(problem.initial_state(), (3, 1))
+    assert "not upright" in problem.goal_failure(np.array([0.0, 3.0, 6.0]), idle)
