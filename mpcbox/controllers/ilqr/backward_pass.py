@@ -78,6 +78,7 @@ def backward_pass(
     ctrl_high: np.ndarray,
     regularization: float,
     k_init: np.ndarray | None = None,
+    gaps: np.ndarray | None = None,
 ) -> BackwardPass:
     r"""Riccati recursion with box-constrained feed-forward (see the module docstring).
 
@@ -89,6 +90,11 @@ def backward_pass(
         ctrl_high: Upper control bounds ``(nu,)``.
         regularization: :math:`\mu \ge 0` added to the diagonal of :math:`Q_{uu}`.
         k_init: Warm start of the box QPs ``(T, nu)``.
+        gaps: Defects ``(T, nx)`` of a multiple-shooting trajectory, ``gaps[t] =
+            f(x_t, u_t) ⊖ x_{t+1}``; the linear model is then
+            :math:`dx_{t+1} = A_t dx_t + B_t du_t + f_t`, so the value gradient seen from knot
+            ``t`` is :math:`V_x + V_{xx} f_t` (FDDP, Mastalli et al. 2020). ``None``: no
+            defects (single shooting).
 
     Returns:
         A :class:`BackwardPass`.
@@ -109,6 +115,8 @@ def backward_pass(
     eye = regularization * np.eye(nu)
     for t in range(horizon - 1, -1, -1):
         At, Bt = A[t], B[t]
+        if gaps is not None:
+            vx = vx + vxx @ gaps[t]
         vxx_b = vxx @ Bt
         qx = quad.lx[t] + At.T @ vx
         qu = quad.lu[t] + Bt.T @ vx
