@@ -131,3 +131,11 @@ class PlanningModelWarning(UserWarning):
     For example a model with the RK4 integrator is planned with ``implicitfast``, because
     MuJoCo cannot differentiate an RK4 step.
     """
+
+
+class PlanningDivergenceError(DivergenceError, InvalidArgumentError):
+    """The planning model diverges at its timestep (MuJoCo's bad-acceleration warning).
+
+    Also an :class:`InvalidArgumentError`: the fix is a smaller ``planning_timestep``, which
+    the message suggests.
+    """

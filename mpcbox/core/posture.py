@@ -170,7 +170,8 @@ def self_collisions(
 ) -> tuple[tuple[str, str], ...]:
     """The pairs of geoms of *different moving bodies* that touch or penetrate at ``qpos``.
 
-    Contacts with the world body (a floor, a table) are not self-collisions and are left out.
+    Contacts with the world body or a body welded to it (a floor, a table) are not
+    self-collisions and are left out; each pair is listed once.
 
     Args:
         model: The model.
@@ -189,9 +190,12 @@ def self_collisions(
     for i in range(data.ncon):
         con = data.contact[i]
         b1, b2 = model.geom_bodyid[con.geom1], model.geom_bodyid[con.geom2]
-        if b1 == 0 or b2 == 0 or con.dist > -margin:
+        static = model.body_weldid[b1] == 0 or model.body_weldid[b2] == 0
+        if static or con.dist > -margin:
             continue
-        pairs.append((_geom_label(model, con.geom1), _geom_label(model, con.geom2)))
+        pair = (_geom_label(model, con.geom1), _geom_label(model, con.geom2))
+        if pair not in pairs:
+            pairs.append(pair)
     return tuple(pairs)
 
 
@@ -244,7 +248,7 @@ def reach_posture(
         quat = quat / norm
     positive_int("iterations", iterations)
     positive("tolerance", tolerance)
-    name, kind = _mink_frame(model, frame)
+    name, kind = _mink_frame(model, frame, "frame")
     config = mink.Configuration(model, q=qpos_init.copy())
     task = mink.FrameTask(
         name, kind, position_cost=1.0, orientation_cost=0.0 if orientation is None else 0.5

@@ -28,6 +28,7 @@ import numpy as np
 from mpcbox.core import derivatives, inputs
 from mpcbox.core.cost import ControlCost, Cost, Features, StateCost
 from mpcbox.core.derivatives import Quadratization
+from mpcbox.core.divergence import check_planning_step
 from mpcbox.core.dynamics import Dynamics, Linearization, Rollout, mujoco_errors
 from mpcbox.core.dynamics import read_state as _read_state
 from mpcbox.core.dynamics import write_state as _write_state
@@ -81,7 +82,8 @@ class Problem:
             state; ``qpos0`` of the model when omitted.
         qpos_ref: Reference positions ``(nq,)``, overriding the keyframe's.
         ctrl_ref: Reference control ``(nu,)``; the keyframe's ``ctrl`` (or zeros) when omitted.
-        planning_timestep: Timestep of the planning model (default: the simulation timestep).
+        planning_timestep: Timestep of the planning model (default: the simulation timestep);
+            a step at which the model diverges raises a ``PlanningDivergenceError``.
         planning_model: A separate source for the planning model; it must have the same
             ``nq``, ``nv``, ``nu`` and ``na``.
         fd_eps: Finite-difference step.
@@ -123,9 +125,7 @@ class Problem:
             self.name = string("name", name)
         self.fd_eps = positive("fd_eps", fd_eps)
         self.fd_centered = boolean("fd_centered", fd_centered)
-        self.threads = positive_int(
-            "threads", threads if threads is not None else os.cpu_count() or 1
-        )
+        self.threads = positive_int("threads", os.cpu_count() or 1 if threads is None else threads)
 
         spec = None if isinstance(model, mujoco.MjModel) else load_spec(model)
         base = model if isinstance(model, mujoco.MjModel) else compile_spec(spec)
@@ -163,6 +163,8 @@ class Problem:
         self.ctrl_low = np.where(limited, ctrlrange[:, 0], -np.inf)
         self.ctrl_high = np.where(limited, ctrlrange[:, 1], np.inf)
         self.dynamics = Dynamics(self.planning_model, self.threads)
+        if planning_timestep is not None:
+            check_planning_step(self)  # PlanningDivergenceError if the step is too coarse
 
     def prepare(self, model: mujoco.MjModel) -> None:
         """Hook run before the cost is built, on the compiled ``model`` without cost sensors:
@@ -453,11 +455,16 @@ class Problem:
 
         Args:
             timestep: Planning timestep (s).
+
+        Raises:
+            PlanningDivergenceError: If the model diverges at ``timestep``
+                (:func:`~mpcbox.core.divergence.check_planning_step`).
         """
         clone = copy.copy(self)
         clone.planning_model = copy.copy(self.planning_model)
         clone.planning_model.opt.timestep = positive("timestep", timestep)
         clone.dynamics = Dynamics(clone.planning_model, self.threads)
+        check_planning_step(clone)
         return clone
 
     def with_cost(self, cost: Cost) -> Problem:
@@ -467,11 +474,8 @@ class Problem:
         terms of their own, e.g. an LQR value function as terminal cost.
         """
         instance("cost", cost, Cost)
-        missing = [
-            r.name
-            for r in cost.sensors(self.planning_model)
-            if mujoco.mj_name2id(self.planning_model, mujoco.mjtObj.mjOBJ_SENSOR, r.name) < 0
-        ]
+        pm, sensor = self.planning_model, mujoco.mjtObj.mjOBJ_SENSOR
+        missing = [r.name for r in cost.sensors(pm) if mujoco.mj_name2id(pm, sensor, r.name) < 0]
         if missing:
             raise ModelLoadError(f"cost: sensors {missing} are not in the Problem's models")
         clone = copy.copy(self)

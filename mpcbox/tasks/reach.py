@@ -4,21 +4,43 @@ The goal posture comes from inverse kinematics with collision avoidance
 (:func:`mpcbox.core.posture.reach_posture`), and the control that holds it from the actuator
 model (:func:`mpcbox.find_equilibrium`: torque for motors, set-point for position servos), so
 LQR about the goal is available out of the box and iLQR starts from a sensible reference.
+
+Planning step. Menagerie's arms drive their joints with stiff position servos (Panda:
+:math:`k_p` up to 4500 N m/rad behind torque limits of 12-87 N m). MuJoCo integrates a
+servo's stiffness explicitly, so a planning model coarser than the simulation mispredicts
+the arm (on the Panda, 0.5 s of the same controls on a 0.01 s planning model put the hand
+10 cm from where the 0.002 s simulation takes it), and iLQR-MPC planned on it wanders. The
+tuned controllers therefore plan at the model's own timestep, with a short horizon (100
+knots, 0.2 s on the Panda) whose end is priced by the LQR value function at the goal
+(``terminal_value="lqr"``). The initial guess is the control that holds the IK goal
+posture, which on a servo arm already drives the arm toward the goal. Offline iLQR over a
+long horizon meets the servos' torque limits (their derivatives vanish once saturated) and
+typically ends on a short step; its ``stop_reason`` says so.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, ClassVar
 
 import mujoco
 import numpy as np
 
+from mpcbox.controllers.ilqr.config import ILQRConfig
+from mpcbox.controllers.lqr import LQRConfig
+from mpcbox.controllers.sampling.config import MPPIConfig
 from mpcbox.core.cost import ControlCost, Cost, FramePosition, StateCost
 from mpcbox.core.equilibrium import find_equilibrium
-from mpcbox.core.model import ModelSource, frame_position, object_id
+from mpcbox.core.free_bodies import free_objects, weld_free_bodies
+from mpcbox.core.model import ModelSource, frame_position, load_spec, object_id
 from mpcbox.core.posture import reach_posture
 from mpcbox.core.problem import Problem
-from mpcbox.validation import as_array, positive
+from mpcbox.errors import InvalidArgumentError
+from mpcbox.tasks.reach_measures import ReachError
+from mpcbox.validation import as_array, one_of, positive
+
+#: Valid values of ``ArmReach(free_objects=...)``.
+FREE_OBJECTS = ("weld", "error")
 
 
 class ArmReach(Problem):
@@ -43,16 +65,54 @@ class ArmReach(Problem):
         relative: Read ``target`` as an offset from the start position.
         keyframe: Start posture (name or index); default: the model's first keyframe, else
             ``qpos0``.
+        start_qpos: Start posture ``(nq,)`` replacing the keyframe's (e.g. a perturbed one);
+            with welded free objects, of the model after welding.
         tolerance: Distance (m) within which the frame counts as arrived.
         position_weight: :math:`w_p`.
         posture_weight: :math:`w_q`.
         velocity_weight: :math:`w_v`.
         ctrl_weight: :math:`w_u`, in the units of the controls.
         avoid_collisions: Keep the IK goal posture free of collisions.
+        free_objects: What to do with free bodies that do not carry ``frame`` (a pot on the
+            table): ``"weld"`` them to the world at their start pose, which removes their
+            uncontrollable joints from the state (LQR's Riccati equation has no stabilizing
+            solution with them), or ``"error"``: raise, naming them. Only a model given as
+            MJCF or spec can be welded.
         **kwargs: Passed to :class:`~mpcbox.Problem` (``planning_timestep``, ...).
+
+    Attributes:
+        welded: Names of the free objects welded to the world.
+
+    Raises:
+        InvalidArgumentError: For free objects with ``free_objects="error"`` or a compiled
+            model; the message names them.
     """
 
     name = "arm_reach"
+    controller_configs: ClassVar[dict[str, Any]] = {
+        "lqr": LQRConfig(),
+        # Planned at the model's own timestep (see the module docstring): 100 knots, the
+        # LQR value at the goal as terminal cost, one iteration per 0.02 s replan (five for
+        # the first), derivatives at every second knot.
+        "ilqr": ILQRConfig(
+            horizon=100,
+            terminal_value="lqr",
+            first_iterations=5,
+            mpc_iterations=1,
+            replan_period=0.02,
+            linearize_every=2,
+        ),
+        # Sampling on the CPU: 32 rollouts of 0.3 s per 0.02 s tick (Panda: within 1 cm
+        # after 0.38 s; with 0.02 rad of noise it stays 2.6 cm away at 2 s).
+        "mppi": MPPIConfig(
+            num_samples=32,
+            horizon=0.3,
+            num_knots=4,
+            noise_scale=0.1,
+            temperature=0.1,
+            period=0.02,
+        ),
+    }
 
     def __init__(
         self,
@@ -63,12 +123,14 @@ class ArmReach(Problem):
         orientation: np.ndarray | None = None,
         relative: bool = False,
         keyframe: str | int | None = None,
+        start_qpos: np.ndarray | None = None,
         tolerance: float = 0.01,
         position_weight: float = 100.0,
         posture_weight: float = 0.1,
         velocity_weight: float = 1.0,
         ctrl_weight: float = 0.01,
         avoid_collisions: bool = True,
+        free_objects: str = "weld",
         **kwargs: Any,
     ) -> None:
         self.frame = frame
@@ -86,17 +148,44 @@ class ArmReach(Problem):
         }
         self.avoid_collisions = bool(avoid_collisions)
         self._start_key = keyframe
+        self._start_qpos = None if start_qpos is None else np.asarray(start_qpos, dtype=float)
+        self.welded: tuple[str, ...] = ()
+        one_of("free_objects", free_objects, FREE_OBJECTS)
+        model = self._without_free_objects(model, free_objects)
         super().__init__(model, **kwargs)
+
+    def _without_free_objects(self, source: ModelSource, mode: str) -> ModelSource:
+        """``source`` with its free objects welded (``"weld"``), or an error naming them."""
+        spec = None if isinstance(source, mujoco.MjModel) else load_spec(source)
+        base = source if spec is None else spec.compile()
+        objects = free_objects(base, self.frame)
+        if not objects:
+            return source if spec is None else spec
+        if mode == "error" or spec is None:
+            how = (
+                "pass free_objects='weld' to weld them to the world at their start pose"
+                if spec is not None
+                else "pass the MJCF (path, XML or spec) so that they can be welded"
+            )
+            raise InvalidArgumentError(
+                f"ArmReach: free objects {list(objects)} are not part of the arm carrying "
+                f"{self.frame!r}; their joints cannot be controlled (LQR would meet an "
+                f"ill-conditioned Riccati equation): {how}, or remove them from the model"
+            )
+        self.welded = weld_free_bodies(spec, base, self.frame, self._key_qpos(base))
+        return spec
+
+    def _key_qpos(self, model: mujoco.MjModel) -> np.ndarray:
+        """The start keyframe's positions ``(nq,)`` (first keyframe, else ``qpos0``)."""
+        if self._start_key is not None:
+            return model.key_qpos[object_id(model, "keyframe", self._start_key)].copy()
+        return model.key_qpos[0].copy() if model.nkey else model.qpos0.copy()
 
     # ------------------------------------------------------------------ construction
     def prepare(self, model: mujoco.MjModel) -> None:
-        if self._start_key is not None:
-            key = object_id(model, "keyframe", self._start_key)
-            self.start_qpos = model.key_qpos[key].copy()
-        elif model.nkey:
-            self.start_qpos = model.key_qpos[0].copy()
-        else:
-            self.start_qpos = model.qpos0.copy()
+        self.start_qpos = self._key_qpos(model)
+        if self._start_qpos is not None:
+            self.start_qpos = as_array("start_qpos", self._start_qpos, (model.nq,)).copy()
         data = mujoco.MjData(model)
         data.qpos[:] = self.start_qpos
         mujoco.mj_forward(model, data)
@@ -158,3 +247,23 @@ class ArmReach(Problem):
     def reach_error(self, state: np.ndarray) -> float:
         """Distance (m) from the end effector to the target at ``state``."""
         return float(np.linalg.norm(self.frame_position(state) - self.target))
+
+    def measures(self) -> Sequence[ReachError]:
+        """The end-effector error: final, max, settle time; arrival time and overshoot."""
+        return (ReachError(frame=self.frame, target=tuple(self.target), tolerance=self.tolerance),)
+
+    def goal_failure(self, time: np.ndarray, states: np.ndarray) -> str | None:
+        """Why a finished run missed the target: the final end-effector error, or ``None``.
+
+        Args:
+            time: Times ``(T,)`` of the run (s).
+            states: States ``(T, nstate)``.
+        """
+        states = np.asarray(states)
+        error = self.reach_error(states[-1])
+        if error <= self.tolerance:
+            return None
+        return (
+            f"end effector {100 * error:.2f} cm from the target at t={float(time[-1]):.2f} s, "
+            f"tolerance {100 * self.tolerance:.2f} cm"
+        )

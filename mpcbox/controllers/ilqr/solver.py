@@ -22,6 +22,7 @@ from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.ilqr.forward_pass import Candidate, ClosedLoopRollout, line_search
 from mpcbox.controllers.ilqr.multiple_shooting import optimize_multiple_shooting
 from mpcbox.controllers.ilqr.result import ILQRResult, StopReason, Timing
+from mpcbox.core.divergence import check_planning_step
 from mpcbox.core.problem import Linearization, Problem, Quadratization
 from mpcbox.errors import DivergenceError, InvalidArgumentError, SolverError
 from mpcbox.validation import as_array, finite_array, positive_int
@@ -57,6 +58,8 @@ class ILQRSolver:
         InvalidArgumentError: Naming the option, for a value out of range.
         ShapeError: If ``ctrl_low``, ``ctrl_high``, ``ctrls_init`` or ``states_init`` has the
             wrong shape.
+        PlanningDivergenceError: If the planning model diverges at its timestep
+            (:func:`~mpcbox.core.divergence.check_planning_step`).
     """
 
     #: The config dataclass of the options.
@@ -68,6 +71,8 @@ class ILQRSolver:
         cfg = resolve_config(ILQRConfig, config, options, owner)
         if cfg.planning_timestep is not None and abs(cfg.planning_timestep - problem.dt) > 1e-12:
             problem = problem.with_planning_timestep(cfg.planning_timestep)
+        else:
+            check_planning_step(problem)  # the copy above was checked when it was made
         if cfg.terminal_value == "lqr":
             problem = _with_lqr_terminal_value(problem)
         self.problem = problem

@@ -39,6 +39,7 @@ from mpcbox.core.contact import (
     friction_pyramid,
     project_to_pyramid,
 )
+from mpcbox.core.divergence import check_planning_step
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError
 
@@ -149,6 +150,7 @@ class QPMPC(Controller):
     def __init__(self, problem: Problem, config: QPMPCConfig | None = None, **options: Any) -> None:
         self.problem = problem = check_problem(problem, "QPMPC")
         self.config = cfg = resolve_config(QPMPCConfig, config, options, "QPMPC")
+        check_planning_step(problem)  # PlanningDivergenceError at a diverging timestep
         self.horizon, self.dt = cfg.horizon, cfg.dt
         self.period = cfg.dt if cfg.period is None else cfg.period
         self.friction, self.facets = cfg.friction, cfg.facets

@@ -1,0 +1,167 @@
+"""Benchmark a 40 cm reach of Menagerie's Franka Panda: iLQR-MPC, offline iLQR and LQR; JSON.
+
+Each seed perturbs the start posture (arm joints +- ``--posture-noise`` rad, uniform) and
+the target (``--target-noise`` m per axis around a 40 cm offset from the hand). Per seed:
+iLQR-MPC in closed loop (the task's tuned config): final error, time to within 1 cm, median
+replan tick; offline iLQR over ``--offline-horizon`` s from the start: its stop reason and
+the final error of its plan; LQR about the IK goal posture in closed loop, and the ratio of
+iLQR-MPC's time to 1 cm to LQR's. Needs ``MENAGERIE_ROOT`` (an offline Menagerie copy).
+
+    MENAGERIE_ROOT=/work/menagerie python benchmarks/panda_reach.py [--seeds 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+import mpcbox
+from mpcbox.config import config_options
+from mpcbox.controllers.ilqr.controller import ILQR
+from mpcbox.core.menagerie import MissingMeshWarning
+from mpcbox.registry import make_controller
+from mpcbox.tasks.reach import ArmReach
+from mpcbox.tasks.reach_measures import arrival
+
+#: The nominal target offset from the hand's start position (40 cm).
+OFFSET = np.array([0.0, 0.3, -0.2646])
+TOLERANCE = 0.01
+
+
+def build(seed: int, args: argparse.Namespace) -> ArmReach:
+    """The seed's reach: perturbed start posture and target."""
+    rng = np.random.default_rng(seed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MissingMeshWarning)
+        home = ArmReach(args.model, frame=args.frame, target=OFFSET, relative=True)
+        start = home.start_qpos.copy()
+        start[:7] += rng.uniform(-args.posture_noise, args.posture_noise, 7)
+        offset = OFFSET + rng.uniform(-args.target_noise, args.target_noise, 3)
+        return ArmReach(
+            args.model,
+            frame=args.frame,
+            target=offset,
+            relative=True,
+            start_qpos=start,
+            tolerance=TOLERANCE,
+        )
+
+
+def closed_loop(problem: ArmReach, name: str, duration: float) -> dict:
+    """One closed-loop run: final error, time to 1 cm, ticks."""
+    controller = make_controller(name, problem)
+    t0 = time.perf_counter()
+    sim = mpcbox.simulate(problem, controller, duration, seed=0)
+    wall = time.perf_counter() - t0
+    errors = np.array([problem.reach_error(s) for s in sim.states])
+    hit = arrival(errors, sim.time, TOLERANCE)
+    out = {
+        "final_error_m": float(errors[-1]),
+        "time_to_1cm_s": hit.time,
+        "error_after_arrival_max_m": hit.overshoot,
+        "within_1cm_by_2s": bool(hit.time <= 2.0),
+        "wall_s": round(wall, 2),
+    }
+    stats = getattr(controller, "stats", {})
+    replans = int(stats.get("replans", 0))
+    if replans:  # called every step; the replans are the expensive calls
+        ticks = np.sort(sim.compute_times)[-replans:]
+        out["median_replan_tick_ms"] = float(1e3 * np.median(ticks))
+        out["fallbacks"] = int(stats.get("fallbacks", 0))
+    out["median_call_ms"] = float(1e3 * np.median(sim.compute_times))
+    return out
+
+
+def offline(problem: ArmReach, horizon_s: float, iterations: int) -> dict:
+    """Offline iLQR from the start state over ``horizon_s`` seconds."""
+    options = config_options(problem.controller_configs["ilqr"])
+    options.update(horizon=round(horizon_s / problem.dt), linearize_every=5)
+    solver = ILQR(problem, **options)
+    result = solver.solve(problem.initial_state(), max_iterations=iterations)
+    return {
+        "stop_reason": result.stop_reason.value,
+        "status": result.status,
+        "converged": bool(result.converged),
+        "iterations": int(result.iterations),
+        "regularization": float(result.regularization),
+        "final_error_m": problem.reach_error(result.states[-1]),
+        "cost": float(result.cost),
+        "wall_s": round(result.timing.total, 2),
+    }
+
+
+def _finite(value: object) -> object:
+    """``value`` with NaN floats as ``None`` (JSON has no NaN)."""
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_finite(v) for v in value]
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", default="menagerie:franka_emika_panda")
+    parser.add_argument("--frame", default="hand")
+    parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--duration", type=float, default=2.0)
+    parser.add_argument("--posture-noise", type=float, default=0.1)
+    parser.add_argument("--target-noise", type=float, default=0.03)
+    parser.add_argument("--offline-horizon", type=float, default=1.0)
+    parser.add_argument("--offline-iterations", type=int, default=30)
+    parser.add_argument("--out", default=str(Path(__file__).parent / "results/panda_reach.json"))
+    args = parser.parse_args()
+
+    rows = []
+    for seed in range(args.seeds):
+        problem = build(seed, args)
+        row = {
+            "seed": seed,
+            "start_error_m": problem.reach_error(problem.initial_state()),
+            "ik_goal_error_m": float(problem.goal.position_error),
+            "ilqr_mpc": closed_loop(problem, "ilqr", args.duration),
+            "lqr_at_ik_posture": closed_loop(problem, "lqr", args.duration),
+            "ilqr_offline": offline(problem, args.offline_horizon, args.offline_iterations),
+        }
+        mpc, lqr = row["ilqr_mpc"], row["lqr_at_ik_posture"]
+        row["time_to_1cm_ratio_mpc_over_lqr"] = mpc["time_to_1cm_s"] / lqr["time_to_1cm_s"]
+        row["final_error_ratio_mpc_over_lqr"] = mpc["final_error_m"] / lqr["final_error_m"]
+        rows.append(row)
+        print(json.dumps(row), file=sys.stderr)
+
+    mpc_hits = [r["ilqr_mpc"]["time_to_1cm_s"] for r in rows]
+    out = {
+        "task": "ArmReach 40 cm, " + args.model,
+        "machine": "2-core sandbox CPU, shared",
+        "python": platform.python_version(),
+        "command": "python benchmarks/panda_reach.py " + " ".join(sys.argv[1:]),
+        "settings": vars(args) | {"tolerance_m": TOLERANCE, "offset_m": OFFSET.tolist()},
+        "ilqr_config": {
+            k: v for k, v in config_options(ArmReach.controller_configs["ilqr"]).items()
+        },
+        "summary": {
+            "ilqr_mpc_within_1cm_by_2s": f"{sum(r['ilqr_mpc']['within_1cm_by_2s'] for r in rows)}"
+            f"/{len(rows)}",
+            "ilqr_mpc_time_to_1cm_max_s": float(np.max(mpc_hits)),
+            "ilqr_mpc_final_error_max_m": max(r["ilqr_mpc"]["final_error_m"] for r in rows),
+            "offline_stop_reasons": sorted({r["ilqr_offline"]["stop_reason"] for r in rows}),
+        },
+        "seeds": rows,
+    }
+    text = json.dumps(_finite(out), indent=2, default=float)
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(text + "\n")
+    print(text)
+
+
+if __name__ == "__main__":
+    main()

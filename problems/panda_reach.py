@@ -1,0 +1,117 @@
+"""Arm reach on a Menagerie arm (default Franka Panda): offline iLQR, iLQR-MPC, MPPI and LQR.
+
+Builds :class:`~mpcbox.tasks.reach.ArmReach` (goal posture from mink IK with collision
+avoidance, the control that holds it from the actuator model), then compares in one table:
+
+* offline iLQR over ``--offline-horizon`` seconds from the start state, with its stop reason
+  (the final error is that of its plan, rolled out on the planning model);
+* iLQR as MPC, MPPI sampling MPC on the CPU, and LQR about the IK goal posture, each in
+  closed loop for ``--duration`` seconds.
+
+Needs an offline Menagerie copy (``MENAGERIE_ROOT``) or the ``mujoco_menagerie`` package for
+a Menagerie name; ``--model`` also takes an MJCF path.
+
+    python problems/panda_reach.py [--model franka_emika_panda] [--frame hand]
+        [--target 0 0.3 -0.2646] [--absolute] [--duration 2] [--skip mppi]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+import mpcbox
+from mpcbox.config import config_options
+from mpcbox.controllers.ilqr.controller import ILQR
+from mpcbox.core.menagerie import MissingMeshWarning
+from mpcbox.registry import make_controller
+from mpcbox.tasks.reach import ArmReach
+from mpcbox.tasks.reach_measures import arrival
+
+
+def model_source(name: str) -> str:
+    """An MJCF path as given, a Menagerie robot name as ``"menagerie:NAME"``."""
+    if name.startswith("menagerie:") or Path(name).suffix == ".xml":
+        return name
+    return f"menagerie:{name}"
+
+
+def offline_row(problem: ArmReach, horizon_s: float, iterations: int) -> dict[str, str]:
+    """Offline iLQR from the start state: final error of the plan and why it stopped."""
+    options = config_options(problem.controller_configs["ilqr"])
+    options.update(horizon=max(1, round(horizon_s / problem.dt)), linearize_every=5)
+    result = ILQR(problem, **options).solve(problem.initial_state(), max_iterations=iterations)
+    return {
+        "controller": "iLQR offline",
+        "final (cm)": f"{100 * problem.reach_error(result.states[-1]):.2f}",
+        "to 1 cm (s)": "-",
+        "median tick (ms)": f"{1e3 * result.timing.total:.0f} (whole solve)",
+        "outcome": f"{result.status}; {result.iterations} iterations",
+    }
+
+
+def closed_loop_row(problem: ArmReach, name: str, duration: float) -> dict[str, str]:
+    """One closed-loop run of controller ``name``."""
+    controller = make_controller(name, problem)
+    sim = mpcbox.simulate(problem, controller, duration, seed=0)
+    errors = np.array([problem.reach_error(s) for s in sim.states])
+    hit = arrival(errors, sim.time, problem.tolerance)
+    replans = int(getattr(controller, "stats", {}).get("replans", 0))
+    ticks = np.sort(sim.compute_times)[-replans:] if replans else sim.compute_times
+    missed = problem.goal_failure(sim.time, sim.states)
+    return {
+        "controller": {"ilqr": "iLQR-MPC", "mppi": "MPPI (CPU)", "lqr": "LQR at IK posture"}[name],
+        "final (cm)": f"{100 * errors[-1]:.2f}",
+        "to 1 cm (s)": "never" if np.isnan(hit.time) else f"{hit.time:.2f}",
+        "median tick (ms)": f"{1e3 * np.median(ticks):.3g}",
+        "outcome": missed or "reached",
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the comparison (``argv`` defaults to the command line)."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", default="franka_emika_panda")
+    parser.add_argument("--frame", default="hand")
+    parser.add_argument("--target", type=float, nargs=3, default=[0.0, 0.3, -0.2646])
+    parser.add_argument("--absolute", action="store_true", help="target in world coordinates")
+    parser.add_argument("--duration", type=float, default=2.0)
+    parser.add_argument("--offline-horizon", type=float, default=1.0)
+    parser.add_argument("--offline-iterations", type=int, default=30)
+    parser.add_argument("--skip", nargs="*", default=[], choices=["offline", "ilqr", "mppi", "lqr"])
+    args = parser.parse_args(argv)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MissingMeshWarning)
+        problem = ArmReach(
+            model_source(args.model),
+            frame=args.frame,
+            target=np.array(args.target),
+            relative=not args.absolute,
+        )
+    start = problem.reach_error(problem.initial_state())
+    print(
+        f"{problem}: {args.frame!r} {100 * start:.1f} cm from the target, IK goal "
+        f"{1e3 * problem.goal.position_error:.2f} mm from it"
+        + (f"; welded free objects {list(problem.welded)}" if problem.welded else "")
+    )
+    rows = []
+    if "offline" not in args.skip:
+        rows.append(offline_row(problem, args.offline_horizon, args.offline_iterations))
+    for name in ("ilqr", "mppi", "lqr"):
+        if name not in args.skip:
+            rows.append(closed_loop_row(problem, name, args.duration))
+    headers = list(rows[0]) if rows else []
+    print("| " + " | ".join(headers) + " |")
+    print("|" + "---|" * len(headers))
+    for row in rows:
+        print("| " + " | ".join(row[h] for h in headers) + " |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
