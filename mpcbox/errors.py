@@ -121,6 +121,10 @@ class EquilibriumWarning(UserWarning):
     :class:`InfeasibleEquilibriumError` for the same condition as an error)."""
 
 
+class PostureWarning(UserWarning):
+    """A reference posture is doubtful (e.g. in self-collision); the message says why."""
+
+
 class MujocoError(MpcboxError, RuntimeError):
     """MuJoCo stopped a computation with a fatal error (``mujoco.FatalError``)."""
 

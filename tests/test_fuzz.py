@@ -43,6 +43,7 @@ from mpcbox.core.posture import stance_posture
 from mpcbox.registry import controller_class, make_controller, task_class
 from mpcbox.sim.trajectory import load_trajectory, replay, trajectory_from_result
 from mpcbox.tasks import scene_path
+from mpcbox.tasks.legged.balance import LeggedBalance
 
 SEED = 20261122
 #: Longest a single bad call may take before it counts as a hang (s).
@@ -608,6 +609,36 @@ TARGETS: list[Target] = [
             ),
         )
     ),
+    Target(
+        "LeggedBalance",
+        lambda ctx, **kw: LeggedBalance(**kw),
+        lambda ctx: {"model": HUMANOID, "feet": ("foot_left", "foot_right"), "threads": 1},
+        {
+            "model": TASK_MODEL,
+            "feet": only(
+                Bad("no_such_foot"),
+                Bad(["foot_left", "tip"]),
+                Bad(()),
+                Bad(("foot_left", "foot_left")),
+                Bad(3.5, True),
+                Bad([3], True),
+                Bad(None, True),
+            ),
+            "root": opt(name),
+            "keyframe": opt(name),
+            "fall_height": opt(finite),
+            "fall_fraction": positive,
+            "fall_tilt": opt(positive),
+            "support": choice,
+            "balance_cost": nonneg,
+            "velocity_cost": nonneg,
+            "joint_cost": WEIGHT,
+            "ctrl_cost": WEIGHT,
+            "ctrl_units": choice,
+            "recovery_tilt": opt(positive),
+        },
+        options=True,
+    ),
     # ------------------------------------------------------------------ cost terms
     Target(
         "StateCost",
@@ -937,11 +968,13 @@ TARGETS: list[Target] = [
             "stance": name,
             "swing": name,
             "lift": finite,
-            "com_body": also(lambda rng: integer(rng, minimum=0), Bad(10_000)),
+            "com_body": also(opt(name), Bad(-1), Bad(10_000), Bad(True, True)),
             "upright_body": opt(name),
+            "keep_upright": boolean,
             "iterations": integer,
             "tolerance": positive,
             "solver": choice,
+            "on_collision": choice,
         },
         options=True,
     ),

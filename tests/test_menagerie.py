@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from mpcbox.core import menagerie
-from mpcbox.errors import ModelLoadError
+from mpcbox.errors import BackendUnavailableError, ModelLoadError, UnknownNameError
 
 CUBE_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n"
 
@@ -116,3 +116,30 @@ def test_arm_reach_on_a_menagerie_arm_lqr_reaches_within_5mm(robot: str, frame: 
     result = mpcbox.simulate(problem, mpcbox.LQR(problem), 3.0, seed=0)
     assert result.survived, result.failure
     assert problem.reach_error(result.states[-1]) < 0.005  # m, from 28 cm
+
+
+def test_menagerie_root_works_without_the_package(tmp_path, monkeypatch) -> None:
+    """An offline copy in MENAGERIE_ROOT is enough: the package is not needed to read it."""
+    import builtins
+
+    (tmp_path / "toy_robot").mkdir()
+    (tmp_path / "toy_robot" / "scene.xml").write_text("<mujoco/>")
+    (tmp_path / "toy_robot" / "toy.xml").write_text("<mujoco/>")
+    real_import = builtins.__import__
+
+    def no_package(name, *args, **kwargs):
+        if name == "mujoco_menagerie":
+            raise ImportError("not installed")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_package)
+    monkeypatch.setenv("MENAGERIE_ROOT", str(tmp_path))
+    assert menagerie.robot_xml("toy_robot") == tmp_path / "toy_robot" / "scene.xml"
+    assert menagerie.robot_xml("toy_robot", "toy") == tmp_path / "toy_robot" / "toy.xml"
+    with pytest.raises(UnknownNameError, match="'toy_robot'"):
+        menagerie.robot_xml("toy_robt")
+    with pytest.raises(UnknownNameError, match="'scene'"):
+        menagerie.robot_xml("toy_robot", "arm")
+    monkeypatch.delenv("MENAGERIE_ROOT")
+    with pytest.raises(BackendUnavailableError, match="MENAGERIE_ROOT"):
+        menagerie.robot_xml("toy_robot")

@@ -186,9 +186,34 @@ def test_warm_start_reduces_iterations(one_leg):
 def test_failed_solve_falls_back_and_is_counted(one_leg):
     ctl = QPMPC(one_leg, osqp_settings=dict(max_iter=1, check_termination=1))
     res = simulate(one_leg, ctl, 0.1)
+    stats = ctl.stats
     assert res.metrics.fallbacks >= 1
-    assert any(k.startswith("failed:") for k in ctl.stats)
+    # Every failed solve is one fallback tick, counted by status and in total.
+    assert stats["failed_solves"] == stats["fallbacks"] == stats["fallbacks_lqr"]
+    assert stats["failed_solves"] == sum(v for k, v in stats.items() if k.startswith("failed:"))
+    assert stats["solves"] >= stats["failed_solves"]
     assert np.all(np.isfinite(res.ctrls))
+
+
+def test_rescue_backend_solves_what_osqp_fails(one_leg):
+    """OSQP limited to one iteration fails every solve; Clarabel re-solves each one, so no
+    tick falls back, and the rescued plan is the one Clarabel finds alone."""
+    ctl = QPMPC(one_leg, osqp_settings=dict(max_iter=1, check_termination=1), rescue="clarabel")
+    state = one_leg.reference_state()
+    state[one_leg.nq + 3] = 0.05  # roll rate of the root
+    u = ctl(state, 0.0)
+    alone = QPMPC(one_leg, solver="clarabel").solve(state)
+    np.testing.assert_allclose(u, one_leg.clip_ctrl(alone.ctrls[0]), atol=1e-6)
+    res = simulate(one_leg, ctl, 0.06)
+    stats = ctl.stats
+    assert res.survived and stats["fallbacks"] == 0 and stats["failed_solves"] == 0
+    assert (
+        stats["rescued_solves"]
+        == stats["solves"]
+        == sum(v for k, v in stats.items() if k.startswith("failed:"))
+    )
+    with pytest.raises(UnknownNameError, match="clarabel"):
+        QPMPCConfig(rescue="not-a-solver")
 
 
 @pytest.mark.parametrize("fallback", ["lqr", "plan"])
@@ -207,7 +232,10 @@ def test_fallback_after_failed_solves(one_leg, fallback):
             np.testing.assert_allclose(u, one_leg.clip_ctrl(plan.ctrls[k]), atol=1e-12)
         else:
             np.testing.assert_allclose(u, lqr(x1, 0.02 * k), atol=1e-12)
-    assert ctl.stats["fallbacks"] == 10
+    stats = ctl.stats
+    assert stats["fallbacks"] == 10
+    replayed = 9 if fallback == "plan" else 0
+    assert stats["fallbacks_plan"] == replayed and stats["fallbacks_lqr"] == 10 - replayed
 
 
 def test_qpsolvers_backend_agrees_with_osqp(qp, one_leg, tmp_path):
@@ -296,3 +324,58 @@ def test_config_object_and_keywords_agree(one_leg):
         QPMPCConfig(stance_weight=None)
     with pytest.raises(InvalidArgumentError, match="terminal"):
         QPMPCConfig(terminal="riccati")
+
+
+def test_lifted_points_are_dropped_without_changing_the_plan(one_leg):
+    """Both feet named on one leg: the swing foot (10 cm up at the reference) is dropped by
+    default; kept, its points can carry no force, so the plan is the same."""
+    feet = ("body:foot_left", "body:foot_right")
+    dropped = QPMPC(one_leg, contacts=feet)
+    kept = QPMPC(one_leg, contacts=feet, lifted_points="keep")
+    assert set(dropped.points.label) == {"foot_left"} and dropped.points.count == 4
+    assert kept.points.count == 8 and kept.nvar > dropped.nvar
+    state = one_leg.reference_state()
+    state[one_leg.nq + 3] = 0.05  # roll rate of the root
+    a, b = dropped.solve(state), kept.solve(state)
+    np.testing.assert_allclose(a.ctrls[0], b.ctrls[0], atol=2e-2)
+    assert np.all(b.forces[:, kept.points.label.index("foot_right") :] == 0.0)
+    with pytest.raises(InvalidArgumentError, match="lifted_points"):
+        QPMPCConfig(lifted_points="never")
+
+
+@pytest.mark.menagerie
+def test_quadruped_forces_go_to_the_points_on_the_ground():
+    """Menagerie's A1 with its four calves as contact bodies (20 points: calf capsule ends and
+    foot spheres). The calf capsule's end touches the floor next to the foot sphere, 1 cm above
+    the sphere's bottom; its force must go to the foot's point on the ground, and a point at
+    that threshold must not flip inside the finite differences of the force law. Standing
+    under 1 N m of torque noise then needs no fallback."""
+    from mpcbox.core.equilibrium import find_equilibrium
+    from mpcbox.core.model import compile_spec, load_spec
+    from mpcbox.core.problem import Problem
+    from mpcbox.sim.disturbances import ActuatorNoise
+
+    spec = load_spec("menagerie:unitree_a1")
+    model = compile_spec(spec)
+    eq = find_equilibrium(model, model.key_qpos[0])
+    problem = Problem(spec, qpos_ref=eq.qpos, ctrl_ref=eq.ctrl, threads=1)
+    feet = [f"body:{leg}_calf" for leg in ("FR", "FL", "RR", "RL")]
+    keep = QPMPC(problem, contacts=feet, lifted_points="keep")
+    touching, _ = keep.dynamics.activity(keep.state_ref)
+    assert keep.points.count == 20 and touching.sum() == 4
+    fbar = keep.linearization.fbar.reshape(-1, 3)
+    assert np.all(fbar[~touching] == 0.0)
+    assert fbar[touching, 2].sum() == pytest.approx(1.0, rel=0.02)  # in body weights
+    # Force law against the simulator for a small step: within 10% of the change (a point
+    # flipping inside the differences gives entries of ~1e5, a thousand times the change).
+    rng = np.random.default_rng(0)
+    dx = 1e-5 * rng.standard_normal(problem.nx)
+    lin = keep.linearization
+    actual = keep.dynamics.point_forces(problem.state_add(keep.state_ref, dx), keep.ctrl_ref)
+    change = actual - lin.fbar
+    np.testing.assert_allclose(lin.Fx @ dx, change, atol=0.1 * np.abs(change).max())
+    ctl = QPMPC(problem, contacts=feet)
+    assert ctl.points.count == 4
+    gain = model.actuator_gainprm[:, 0] * model.actuator_gear[:, 0]
+    res = simulate(problem, ctl, 1.0, noise=ActuatorNoise(std=1.0 / gain), seed=0)
+    assert res.survived and ctl.stats["failed_solves"] == 0 and ctl.stats["fallbacks"] == 0

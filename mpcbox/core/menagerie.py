@@ -56,7 +56,13 @@ def robot_xml(name: str, entry: str | None = None) -> Path:
         ModelNotFoundError: If the robot cannot be found or downloaded.
         BackendUnavailableError: If ``mujoco-menagerie`` is not installed.
     """
-    mm = _package()
+    root = os.environ.get("MENAGERIE_ROOT")
+    try:
+        mm = _package()
+    except BackendUnavailableError:
+        if not root:
+            raise
+        return _from_root(Path(root), name, entry)
     if name not in mm.names():
         raise UnknownNameError("Menagerie robot", name, mm.names())
     robot = mm.get(name)
@@ -68,6 +74,19 @@ def robot_xml(name: str, entry: str | None = None) -> Path:
         root = os.environ.get("MENAGERIE_ROOT")
         where = f"MENAGERIE_ROOT={root}" if root else "the download cache (MENAGERIE_ROOT unset)"
         raise ModelNotFoundError(f"Menagerie robot {name!r} not found in {where}: {exc}") from exc
+
+
+def _from_root(root: Path, name: str, entry: str | None) -> Path:
+    """A robot's MJCF in an offline copy (``MENAGERIE_ROOT``) without the package: the
+    robot's folder, and ``<entry>.xml`` in it (``scene.xml`` by default)."""
+    robots = sorted(p.name for p in root.iterdir() if p.is_dir()) if root.is_dir() else []
+    if name not in robots:
+        raise UnknownNameError(f"Menagerie robot in MENAGERIE_ROOT={root}", name, robots)
+    entries = sorted(p.stem for p in (root / name).glob("*.xml"))
+    chosen = entry or "scene"
+    if chosen not in entries:
+        raise UnknownNameError(f"entry point of {name}", chosen, entries)
+    return root / name / f"{chosen}.xml"
 
 
 def available(name: str, entry: str | None = None) -> bool:

@@ -368,3 +368,11 @@ def frame_position(model: mujoco.MjModel, data: mujoco.MjData, name: str) -> np.
     """
     kind, idx = frame_object(model, name)
     return (data.site_xpos[idx] if kind == "site" else data.xpos[idx]).copy()
+
+
+def free_body(model: mujoco.MjModel) -> int | None:
+    """The body of the model's first free joint (a floating root), or ``None``."""
+    for j in range(model.njnt):
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE and model.jnt_bodyid[j] != 0:
+            return int(model.jnt_bodyid[j])
+    return None

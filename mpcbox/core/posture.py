@@ -2,22 +2,26 @@
 
 from __future__ import annotations
 
+import warnings
 from typing import NamedTuple
 
 import mujoco
 import numpy as np
 
-from mpcbox.core.model import check_mjmodel, frame_object, object_id
-from mpcbox.errors import InvalidArgumentError, SolverError
+from mpcbox.core.model import check_mjmodel, frame_object, free_body, object_id
+from mpcbox.errors import InvalidArgumentError, PostureWarning, SolverError
 from mpcbox.validation import (
     as_array,
+    boolean,
     checked_keywords,
     finite_array,
-    integer,
     one_of,
     positive,
     positive_int,
 )
+
+#: What :func:`stance_posture` does when its posture is in self-collision.
+ON_COLLISION: tuple[str, ...] = ("warn", "raise", "ignore")
 
 
 class StancePosture(NamedTuple):
@@ -28,12 +32,15 @@ class StancePosture(NamedTuple):
         com_error: Horizontal distance of the COM from the stance point (m).
         swing_height: Height gained by the swing frame (m).
         iterations: IK iterations used.
+        collisions: Geom pairs of different moving bodies that touch at the posture
+            (:func:`self_collisions`; empty when free).
     """
 
     qpos: np.ndarray
     com_error: float
     swing_height: float
     iterations: int
+    collisions: tuple[tuple[str, str], ...] = ()
 
 
 def _mink_frame(model: mujoco.MjModel, name: str, argument: str) -> tuple[str, str]:
@@ -49,16 +56,20 @@ def stance_posture(
     stance: str,
     swing: str,
     lift: float = 0.1,
-    com_body: int = 1,
-    upright_body: str | None = "torso",
+    com_body: int | str | None = None,
+    upright_body: str | None = None,
+    keep_upright: bool = True,
     iterations: int = 300,
     tolerance: float = 1e-4,
     solver: str = "daqp",
+    on_collision: str = "warn",
 ) -> StancePosture:
     """A one-leg stance: the center of mass over ``stance``, ``swing`` lifted by ``lift``.
 
     Solves differential inverse kinematics with mink (frame tasks on both feet, a center-of-mass
     task on the horizontal plane, posture regularization, joint limits) from ``qpos_init``.
+    The result is checked for self-collision (:func:`self_collisions`): a posture with a hand
+    inside a hip would make the holding torques meaningless.
 
     Args:
         model: The model.
@@ -66,15 +77,24 @@ def stance_posture(
         stance: Site or body name of the stance foot (kept where it is).
         swing: Site or body name of the swing foot (lifted).
         lift: Height to lift the swing foot (m).
-        com_body: Body whose subtree COM is placed (default: the root body).
-        upright_body: Body whose orientation is kept as in ``qpos_init`` (``None``: free).
+        com_body: Body (name or id) whose subtree COM is placed (default: the body of the
+            free joint, else body 1).
+        upright_body: Body whose orientation is kept as in ``qpos_init`` (default: the body
+            of the free joint).
+        keep_upright: Keep ``upright_body``'s orientation (``False``: free).
         iterations: Maximum IK iterations.
         tolerance: Stop when the COM is this close to the stance point and the swing foot
             this close to its target (m).
         solver: A QP solver name that qpsolvers knows.
+        on_collision: What a posture in self-collision does: ``"warn"`` (a
+            :class:`~mpcbox.errors.PostureWarning` naming the pairs), ``"raise"``
+            (:class:`~mpcbox.errors.SolverError` naming them) or ``"ignore"``; the pairs are
+            in :attr:`StancePosture.collisions` either way.
 
     Raises:
-        SolverError: If the COM stays farther than 1 cm from the stance point.
+        SolverError: If the COM stays farther than 1 cm from the stance point, or, with
+            ``on_collision="raise"``, if the posture is in self-collision.
+        UnknownNameError: If a frame or body does not exist (lists those that do).
     """
     import mink
     import qpsolvers
@@ -84,10 +104,16 @@ def stance_posture(
     lift = positive("lift", lift)
     positive_int("iterations", iterations)
     tolerance = positive("tolerance", tolerance)
-    com_body = integer("com_body", com_body)
-    if com_body >= model.nbody:
-        raise InvalidArgumentError(f"com_body must be a body id < {model.nbody}, got {com_body}")
-    if upright_body is not None:
+    one_of("on_collision", on_collision, ON_COLLISION)
+    root = free_body(model)
+    if com_body is None:
+        com_body = 1 if root is None else root
+    com_body = object_id(model, "body", com_body, "com_body")
+    if not boolean("keep_upright", keep_upright):
+        upright_body = None
+    elif upright_body is None and root is not None:
+        upright_body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, root)
+    elif upright_body is not None:
         object_id(model, "body", upright_body, "upright_body")
     one_of("solver", solver, qpsolvers.available_solvers)
     config = mink.Configuration(model, q=qpos_init.copy())
@@ -135,8 +161,17 @@ def stance_posture(
     if com_err > 0.01:
         raise SolverError(f"stance_posture: the COM stayed {com_err:.3f} m from the stance foot")
     height = config.get_transform_frame_to_world(swing_name, swing_kind).translation()[2]
+    qpos = config.q.copy()
+    collisions = self_collisions(model, qpos)
+    if collisions and on_collision != "ignore":
+        message = "stance_posture: the posture is in self-collision: " + ", ".join(
+            f"{a} with {b}" for a, b in collisions
+        )
+        if on_collision == "raise":
+            raise SolverError(message)
+        warnings.warn(PostureWarning(message), stacklevel=2)
     return StancePosture(
-        config.q.copy(), com_err, float(height - swing_pose.translation()[2]), used
+        qpos, com_err, float(height - swing_pose.translation()[2]), used, collisions
     )
 
 

@@ -418,7 +418,7 @@ class Problem:
         :func:`mpcbox.simulate` samples each one after every step and summarizes it in
         :attr:`Metrics.measures <mpcbox.Metrics>`; comparison tables show a column per
         summary. The base class declares none; the humanoid tasks report the center of mass
-        over the support and the torso tilt (:mod:`mpcbox.tasks.humanoid.measures`).
+        over the support and the torso tilt (:mod:`mpcbox.tasks.legged.measures`).
 
         Returns:
             A sequence of :class:`mpcbox.sim.measures.Measure` with distinct names.

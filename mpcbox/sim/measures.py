@@ -6,7 +6,7 @@ A :class:`Measure` turns the simulation state after each step into one number
 :attr:`~mpcbox.Metrics.measures`. A task lists its measures in
 :meth:`~mpcbox.Problem.measures` (none by default): the humanoid tasks, for example, report
 the center of mass over the support and the torso tilt
-(:mod:`mpcbox.tasks.humanoid.measures`). Comparison tables show one column per measure and
+(:mod:`mpcbox.tasks.legged.measures`). Comparison tables show one column per measure and
 summary.
 """
 

@@ -24,10 +24,12 @@ from mpcbox.validation import (
 
 StanceModelName = Literal["soft", "rigid"]
 Fallback = Literal["lqr", "plan"]
+LiftedPoints = Literal["drop", "keep"]
 #: Names of the terminal costs (an ``(nx, nx)`` matrix is accepted too).
 TERMINALS: tuple[str, ...] = ("stance", "lqr", "cost")
 STANCE_MODELS: tuple[str, ...] = ("soft", "rigid")
 FALLBACKS: tuple[str, ...] = ("lqr", "plan")
+LIFTED_POINTS: tuple[str, ...] = ("drop", "keep")
 
 
 def _check_osqp_settings(settings: object) -> None:
@@ -64,6 +66,12 @@ class QPMPCConfig:
         relinearize: Relinearize about the measured state and the last control every tick
             (otherwise once, about the reference).
         solver: ``"osqp"`` (persistent OSQP solver) or a ``qpsolvers`` backend name.
+        rescue: A second backend (e.g. ``"clarabel"``) that re-solves, from scratch, a QP the
+            ``solver`` failed; ``None`` (default): a failed solve falls back at once. A
+            rescued solve is counted in ``stats["rescued_solves"]``. Measured after large
+            pushes (``benchmarks/qp_settings_sweep.py``), Clarabel rescued 2 to 14 of 37 to
+            69 failed solves, at a median of 0.05 to 6.4 s per tick, and the A1 fell with it
+            where it stood without: for studying failed ticks, not for real time.
         force_weight: Weight :math:`w_f` of the force regularization (forces in body
             weights).
         terminal: ``"stance"`` (Riccati matrix of the prediction model with the forces as
@@ -78,6 +86,11 @@ class QPMPCConfig:
             stance only).
         contact_margin: A point higher than this above the lowest reference point is
             lifted (m).
+        lifted_points: ``"drop"`` (default): contact points already lifted at the reference
+            state are left out of the QP, so a foot named as a body keeps only the points of
+            its geoms that touch the ground (on Menagerie's A1 the four feet as bodies give 20
+            points, 4 of them on the ground: the QP shrinks from 1680 to 720 variables);
+            ``"keep"``: every point stays (a lifted one carries no force until it touches).
         joint_limits: Add the joints' ranges as constraints.
         cost_gradient: Keep the cost gradient at the reference (default: regulate to the
             reference, dropping it, as LQR does).
@@ -110,12 +123,14 @@ class QPMPCConfig:
     f_max: float | None = None
     relinearize: bool = False
     solver: str = "osqp"
+    rescue: str | None = None
     force_weight: float = 1.0
     terminal: str | np.ndarray = "lqr"
     terminal_scale: float = 1.0
     drift_gain: float = 0.2
     stance_weight: float | None = 1e4
     contact_margin: float = 0.01
+    lifted_points: LiftedPoints = "drop"
     joint_limits: bool = False
     cost_gradient: bool = False
     warm_start: bool = True
@@ -147,6 +162,8 @@ class QPMPCConfig:
         if self.f_max is not None:
             put("f_max", positive("f_max", self.f_max))
         check_backend(self.solver)
+        if self.rescue is not None:
+            check_backend(self.rescue)
         put("force_weight", positive("force_weight", self.force_weight))
         if isinstance(self.terminal, str) and self.terminal not in TERMINALS:
             raise InvalidArgumentError(
@@ -177,6 +194,7 @@ class QPMPCConfig:
                 )
             put("export_dir", Path(self.export_dir))
         one_of("fallback", self.fallback, FALLBACKS)
+        one_of("lifted_points", self.lifted_points, LIFTED_POINTS)
         for name in ("relinearize", "joint_limits", "cost_gradient", "warm_start", "fd_centered"):
             put(name, boolean(name, getattr(self, name)))
         if self.osqp_settings is not None:

@@ -6,7 +6,8 @@ prediction model of :mod:`~mpcbox.controllers.qp_mpc.prediction` first when
 ``relinearize`` is set), solves it with a backend of
 :mod:`~mpcbox.controllers.qp_mpc.solvers` (by default a persistent OSQP solver, warm-started
 from the previous solution shifted by one step) and applies the first planned control. A
-failed solve falls back to LQR (or to the last plan, ``fallback="plan"``) and is counted in
+failed solve is re-solved by the ``rescue`` backend when one is set; one that stays failed
+falls back to LQR (or to the last plan, ``fallback="plan"``). Both are counted in
 :attr:`QPMPC.stats`. Options: :class:`~mpcbox.controllers.qp_mpc.config.QPMPCConfig`.
 """
 
@@ -34,6 +35,7 @@ from mpcbox.controllers.qp_mpc.prediction import PREDICTION_MODELS
 from mpcbox.controllers.qp_mpc.solvers import QPData, export_qp, make_backend
 from mpcbox.controllers.qp_mpc.terminal import terminal_matrix
 from mpcbox.core.contact import (
+    ContactPoints,
     cone_violation,
     contact_points,
     friction_pyramid,
@@ -100,6 +102,25 @@ def default_contacts(problem: Problem, state: np.ndarray) -> list[str]:
             "contact geoms, sites or bodies"
         )
     return ["body:" + mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) for b in bodies]
+
+
+def grounded_points(
+    model: mujoco.MjModel, points: ContactPoints, qpos: np.ndarray, margin: float
+) -> ContactPoints:
+    """The points less than ``margin`` above the lowest one at posture ``qpos`` ``(nq,)``."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    z = points.world(data)[:, 2]
+    keep = np.flatnonzero(z < z.min() + margin)
+    return ContactPoints(
+        points.body[keep], points.local[keep], tuple(points.label[i] for i in keep)
+    )
+
+
+def _usable(x: np.ndarray | None) -> bool:
+    """Whether a solver returned a finite primal solution."""
+    return x is not None and bool(np.all(np.isfinite(x)))
 
 
 class QPMPC(Controller):
@@ -169,6 +190,10 @@ class QPMPC(Controller):
             contacts = problem.contacts or default_contacts(problem, self.state_ref)
         contacts = [contacts] if isinstance(contacts, str) else list(contacts)
         self.points = contact_points(self.model, contacts, self.state_ref[: problem.nq])
+        if cfg.lifted_points == "drop":
+            self.points = grounded_points(
+                self.model, self.points, self.state_ref[: problem.nq], cfg.contact_margin
+            )
         self.dynamics = ContactDynamics(
             problem,
             self.model,
@@ -217,6 +242,7 @@ class QPMPC(Controller):
         )
         self.formulation.update_matrix(self.linearization)
         self.backend = make_backend(cfg.solver, dict(cfg.osqp_settings or {}))
+        self.rescue = None if cfg.rescue is None else make_backend(cfg.rescue)
         # Built now, not on the first failed (already slow) tick.
         self._lqr: LQR | None = LQR(problem) if cfg.fallback == "lqr" else None
         # Per-run state, set by reset().
@@ -224,6 +250,8 @@ class QPMPC(Controller):
         self._prev_y: np.ndarray | None = None
         self._last_ctrl = self.ctrl_ref.copy()
         self._plan_age = self._tick = self._fallbacks = 0
+        self._plan_fallbacks = self._inaccurate = self._unsolved = self._rescued = 0
+        self._violation_max = 0.0
         self._failures: dict[str, int] = {}
         self._iters: list[int] = []
         self.reset()
@@ -237,7 +265,9 @@ class QPMPC(Controller):
         self._plan_age = 0
         self.prediction.reset()
         self._tick = 0
-        self._fallbacks = 0
+        self._fallbacks = self._plan_fallbacks = self._inaccurate = 0
+        self._unsolved = self._rescued = 0
+        self._violation_max = 0.0
         self._failures = {}
         self._iters = []
         self.last_status = "unsolved"
@@ -246,11 +276,34 @@ class QPMPC(Controller):
 
     @property
     def stats(self) -> dict[str, float]:
-        """``fallbacks``, ``solves``, mean OSQP ``iterations`` and failed statuses."""
+        """Counters since :meth:`reset`; nothing the solver did wrong goes unreported.
+
+        * ``solves``: QPs solved (one per call);
+        * ``failed_solves``: solves that ended without a usable solution;
+        * ``failed:<status>``: failures of ``solver`` by its status, rescued or not;
+        * ``rescued_solves``: failures of ``solver`` that the ``rescue`` backend solved;
+        * ``fallbacks``: calls whose control did not come from a fresh solve;
+          ``fallbacks_lqr`` and ``fallbacks_plan`` split them by what was applied;
+        * ``inaccurate_solves``: accepted solves the solver flagged as inaccurate (OSQP's
+          ``"solved inaccurate"``);
+        * ``solver_iterations`` (mean; ``iterations`` is the same number) and
+          ``solver_iterations_max`` over the accepted solves;
+        * ``force_violation_max``: largest friction or bound violation of an accepted raw
+          solution, in newtons (the applied forces are projected, see :class:`QPPlan`).
+        """
+        iters = self._iters
         out: dict[str, float] = {
             "fallbacks": self._fallbacks,
+            "fallbacks_lqr": self._fallbacks - self._plan_fallbacks,
+            "fallbacks_plan": self._plan_fallbacks,
             "solves": self._tick,
-            "iterations": float(np.mean(self._iters)) if self._iters else 0.0,
+            "failed_solves": self._unsolved,
+            "rescued_solves": self._rescued,
+            "inaccurate_solves": self._inaccurate,
+            "solver_iterations": float(np.mean(iters)) if iters else 0.0,
+            "solver_iterations_max": float(max(iters)) if iters else 0.0,
+            "iterations": float(np.mean(iters)) if iters else 0.0,
+            "force_violation_max": self._violation_max,
         }
         for status, count in self._failures.items():
             out[f"failed:{status}"] = count
@@ -281,6 +334,11 @@ class QPMPC(Controller):
         self.qp = QPData(self.formulation.P, q, self.formulation.A, lo, hi)
         t2 = _time.perf_counter()
         sol = self.backend.solve(self.qp, changed, self._warm_start())
+        if not _usable(sol.x):
+            self._failures[sol.status] = self._failures.get(sol.status, 0) + 1
+            if self.rescue is not None:
+                sol = self.rescue.solve(self.qp, changed, None)
+                self._rescued += _usable(sol.x)
         t3 = _time.perf_counter()
         self.timing = TickTiming(t1 - t0, t2 - t1, t3 - t2)
         self.last_status = sol.status
@@ -288,11 +346,15 @@ class QPMPC(Controller):
             self.export(self.config.export_dir / f"tick_{self._tick:05d}.npz")
         self._tick += 1
         z = sol.x
-        if z is None or not np.all(np.isfinite(z)):
-            self._failures[sol.status] = self._failures.get(sol.status, 0) + 1
+        if not _usable(z):
+            self._unsolved += 1
             return None
         self._iters.append(sol.iterations)
-        self._prev_z, self._prev_y = z, sol.y
+        if sol.inaccurate:
+            self._inaccurate += 1
+        # A rescue backend reports no dual: keep the last one for the next warm start.
+        y = sol.y if sol.y is not None else self._prev_y
+        self._prev_z, self._prev_y = z, (np.zeros(self.ncon) if y is None else y)
         N, nx, nu = L.horizon, L.nx, L.nu
         dx = np.vstack([p.state_difference(state, lin.state), z[: N * nx].reshape(N, nx)])
         ctrls = lin.ctrl + z[L.ou : L.ou + N * nu].reshape(N, nu)
@@ -304,6 +366,7 @@ class QPMPC(Controller):
             viol = max(viol, float(np.max(np.abs(raw[:, ~active]))))
             raw_active[:, ~active] = 0.0
         forces = project_to_pyramid(raw_active, self.friction, self.facets, self.f_max)
+        self._violation_max = max(self._violation_max, viol)
         plan = QPPlan(dx, ctrls, forces, viol, sol.status, sol.iterations, t3 - t2, sol.objective)
         self.last_plan = plan
         self._plan_age = 0
@@ -320,6 +383,7 @@ class QPMPC(Controller):
             plan = self.last_plan
             if self.config.fallback == "plan" and plan is not None and step < self.horizon:
                 ctrl = self.problem.clip_ctrl(plan.ctrls[step])
+                self._plan_fallbacks += 1
             else:
                 ctrl = self._fallback_lqr()(state, time)
         self._last_ctrl = ctrl

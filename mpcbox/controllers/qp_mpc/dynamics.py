@@ -240,17 +240,32 @@ class ContactDynamics:
         _, Bh, A, S, drift = self._composed_step(self.soft_model, self._soft, state, ctrl)
         return A, S @ Bh, drift
 
-    def point_forces(self, state: np.ndarray, ctrl: np.ndarray) -> np.ndarray:
+    def point_forces(
+        self, state: np.ndarray, ctrl: np.ndarray, touching: np.ndarray | None = None
+    ) -> np.ndarray:
         """Ground forces on the contact points in the soft-contact model, ``(3 k,)`` in body
         weights.
 
-        Each MuJoCo contact on a contact body is given to the nearest point of that body.
+        Each MuJoCo contact on a contact body is given to the nearest point of that body
+        that touches the ground (:meth:`activity`), or to its nearest point when none does.
+        A lifted point may carry no force in the QP, so a force given to it (a calf capsule
+        whose end touches the floor next to the foot sphere, on Menagerie's A1) could only
+        be carried by the slack.
+
+        Args:
+            state: The state.
+            ctrl: The control ``(nu,)``.
+            touching: Which points count as touching ``(k,)``; default: those of
+                :meth:`activity` at ``state``. Finite differences pass the mask of the
+                nominal state, so that a point at the threshold does not flip.
         """
         p, m, d = self.problem, self.soft_model, self._soft
         p.set_state(d, state)
         d.ctrl[:] = ctrl
         mujoco.mj_forward(m, d)
         world = self.points.world(d)
+        if touching is None:
+            touching = world[:, 2] < self.ground + self.contact_margin
         out = np.zeros((self.points.count, 3))
         f6 = np.zeros(6)
         for c in range(d.ncon):
@@ -260,6 +275,8 @@ class ContactDynamics:
                 idx = np.flatnonzero(self.points.body == body)
                 if idx.size == 0:
                     continue
+                if np.any(touching[idx]):
+                    idx = idx[touching[idx]]
                 mujoco.mj_contactForce(m, d, c, f6)
                 force = sign * (con.frame.reshape(3, 3).T @ f6[:3])
                 near = idx[np.argmin(np.linalg.norm(world[idx] - con.pos, axis=1))]

@@ -213,18 +213,19 @@ class SoftStance(PredictionModel):
         nx, nu = p.nx, p.nu
         lin = dyn.contact_free(state, ctrl)
         A, B, drift = dyn.soft_step(state, ctrl)
-        fbar = dyn.point_forces(state, ctrl)
+        touching, _ = dyn.activity(state)
+        fbar = dyn.point_forces(state, ctrl, touching)
         eps = 1e-6
         Fx = np.zeros((fbar.size, nx))
         Fu = np.zeros((fbar.size, nu))
         for i in range(nx):
             dx = np.zeros(nx)
             dx[i] = eps
-            Fx[:, i] = (dyn.point_forces(p.state_add(state, dx), ctrl) - fbar) / eps
+            Fx[:, i] = (dyn.point_forces(p.state_add(state, dx), ctrl, touching) - fbar) / eps
         for i in range(nu):
             du = np.zeros(nu)
             du[i] = eps
-            Fu[:, i] = (dyn.point_forces(state, ctrl + du) - fbar) / eps
+            Fu[:, i] = (dyn.point_forces(state, ctrl + du, touching) - fbar) / eps
         return lin._replace(A=A, B=B, c=drift, fbar=fbar, Fx=Fx, Fu=Fu)
 
     def contact_pattern(self, layout: QPLayout) -> Pattern:

@@ -32,6 +32,9 @@ OSQP_DEFAULTS: dict[str, Any] = dict(
     check_termination=5,
     # A fixed rho: OSQP's adaptive rho moved it to values that needed 250-400 iterations on
     # this problem (with the warm start in place); rho = 3 takes 30-40 (benchmarks/qp_mpc.py).
+    # On Menagerie's Go1, A1 and ANYmal C standing under 1 N m torque noise rho = 3 fails no
+    # solve either; adaptive rho made the humanoid's ticks 1.2-3.7x slower (median; p99
+    # 2.9-3.6x), with 3.6% of the one-leg solves at the cap (benchmarks/qp_robots.py).
     adaptive_rho=False,
     rho=3.0,
     scaling=10,
@@ -65,6 +68,8 @@ class QPSolution(NamedTuple):
         status: Solver status string.
         iterations: Solver iterations (0 when the backend does not report them).
         objective: Objective value (``nan`` when not known).
+        inaccurate: The solver accepted ``x`` at a looser tolerance than asked (OSQP's
+            ``"solved inaccurate"``).
     """
 
     x: np.ndarray | None
@@ -72,6 +77,7 @@ class QPSolution(NamedTuple):
     status: str
     iterations: int
     objective: float
+    inaccurate: bool = False
 
 
 class QPBackend(abc.ABC):
@@ -136,6 +142,7 @@ class OSQPBackend(QPBackend):
             str(res.info.status),
             int(res.info.iter),
             float(res.info.obj_val),
+            res.info.status_val == osqp.SolverStatus.OSQP_SOLVED_INACCURATE,
         )
 
 

@@ -6,20 +6,21 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 import mujoco
+import numpy as np
 
 from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.lqr import LQRConfig
 from mpcbox.controllers.qp_mpc.config import QPMPCConfig
 from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, PredictiveSamplingConfig
-from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, StateCost
-from mpcbox.core.model import ModelSource, frame_object, object_id
+from mpcbox.core.model import ModelSource, object_id
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.base import HumanoidProblem, balance_dofs, joint_weights
 from mpcbox.validation import finite, non_negative, one_of
 
 
 class HumanoidBalance(HumanoidProblem):
-    """Balance a humanoid on one leg.
+    """Balance a humanoid on one leg: a preset of
+    :class:`~mpcbox.tasks.legged.balance.LeggedBalance`.
 
     The reference posture is the keyframe ``stand_on_left_leg`` for the left leg, or a
     mink inverse-kinematics stance (center of mass over the right foot, left foot lifted
@@ -42,7 +43,8 @@ class HumanoidBalance(HumanoidProblem):
         velocity_cost: Weight of joint velocities (all dofs).
         ctrl_cost: Weight of control deviations.
         fall_height: The run fails when the torso is lower than this (m).
-        **kwargs: Passed to :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
+        **kwargs: Passed to :class:`~mpcbox.tasks.legged.balance.LeggedBalance` and
+            :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
     """
 
     name = "humanoid_balance"
@@ -111,19 +113,26 @@ class HumanoidBalance(HumanoidProblem):
     ) -> None:
         self.leg = one_of("leg", leg, ("left", "right"))
         self.swing_leg = "right" if leg == "left" else "left"
-        self.weights = dict(
-            balance=non_negative("balance_cost", balance_cost),
-            balance_joint=non_negative("balance_joint_cost", balance_joint_cost),
-            other_joint=non_negative("other_joint_cost", other_joint_cost),
-            velocity=non_negative("velocity_cost", velocity_cost),
-            ctrl=non_negative("ctrl_cost", ctrl_cost),
-        )
-        self.fall_height = finite("fall_height", fall_height)
+        self.balance_joint_cost = non_negative("balance_joint_cost", balance_joint_cost)
         self.noise_stance = leg
-        source: ModelSource = scene_path("humanoid.xml") if model is None else model
         if leg == "left":
             kwargs.setdefault("keyframe", "stand_on_left_leg")
-        super().__init__(source, **kwargs)
+        super().__init__(
+            scene_path("humanoid.xml") if model is None else model,
+            feet=(self.foot(leg),),
+            root="torso",
+            fall_height=finite("fall_height", fall_height),
+            fall_tilt=None,
+            contacts=(f"body:foot_{leg}",),
+            balance_cost=balance_cost,
+            joint_cost=non_negative("other_joint_cost", other_joint_cost),
+            velocity_cost=velocity_cost,
+            ctrl_cost=non_negative("ctrl_cost", ctrl_cost),
+            ctrl_units="control",
+            recovery_tilt=None,
+            **kwargs,
+        )
+        self.weights["balance_joint"] = self.balance_joint_cost
 
     # The feet: a site named foot_<leg> when the model has one, else the body foot_<leg>.
     def foot(self, leg: str) -> str:
@@ -144,25 +153,12 @@ class HumanoidBalance(HumanoidProblem):
             )
             self.qpos_ref = self.posture.qpos
         super().prepare(model)
-        frame_object(model, self.foot(self.leg))  # fails early with the valid names
 
-    def build_cost(self, model: mujoco.MjModel) -> Cost:
-        w = self.weights
+    def joint_weights(self, model: mujoco.MjModel) -> np.ndarray:
+        """``balance_joint_cost`` on the abdomen and stance-leg joints without a ``z``,
+        ``other_joint_cost`` elsewhere, none on the root."""
         dofs = balance_dofs(model, (self.leg,))
-        wq = joint_weights(model, dofs, w["balance_joint"], w["other_joint"])
-        return Cost(
-            [
-                ComOverSupport(
-                    self.foot(self.leg), weight=w["balance"], root="torso", name="balance"
-                ),
-                StateCost(self.qpos_ref, weight_qpos=wq, weight_qvel=w["velocity"]),
-                ControlCost(self.ctrl_ref, weight=w["ctrl"]),
-            ]
-        )
-
-    def support_frames(self) -> tuple[str, ...]:
-        """The stance foot."""
-        return (self.foot(self.leg),)
+        return joint_weights(model, dofs, self.balance_joint_cost, self.weights["joint"])
 
 
 def classic_humanoid_path() -> Path | None:

@@ -1,4 +1,4 @@
-"""What the humanoid tasks share: equilibrium reference, falls, measures and noise recipe."""
+"""What the humanoid presets share: the classic humanoid's names and its noise recipe."""
 
 from __future__ import annotations
 
@@ -7,51 +7,30 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from mpcbox.core.equilibrium import Equilibrium, find_equilibrium
-from mpcbox.core.model import object_id
-from mpcbox.core.problem import Problem
 from mpcbox.sim.disturbances import ActuatorNoise
-from mpcbox.sim.measures import Measure
-from mpcbox.tasks.humanoid.measures import balance_measures
 from mpcbox.tasks.humanoid.noise import balance_noise
+from mpcbox.tasks.legged.balance import LeggedBalance
 
 
-class HumanoidProblem(Problem):
-    """Base of the humanoid tasks (bodies named like the classic MuJoCo humanoid's).
+class HumanoidProblem(LeggedBalance):
+    """Base of the humanoid presets of :class:`~mpcbox.tasks.legged.balance.LeggedBalance`.
 
-    :meth:`prepare` moves the reference posture's root until the contacts carry the weight
-    and takes the holding control from inverse dynamics (:func:`~mpcbox.find_equilibrium`);
-    a run fails when the ``torso`` body drops below ``fall_height``. The measures reported
-    are the whole-body center of mass over the :meth:`support_frames` and the torso tilt
-    (:func:`~mpcbox.tasks.humanoid.measures.balance_measures`); the noise model is the
-    published recipe (:func:`~mpcbox.tasks.humanoid.noise.balance_noise`). Subclasses set
-    ``fall_height`` before calling ``Problem.__init__`` and define :meth:`support_frames`.
+    The presets pass the classic MuJoCo humanoid's names (root ``torso``, feet the sites
+    ``foot_left`` and ``foot_right``, or the bodies of those names when there are no such
+    sites, contacts at the foot bodies' capsules), explicit fall
+    heights and control weights in control units. Two things stay humanoid-specific: the
+    posture weights of the balance joints (:func:`balance_dofs`, found by joint name) and
+    the published noise recipe (:func:`~mpcbox.tasks.humanoid.noise.balance_noise`) instead
+    of the robot-independent one.
     """
 
-    fall_height: float = 0.8
     #: Stance leg whose joints get the low noise of the published recipe.
     noise_stance: str = "left"
-    equilibrium: Equilibrium | None = None
 
-    def prepare(self, model: mujoco.MjModel) -> None:
-        self.equilibrium = find_equilibrium(model, self.qpos_ref)
-        self.qpos_ref = self.equilibrium.qpos
-        self.ctrl_ref = self.equilibrium.ctrl
-        self._torso = object_id(model, "body", "torso")
-
-    def failure(self, model: mujoco.MjModel, data: mujoco.MjData) -> str | None:
-        reason = super().failure(model, data)
-        if reason is None and data.xpos[self._torso, 2] < self.fall_height:
-            reason = f"fell: torso below {self.fall_height} m"
-        return reason
-
-    def support_frames(self) -> tuple[str, ...]:
-        """Sites or bodies whose mean horizontal position the center of mass should be above."""
-        raise NotImplementedError(f"{type(self).__name__} must define support_frames()")
-
-    def measures(self) -> tuple[Measure, ...]:
-        """COM deviation from the support point (m) and torso tilt (deg)."""
-        return balance_measures(self.support_frames(), body="torso")
+    def add_sole_sites(self, spec: mujoco.MjSpec, base: mujoco.MjModel) -> tuple[str, ...]:
+        """No sites added: a foot is the site ``foot_<leg>``, or the body of that name in
+        models without the site (the classic humanoid of mujoco-warp's test data)."""
+        return tuple(foot.name for foot in self.feet)
 
     def noise(self, scale: float = 1.0) -> ActuatorNoise:
         """The published actuator-noise recipe (low noise on the ``noise_stance`` leg)."""

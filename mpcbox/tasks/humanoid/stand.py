@@ -16,7 +16,8 @@ from mpcbox.validation import finite, non_negative
 
 
 class HumanoidStand(HumanoidProblem):
-    r"""Keep a humanoid standing on both feet (keyframe ``stand`` of the humanoid scene).
+    r"""Keep a humanoid standing on both feet (keyframe ``stand`` of the humanoid scene): a
+    preset of :class:`~mpcbox.tasks.legged.balance.LeggedBalance` with a cost of its own.
 
     The reference posture is the keyframe with the root height adjusted until the contacts
     carry the weight, and the reference control holds it (:func:`~mpcbox.find_equilibrium`).
@@ -47,7 +48,8 @@ class HumanoidStand(HumanoidProblem):
         balance_cost: Weight :math:`w_b` of the centre of mass over each foot (0 drops it).
         terminal_scale: Multiplier of the terminal cost.
         fall_height: The run fails when the torso is lower than this (m).
-        **kwargs: Passed to :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
+        **kwargs: Passed to :class:`~mpcbox.tasks.legged.balance.LeggedBalance` and
+            :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
     """
 
     name = "humanoid_stand"
@@ -91,7 +93,7 @@ class HumanoidStand(HumanoidProblem):
         fall_height: float = 0.9,
         **kwargs: Any,
     ) -> None:
-        self.weights = dict(
+        self.stand_weights = dict(
             height=non_negative("height_cost", height_cost),
             upright=non_negative("upright_cost", upright_cost),
             posture=non_negative("posture_cost", posture_cost),
@@ -101,19 +103,34 @@ class HumanoidStand(HumanoidProblem):
             balance=non_negative("balance_cost", balance_cost),
             terminal=non_negative("terminal_scale", terminal_scale),
         )
-        self.fall_height = finite("fall_height", fall_height)
         kwargs.setdefault("keyframe", "stand")
-        super().__init__(scene_path("humanoid.xml") if model is None else model, **kwargs)
+        super().__init__(
+            scene_path("humanoid.xml") if model is None else model,
+            feet=("foot_left", "foot_right"),
+            root="torso",
+            fall_height=finite("fall_height", fall_height),
+            fall_tilt=None,
+            support="feet",
+            contacts=("body:foot_left", "body:foot_right"),
+            balance_cost=balance_cost,
+            joint_cost=posture_cost,
+            velocity_cost=velocity_cost,
+            ctrl_cost=ctrl_cost,
+            ctrl_units="control",
+            recovery_tilt=None,
+            **kwargs,
+        )
+        self.weights = self.stand_weights
 
     def prepare(self, model: mujoco.MjModel) -> None:
         super().prepare(model)
         data = mujoco.MjData(model)
         data.qpos[:] = self.qpos_ref
         mujoco.mj_kinematics(model, data)
-        self.torso_height = float(data.xpos[self._torso, 2])
+        self.torso_height = float(data.xpos[self.root_id, 2])
 
     def _terms(self, model: mujoco.MjModel, scale: float, suffix: str) -> list:
-        w = self.weights
+        w = self.stand_weights
         wq = np.full(model.nv, w["posture"])
         for j in range(model.njnt):
             if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
@@ -145,10 +162,6 @@ class HumanoidStand(HumanoidProblem):
         ]
 
     def build_cost(self, model: mujoco.MjModel) -> Cost:
-        control = ControlCost(self.ctrl_ref, weight=self.weights["ctrl"])
+        control = ControlCost(self.ctrl_ref, weight=self.stand_weights["ctrl"])
         running = [*self._terms(model, 1.0, ""), control]
-        return Cost(running, self._terms(model, self.weights["terminal"], "_terminal"))
-
-    def support_frames(self) -> tuple[str, ...]:
-        """The two foot sites (their midpoint is the support point)."""
-        return ("foot_left", "foot_right")
+        return Cost(running, self._terms(model, self.stand_weights["terminal"], "_terminal"))

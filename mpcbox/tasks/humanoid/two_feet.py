@@ -5,21 +5,22 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import mujoco
+import numpy as np
 
 from mpcbox.controllers.lqr import LQRConfig
 from mpcbox.controllers.qp_mpc.config import QPMPCConfig
-from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, StateCost
-from mpcbox.core.model import ModelSource, compile_spec, load_spec, object_id
+from mpcbox.core.model import ModelSource
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.base import HumanoidProblem, balance_dofs, joint_weights
+from mpcbox.tasks.legged.balance import FEET_CENTER
 from mpcbox.validation import finite, non_negative
 
-#: Name of the world site added midway between the feet.
-FEET_CENTER = "feet_center"
+__all__ = ["FEET_CENTER", "HumanoidTwoFeet"]
 
 
 class HumanoidTwoFeet(HumanoidProblem):
-    """Stand on both feet and keep the center of mass above the middle of the feet.
+    """Stand on both feet, the center of mass above the middle of the feet: a preset of
+    :class:`~mpcbox.tasks.legged.balance.LeggedBalance`.
 
     A world-fixed site ``feet_center`` is added to the model at the midpoint of the sites
     ``foot_left`` and ``foot_right`` in keyframe ``stand``; the root height is adjusted and
@@ -38,7 +39,8 @@ class HumanoidTwoFeet(HumanoidProblem):
         velocity_cost: Weight of joint velocities.
         ctrl_cost: Weight of control deviations.
         fall_height: The run fails when the torso is lower than this (m).
-        **kwargs: Passed to :class:`~mpcbox.Problem`.
+        **kwargs: Passed to :class:`~mpcbox.tasks.legged.balance.LeggedBalance` and
+            :class:`~mpcbox.Problem`.
     """
 
     name = "humanoid_two_feet"
@@ -66,39 +68,29 @@ class HumanoidTwoFeet(HumanoidProblem):
         fall_height: float = 0.8,
         **kwargs: Any,
     ) -> None:
-        self.weights = dict(
-            balance=non_negative("balance_cost", balance_cost),
-            balance_joint=non_negative("balance_joint_cost", balance_joint_cost),
-            other_joint=non_negative("other_joint_cost", other_joint_cost),
-            velocity=non_negative("velocity_cost", velocity_cost),
-            ctrl=non_negative("ctrl_cost", ctrl_cost),
-        )
-        self.fall_height = finite("fall_height", fall_height)
-        spec = load_spec(scene_path("humanoid.xml") if model is None else model)
+        self.balance_joint_cost = non_negative("balance_joint_cost", balance_joint_cost)
         if kwargs.get("keyframe") is None:
             kwargs["keyframe"] = "stand"
-        base = compile_spec(spec)
-        data = mujoco.MjData(base)
-        key = object_id(base, "keyframe", kwargs["keyframe"], "keyframe")
-        data.qpos[:] = base.key_qpos[key]
-        mujoco.mj_kinematics(base, data)
-        feet = [data.site_xpos[object_id(base, "site", f"foot_{leg}")] for leg in ("left", "right")]
-        center = 0.5 * (feet[0] + feet[1])
-        spec.worldbody.add_site(name=FEET_CENTER, pos=[center[0], center[1], 0.0])
-        super().__init__(spec, **kwargs)
-
-    def build_cost(self, model: mujoco.MjModel) -> Cost:
-        w = self.weights
-        dofs = balance_dofs(model, ("left", "right"))
-        wq = joint_weights(model, dofs, w["balance_joint"], w["other_joint"])
-        return Cost(
-            [
-                ComOverSupport(FEET_CENTER, weight=w["balance"], root="torso", name="balance"),
-                StateCost(self.qpos_ref, weight_qpos=wq, weight_qvel=w["velocity"]),
-                ControlCost(self.ctrl_ref, weight=w["ctrl"]),
-            ]
+        super().__init__(
+            scene_path("humanoid.xml") if model is None else model,
+            feet=("foot_left", "foot_right"),
+            root="torso",
+            fall_height=finite("fall_height", fall_height),
+            fall_tilt=None,
+            support="center",
+            contacts=self.contacts,
+            balance_cost=balance_cost,
+            joint_cost=non_negative("other_joint_cost", other_joint_cost),
+            velocity_cost=velocity_cost,
+            ctrl_cost=non_negative("ctrl_cost", ctrl_cost),
+            ctrl_units="control",
+            recovery_tilt=None,
+            **kwargs,
         )
+        self.weights["balance_joint"] = self.balance_joint_cost
 
-    def support_frames(self) -> tuple[str, ...]:
-        """The site midway between the feet."""
-        return (FEET_CENTER,)
+    def joint_weights(self, model: mujoco.MjModel) -> np.ndarray:
+        """``balance_joint_cost`` on the abdomen and both legs' joints without a ``z``,
+        ``other_joint_cost`` elsewhere, none on the root."""
+        dofs = balance_dofs(model, ("left", "right"))
+        return joint_weights(model, dofs, self.balance_joint_cost, self.weights["joint"])

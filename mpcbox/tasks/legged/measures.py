@@ -1,4 +1,4 @@
-"""Balance measures of the humanoid tasks: the center of mass over the support, and tilt."""
+"""Balance measures of legged robots: the center of mass over the support, and the root's tilt."""
 
 from __future__ import annotations
 
@@ -10,6 +10,14 @@ import numpy as np
 from mpcbox.core.model import frame_position, object_id
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.sim.measures import Measure
+
+
+def _check_body(measure: ComDeviation | Tilt) -> None:
+    if not isinstance(measure.body, str) or not measure.body:
+        raise InvalidArgumentError(
+            f"measure {measure.name!r}: body must name a body (the robot's root), "
+            f"got {measure.body!r}"
+        )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -32,11 +40,12 @@ class ComDeviation(Measure):
     label: str = "COM dev"
     display_unit: str = "cm"
     display_scale: float = 100.0
-    body: str = "torso"
+    body: str = ""
     support: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        _check_body(self)
         object.__setattr__(self, "support", tuple(self.support))
         if not self.support:
             raise InvalidArgumentError("support must name at least one site or body")
@@ -59,18 +68,31 @@ class Tilt(Measure):
     name: str = "tilt"
     unit: str = "deg"
     label: str = "tilt"
-    body: str = "torso"
+    body: str = ""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_body(self)
 
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> float:
         zaxis = data.xmat[object_id(model, "body", self.body)].reshape(3, 3)[:, 2]
         return float(np.degrees(np.arccos(np.clip(zaxis[2], -1.0, 1.0))))
 
 
-def balance_measures(support: tuple[str, ...], body: str = "torso") -> tuple[Measure, ...]:
-    """The humanoid tasks' measures: :class:`ComDeviation` over ``support`` and :class:`Tilt`.
+def balance_measures(
+    support: tuple[str, ...], body: str, *, recovery_tilt: float | None = None
+) -> tuple[Measure, ...]:
+    """The legged tasks' measures: :class:`ComDeviation` over ``support`` and :class:`Tilt`.
 
     Args:
         support: Frames whose mean horizontal position is the support point.
         body: Root body (its subtree's center of mass and its tilt are measured).
+        recovery_tilt: With a tilt (deg), the tilt also reports its ``"settle_time"``: the
+            recovery time, after which the tilt stays within ``recovery_tilt`` (NaN when it
+            never does).
     """
-    return (ComDeviation(body=body, support=support), Tilt(body=body))
+    if recovery_tilt is None:
+        tilt = Tilt(body=body)
+    else:
+        tilt = Tilt(body=body, summaries=("rms", "settle_time"), tolerance=float(recovery_tilt))
+    return (ComDeviation(body=body, support=support), tilt)

@@ -1,0 +1,339 @@
+"""Balance of any legged robot on the feet it is given, by name."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, ClassVar
+
+import mujoco
+import numpy as np
+
+from mpcbox.controllers.lqr import LQRConfig
+from mpcbox.controllers.qp_mpc.config import QPMPCConfig
+from mpcbox.core.actuator_scales import UNITS, actuator_scales, to_control
+from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, CostTerm, StateCost
+from mpcbox.core.equilibrium import Equilibrium, find_equilibrium
+from mpcbox.core.model import (
+    ModelSource,
+    compile_spec,
+    free_body,
+    load_spec,
+    names,
+    object_id,
+)
+from mpcbox.core.problem import Problem
+from mpcbox.errors import InvalidArgumentError
+from mpcbox.sim.disturbances import ActuatorNoise
+from mpcbox.sim.effort_noise import effort_noise
+from mpcbox.sim.measures import Measure
+from mpcbox.tasks.legged.feet import Foot, find_feet
+from mpcbox.tasks.legged.measures import Tilt, balance_measures
+from mpcbox.validation import (
+    as_array,
+    as_weights,
+    finite,
+    finite_array,
+    non_negative,
+    one_of,
+    positive,
+)
+
+#: Name of the world site added at the middle of several feet (``support="center"``).
+FEET_CENTER = "feet_center"
+#: Where the center of mass is kept (see :class:`LeggedBalance`).
+SUPPORTS: tuple[str, ...] = ("center", "feet")
+
+
+def _root_body(model: mujoco.MjModel, root: str | None) -> int:
+    if root is not None:
+        return object_id(model, "body", root, "root")
+    body = free_body(model)
+    if body is None:
+        raise InvalidArgumentError(
+            "root: the model has no free joint, so no floating root body to balance; name "
+            f"the root body (bodies: {', '.join(names(model, 'body'))})"
+        )
+    return body
+
+
+def _weight(name: str, value: object) -> float | np.ndarray:
+    """A non-negative weight, or a 1-D array of them (its length is checked later)."""
+    if np.ndim(value) == 0 or isinstance(value, (str, bytes)):
+        return non_negative(name, value)
+    weights = finite_array(name, value, (None,))
+    if np.any(weights < 0):
+        raise InvalidArgumentError(f"{name} must be >= 0, got {weights.tolist()}")
+    return weights
+
+
+def _unique_name(
+    model: mujoco.MjModel, kind: mujoco.mjtObj, name: str, taken: Sequence[str] = ()
+) -> str:
+    candidate, i = name, 1
+    while mujoco.mj_name2id(model, kind, candidate) >= 0 or candidate in taken:
+        candidate, i = f"{name}_{i}", i + 1
+    return candidate
+
+
+class LeggedBalance(Problem):
+    r"""Keep any legged robot standing on the feet it is given.
+
+    The feet are sites, bodies or geoms, in any mix (:func:`~mpcbox.tasks.legged.feet.find_feet`:
+    a body or geom stands on the lowest points of its collision geoms, and a site is added
+    there so the cost and measures can follow it). The reference posture is the keyframe with
+    the root height adjusted until the contacts carry the weight; the control that holds it
+    comes through each actuator's model (:func:`~mpcbox.find_equilibrium`: torques for
+    motors, set-points for position servos).
+
+    Running cost, with :math:`c` the whole-body center of mass (the root's subtree) and
+    :math:`p` the support point:
+
+    .. math::
+        \tfrac12 w_b \|c_{xy} - p_{xy}\|^2 + \tfrac12 \|q \ominus q_{ref}\|^2_{W_q}
+        + \tfrac12 w_v \|v\|^2 + \tfrac12 \|u - u_{ref}\|^2_{W_u} ,
+
+    where :math:`W_q` is ``joint_cost`` on the joints and zero on the free root, and
+    :math:`W_u` is ``ctrl_cost`` in ``ctrl_units``: with ``"range"`` (the default) a control
+    deviation is measured as a fraction of the actuator's half range
+    (:mod:`mpcbox.core.actuator_scales`), so the same weight means the same on motors and
+    on position servos of any gain. With ``support="center"`` the support point is a
+    world-fixed site ``feet_center`` at the middle of the feet's soles in the keyframe (the
+    foot itself for one foot); with ``"feet"`` the cost keeps the center of mass over each
+    foot (weight ``w_b / n`` each, the same as over their moving mean up to a constant).
+
+    A run fails when the root body drops below ``fall_height`` or tilts by more than
+    ``fall_tilt``. The measures are the center
+    of mass over the support and the root's tilt
+    (:func:`~mpcbox.tasks.legged.measures.balance_measures`), and :meth:`noise` is the
+    robot-independent recipe :func:`~mpcbox.sim.effort_noise.effort_noise`.
+
+    Args:
+        model: The robot's MJCF with a floor (path, XML, spec, or ``"menagerie:NAME"``).
+        feet: Stance feet: site, body or geom names (prefix ``"site:"``, ``"body:"`` or
+            ``"geom:"`` to pick one kind).
+        root: Root body (default: the body of the free joint).
+        keyframe: Name or index of the standing keyframe (default: the first keyframe,
+            else ``qpos0``).
+        fall_height: The run fails when the root is lower than this (m); default
+            ``fall_fraction`` times the root's height in the reference posture.
+        fall_fraction: See ``fall_height``.
+        fall_tilt: The run also fails when the root tilts more than this many degrees from
+            its reference tilt (a robot thrown onto its side or back may keep its root
+            high); ``None``: height only.
+        support: ``"center"`` or ``"feet"`` (see above).
+        contacts: Contact geoms, bodies or sites for QP-MPC (default: each foot as given,
+            except a body foot standing on one point, such as a sphere: its sole site).
+        balance_cost: :math:`w_b` (per m²).
+        joint_cost: Weight of the joint deviations (per rad²), one or ``(nv,)`` per dof.
+        velocity_cost: :math:`w_v`.
+        ctrl_cost: Weight of the control deviations, one or ``(nu,)``, in ``ctrl_units``.
+        ctrl_units: ``"range"``, ``"torque"`` (per (N m)²) or ``"control"``.
+        noise_fraction: Noise standard deviation of :meth:`noise`, as a fraction of each
+            actuator's half range.
+        noise_torque: Instead, a torque (N m), one or ``(nu,)``.
+        recovery_tilt: The tilt measure also reports the recovery time (its
+            ``"settle_time"``): when the root's tilt is back within this many degrees of its
+            reference tilt for good. ``None`` leaves it out.
+        **kwargs: Passed to :class:`~mpcbox.Problem` (``planning_timestep``, ``qpos_ref``...).
+
+    Raises:
+        UnknownNameError: If a foot, the root or the keyframe does not exist (lists those
+            that do).
+        InvalidArgumentError: If the model has no free joint and no ``root`` is named, or an
+            option is out of range.
+    """
+
+    name = "legged_balance"
+    #: LQR, and QP-MPC with friction cones at the task's :attr:`contacts`.
+    controller_configs: ClassVar[dict[str, Any]] = {
+        "lqr": LQRConfig(),
+        "qp": QPMPCConfig(period=0.02, stance_weight=1e5),
+    }
+    equilibrium: Equilibrium | None = None
+
+    def __init__(
+        self,
+        model: ModelSource,
+        *,
+        feet: Sequence[str] | str,
+        root: str | None = None,
+        keyframe: str | int | None = None,
+        fall_height: float | None = None,
+        fall_fraction: float = 0.6,
+        fall_tilt: float | None = 60.0,
+        support: str = "center",
+        contacts: Sequence[str] | None = None,
+        balance_cost: float = 1000.0,
+        joint_cost: float | np.ndarray = 1.0,
+        velocity_cost: float = 0.0,
+        ctrl_cost: float | np.ndarray = 1.0,
+        ctrl_units: str = "range",
+        noise_fraction: float | np.ndarray | None = 0.05,
+        noise_torque: float | np.ndarray | None = None,
+        recovery_tilt: float | None = 2.0,
+        **kwargs: Any,
+    ) -> None:
+        self.support = one_of("support", support, SUPPORTS)
+        self.ctrl_units = one_of("ctrl_units", ctrl_units, UNITS)
+        self.fall_fraction = positive("fall_fraction", fall_fraction)
+        self.fall_height = None if fall_height is None else finite("fall_height", fall_height)
+        self.fall_tilt = None if fall_tilt is None else positive("fall_tilt", fall_tilt)
+        self.weights = dict(
+            balance=non_negative("balance_cost", balance_cost),
+            joint=_weight("joint_cost", joint_cost),
+            velocity=non_negative("velocity_cost", velocity_cost),
+            ctrl=_weight("ctrl_cost", ctrl_cost),
+        )
+        if noise_torque is not None:
+            noise_fraction = None
+        self.noise_fraction, self.noise_torque = noise_fraction, noise_torque
+        self.recovery_tilt = (
+            None if recovery_tilt is None else positive("recovery_tilt", recovery_tilt)
+        )
+
+        spec = load_spec(model)
+        base = compile_spec(spec)
+        if keyframe is None and base.nkey:
+            keyframe = 0
+        key = None if keyframe is None else object_id(base, "keyframe", keyframe, "keyframe")
+        qpos = base.qpos0 if key is None else base.key_qpos[key]
+        if kwargs.get("qpos_ref") is not None:
+            qpos = as_array("qpos_ref", kwargs["qpos_ref"], (base.nq,))
+        self.root_id = _root_body(base, root)
+        self.root = mujoco.mj_id2name(base, mujoco.mjtObj.mjOBJ_BODY, self.root_id) or ""
+        if not self.root:
+            raise InvalidArgumentError("root: the root body needs a name for the cost sensors")
+        self.feet: tuple[Foot, ...] = find_feet(base, feet, qpos)
+        self.foot_frames = self.add_sole_sites(spec, base)
+        self.contacts = self._contacts() if contacts is None else tuple(contacts)
+        self.support_points = self._add_support(spec, base, qpos)
+        super().__init__(spec, keyframe=key, **kwargs)
+
+    # ------------------------------------------------------------------ construction
+    def add_sole_sites(self, spec: mujoco.MjSpec, base: mujoco.MjModel) -> tuple[str, ...]:
+        """Add a site ``<name>_sole`` at each body or geom foot's sole to ``spec``.
+
+        Args:
+            spec: The spec the Problem is built from (changed in place).
+            base: ``spec`` compiled before the change.
+
+        Returns:
+            The frame (site or body name) of each foot that the cost and measures follow.
+        """
+        frames: list[str] = []
+        for foot in self.feet:
+            if foot.kind == "site":
+                frames.append(foot.name)
+                continue
+            name = _unique_name(base, mujoco.mjtObj.mjOBJ_SITE, f"{foot.name}_sole", frames)
+            body = spec.bodies[foot.body]  # the spec lists bodies in the model's order
+            body.add_site(name=name, pos=foot.sole.tolist())
+            frames.append(name)
+        return tuple(frames)
+
+    def _contacts(self) -> tuple[str, ...]:
+        """Each foot's contact: a site or geom foot itself; a body foot's sole site when
+        the sole is one point (a sphere), else all of the body's collision geoms."""
+        out = []
+        for foot, frame in zip(self.feet, self.foot_frames):
+            if foot.kind == "body" and foot.point and frame != foot.name:
+                out.append(f"site:{frame}")
+            else:
+                out.append(foot.contact)
+        return tuple(out)
+
+    def _add_support(
+        self, spec: mujoco.MjSpec, base: mujoco.MjModel, qpos: np.ndarray
+    ) -> tuple[str, ...]:
+        """The frames the center of mass is kept over (adds ``feet_center`` if needed)."""
+        if self.support == "feet" or len(self.feet) == 1:
+            return self.foot_frames
+        data = mujoco.MjData(base)
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(base, data)
+        soles = [foot.world(data) for foot in self.feet]
+        center = sum(soles[1:], soles[0]) / len(soles)
+        name = _unique_name(base, mujoco.mjtObj.mjOBJ_SITE, FEET_CENTER)
+        spec.worldbody.add_site(name=name, pos=[center[0], center[1], 0.0])
+        return (name,)
+
+    def prepare(self, model: mujoco.MjModel) -> None:
+        self.equilibrium = find_equilibrium(model, self.qpos_ref)
+        self.qpos_ref = self.equilibrium.qpos
+        self.ctrl_ref = self.equilibrium.ctrl
+        data = mujoco.MjData(model)
+        data.qpos[:] = self.qpos_ref
+        mujoco.mj_kinematics(model, data)
+        if self.fall_height is None:
+            self.fall_height = self.fall_fraction * float(data.xpos[self.root_id, 2])
+        #: The root's tilt in the reference posture (deg).
+        self.reference_tilt = Tilt(body=self.root).sample(model, data)
+
+    def joint_weights(self, model: mujoco.MjModel) -> np.ndarray:
+        """Per-dof posture weights ``(nv,)``: ``joint_cost``, zero on free joints (the root)."""
+        wq = as_weights("joint_cost", self.weights["joint"], model.nv).copy()
+        for j in range(model.njnt):
+            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+                adr = model.jnt_dofadr[j]
+                wq[adr : adr + 6] = 0.0
+        return wq
+
+    def ctrl_weights(self, model: mujoco.MjModel) -> np.ndarray:
+        """Per-actuator control weights ``(nu,)`` in control units (from ``ctrl_units``)."""
+        scales = actuator_scales(model, self.qpos_ref)
+        return to_control(scales, self.weights["ctrl"], self.ctrl_units, power=-2, name="ctrl_cost")
+
+    def balance_terms(self) -> list[CostTerm]:
+        """The center of mass over the support point (or over each foot)."""
+        w, frames = self.weights["balance"], self.support_points
+        if len(frames) == 1:
+            return [ComOverSupport(frames[0], weight=w, root=self.root, name="balance")]
+        return [
+            ComOverSupport(frame, weight=w / len(frames), root=self.root, name=f"balance_{i}")
+            for i, frame in enumerate(frames)
+        ]
+
+    def build_cost(self, model: mujoco.MjModel) -> Cost:
+        w = self.weights
+        return Cost(
+            [
+                *self.balance_terms(),
+                StateCost(
+                    self.qpos_ref, weight_qpos=self.joint_weights(model), weight_qvel=w["velocity"]
+                ),
+                ControlCost(self.ctrl_ref, weight=self.ctrl_weights(model)),
+            ]
+        )
+
+    # ------------------------------------------------------------------ monitoring
+    def failure(self, model: mujoco.MjModel, data: mujoco.MjData) -> str | None:
+        reason = super().failure(model, data)
+        if reason is None and data.xpos[self.root_id, 2] < self.fall_height:
+            reason = f"fell: {self.root} below {self.fall_height:.3g} m"
+        if reason is None and self.fall_tilt is not None:
+            tilt = float(np.degrees(np.arccos(np.clip(data.xmat[self.root_id, 8], -1.0, 1.0))))
+            if abs(tilt - self.reference_tilt) > self.fall_tilt:
+                reason = f"fell: {self.root} tilted {tilt:.0f} deg"
+        return reason
+
+    def support_frames(self) -> tuple[str, ...]:
+        """Sites or bodies whose mean horizontal position is the support point."""
+        return self.support_points
+
+    def measures(self) -> tuple[Measure, ...]:
+        """COM deviation from the support point (m) and the root's tilt (deg), with its
+        recovery time when ``recovery_tilt`` is set."""
+        recovery = None if self.recovery_tilt is None else self.reference_tilt + self.recovery_tilt
+        return balance_measures(self.support_frames(), body=self.root, recovery_tilt=recovery)
+
+    def noise(self, scale: float = 1.0) -> ActuatorNoise:
+        """The robot-independent noise recipe: ``noise_fraction`` of each actuator's half
+        range, or ``noise_torque``, read at the reference posture
+        (:func:`~mpcbox.sim.effort_noise.effort_noise`)."""
+        return effort_noise(
+            self.model,
+            self.qpos_ref,
+            fraction=self.noise_fraction,
+            torque=self.noise_torque,
+            scale=scale,
+        )

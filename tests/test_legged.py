@@ -1,0 +1,250 @@
+"""LeggedBalance on robots nobody here wrote, robot-independent actuator units, and postures.
+
+dm_control's quadruped (general actuators with filter dynamics, acting through tendons,
+and feet that are a site, a body and a sphere geom all named ``toe_*``) runs anywhere
+dm_control is installed; Menagerie's Go1 and A1 (position servos) need ``MENAGERIE_ROOT``.
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+import warnings
+
+import mujoco
+import numpy as np
+import pytest
+
+import mpcbox
+from mpcbox.core.actuation import actuator_moment
+from mpcbox.core.actuator_scales import actuator_scales, to_control
+from mpcbox.core.posture import stance_posture
+from mpcbox.errors import InvalidArgumentError, PostureWarning, SolverError, UnknownNameError
+from mpcbox.sim.effort_noise import effort_noise
+from mpcbox.tasks import scene_path
+from mpcbox.tasks.humanoid.noise import balance_noise
+from mpcbox.tasks.legged.balance import FEET_CENTER, LeggedBalance
+
+TOES = ("front_left", "front_right", "back_right", "back_left")
+
+
+def dm_quadruped() -> mujoco.MjSpec:
+    """dm_control's quadruped without the ball that drops on it from 3 m."""
+    suite = pytest.importorskip("dm_control.suite")
+    spec = mujoco.MjSpec.from_file(str(pathlib.Path(suite.__file__).parent / "quadruped.xml"))
+    spec.delete(spec.body("ball"))
+    return spec
+
+
+def quadruped(**kwargs) -> LeggedBalance:
+    # The toes stand in for the four kinds of name: a site (unprefixed names are looked up
+    # as a site first), a body, a geom, and a prefixed site. The hip-knee-ankle coupling is
+    # an equality constraint that inverse dynamics does not load at the reference, so the
+    # equilibrium warns that the actuators alone fall short there.
+    feet = ("toe_front_left", "body:toe_front_right", "geom:toe_back_right", "site:toe_back_left")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", mpcbox.errors.EquilibriumWarning)
+        return LeggedBalance(dm_quadruped(), feet=feet, threads=1, **kwargs)
+
+
+@pytest.fixture(scope="module")
+def quad() -> LeggedBalance:
+    return quadruped()
+
+
+def test_feet_by_site_body_or_geom_stand_on_the_sphere_bottoms(quad) -> None:
+    assert [f.kind for f in quad.feet] == ["site", "body", "geom", "site"]
+    assert quad.root == "torso"
+    data = mujoco.MjData(quad.model)
+    data.qpos[:] = quad.qpos_ref
+    mujoco.mj_kinematics(quad.model, data)
+    for foot, frame, side in zip(quad.feet, quad.foot_frames, TOES):
+        geom = quad.model.geom(f"toe_{side}")
+        bottom = data.geom_xpos[geom.id] - np.array([0.0, 0.0, geom.size[0]])
+        position = mpcbox.core.model.frame_position(quad.model, data, frame)
+        if foot.kind == "site":  # the site sits at the sphere's center
+            np.testing.assert_allclose(position, data.geom_xpos[geom.id], atol=1e-12)
+        else:  # a sole site added at the bottom of the sphere
+            assert frame == f"toe_{side}_sole"
+            np.testing.assert_allclose(position, bottom, atol=1e-9)
+            assert abs(position[2]) < 5e-3  # on the floor, up to the contact's softness
+    # Sites and geoms are their own contacts; a body standing on one sphere, its sole site.
+    assert quad.contacts == (
+        "site:toe_front_left",
+        "site:toe_front_right_sole",
+        "geom:toe_back_right",
+        "site:toe_back_left",
+    )
+    center = data.site_xpos[quad.model.site(FEET_CENTER).id]
+    assert quad.support_frames() == (FEET_CENTER,) and center[2] == 0.0
+
+
+def test_fall_height_comes_from_the_reference_root_height(quad) -> None:
+    data = mujoco.MjData(quad.model)
+    data.qpos[:] = quad.qpos_ref
+    mujoco.mj_kinematics(quad.model, data)
+    assert quad.fall_height == pytest.approx(0.6 * data.xpos[quad.root_id, 2])
+    assert quadruped(fall_height=0.2).fall_height == 0.2
+
+
+def test_generic_units_on_tendon_actuators_with_filter_dynamics(quad) -> None:
+    # No force range: the half range is half the control range; the noise recipe is a
+    # fraction of it, and the control weights are per squared fraction of it.
+    half = 0.5 * np.diff(quad.model.actuator_ctrlrange, axis=1)[:, 0]
+    np.testing.assert_allclose(quad.noise().std, 0.05 * half)
+    np.testing.assert_allclose(quad.cost.running[-1].weight, 1.0 / half**2)
+    scales = actuator_scales(quad.model, quad.qpos_ref)
+    # Torque per unit control: the gain (1000) times the largest moment arm (joint gear or
+    # tendon coefficient), read from MuJoCo's actuator moment matrix.
+    data = mujoco.MjData(quad.model)
+    data.qpos[:] = quad.qpos_ref
+    mujoco.mj_forward(quad.model, data)
+    arm = np.max(np.abs(actuator_moment(quad.model, data)), axis=1)
+    np.testing.assert_allclose(scales.torque_per_ctrl, 1000.0 * arm, rtol=1e-9)
+
+
+def test_lqr_keeps_the_dm_control_quadruped_up_under_the_generic_noise(quad) -> None:
+    res = mpcbox.simulate(quad, mpcbox.LQR(quad), 2.0, noise=quad.noise(), seed=0)
+    assert res.survived, res.failure
+    assert res.metrics.measures["tilt_rms_deg"] < 2.0
+    assert "tilt_settle_time_s" in res.metrics.measures
+    # A hard sideways shove throws it over, and the tilt criterion says so.
+    shove = mpcbox.Push(force=(0.0, 6000.0, 0.0), start=0.2, duration=0.1, body="torso")
+    res = mpcbox.simulate(quad, mpcbox.LQR(quad), 2.0, pushes=[shove])
+    assert not res.survived and "fell" in res.failure
+
+
+def test_unknown_names_list_what_exists() -> None:
+    spec = dm_quadruped()
+    with pytest.raises(UnknownNameError, match="toe_front_left") as err:
+        LeggedBalance(spec, feet=["toe_front_lfet"])
+    assert "geom:toe_back_left" in str(err.value) and "body:torso" in str(err.value)
+    with pytest.raises(UnknownNameError, match=r"geom.*'toe_front_left'"):
+        LeggedBalance(spec, feet=["geom:toe_nope"])
+    with pytest.raises(UnknownNameError, match="'torso'"):
+        LeggedBalance(spec, feet=["toe_front_left"], root="trunk")
+    with pytest.raises(UnknownNameError, match="keyframe 'stand'"):
+        LeggedBalance(spec, feet=["toe_front_left"], keyframe="stand")
+    with pytest.raises(InvalidArgumentError, match="support"):
+        LeggedBalance(spec, feet=["toe_front_left"], support="middle")
+
+
+def test_a_fixed_base_needs_a_named_root() -> None:
+    xml = """<mujoco><worldbody><geom type="plane" size="1 1 .1"/>
+      <body name="leg" pos="0 0 .5"><joint name="j" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0 0 -.4" size=".03"/></body></worldbody>
+      <actuator><motor joint="j"/></actuator></mujoco>"""
+    with pytest.raises(InvalidArgumentError, match=r"no free joint.*leg"):
+        LeggedBalance(xml, feet=["leg"])
+
+
+# ---------------------------------------------------------------- robot-independent units
+SERVO = """<mujoco><worldbody><body name="{body}"><freejoint/><geom size=".1"/>
+  <body><joint name="{a}" axis="0 1 0"/><geom size=".05" pos="0 0 -.2"/></body>
+  <body><joint name="{b}" axis="1 0 0"/><geom size=".05" pos="0 0 -.2"/></body>
+  <body><joint name="c" axis="1 0 0"/><geom size=".05" pos="0 0 -.2"/></body></body>
+  </worldbody><actuator>
+  <position joint="{a}" name="{a}" kp="50" forcerange="-10 10" ctrlrange="-2 2"/>
+  <position joint="{b}" name="{b}" kp="400" ctrlrange="-0.01 0.01"/>
+  <motor joint="c" name="c" gear="30"/></actuator></mujoco>"""
+
+
+def test_units_through_gain_and_range_not_names() -> None:
+    model = mujoco.MjModel.from_xml_string(SERVO.format(body="torso", a="a", b="b"))
+    qpos = model.qpos0
+    scales = actuator_scales(model, qpos)
+    np.testing.assert_allclose(scales.torque_per_ctrl, [50.0, 400.0, 30.0])
+    # Servo a: its force range (10 N m through kp 50) is narrower than its control range.
+    np.testing.assert_allclose(scales.half_range[:2], [0.2, 0.01])
+    assert scales.half_range[2] == np.inf  # an unlimited motor
+    np.testing.assert_allclose(effort_noise(model, qpos, torque=2.0).std, [0.04, 0.005, 2 / 30])
+    with pytest.raises(InvalidArgumentError, match=r"range is undefined.*\['c'\]"):
+        effort_noise(model, qpos, fraction=0.1)
+    servos = scales._replace(
+        torque_per_ctrl=scales.torque_per_ctrl[:2],
+        half_range=scales.half_range[:2],
+        names=scales.names[:2],
+    )
+    np.testing.assert_allclose(to_control(servos, 0.1, "range"), [0.02, 0.001])
+    np.testing.assert_allclose(to_control(servos, 1.0, "range", power=-2), [25.0, 1e4])
+    np.testing.assert_allclose(to_control(scales, 2.0, "torque", power=-2), [5000, 320000, 1800])
+    # The same robot with the humanoid recipe's favourite substrings in its names.
+    renamed = SERVO.format(body="abdomen", a="left_hip_y", b="right_knee")
+    std = effort_noise(mujoco.MjModel.from_xml_string(renamed), qpos, torque=2.0).std
+    np.testing.assert_array_equal(std, effort_noise(model, qpos, torque=2.0).std)
+
+
+def test_published_humanoid_recipe_is_a_fraction_of_range_special_case() -> None:
+    # Every motor of the humanoid scene has ctrlrange [-1, 1]: the recipe's 0.01 and 0.08
+    # are 1 % and 8 % of each actuator's half range, chosen by joint name.
+    model = mujoco.MjModel.from_xml_path(str(scene_path("humanoid.xml")))
+    recipe = balance_noise(model, stance="left")
+    fractions = np.where(np.asarray(recipe.std) == 0.01, 0.01, 0.08)
+    qpos = model.key_qpos[0]
+    np.testing.assert_array_equal(effort_noise(model, qpos, fraction=fractions).std, recipe.std)
+
+
+# ---------------------------------------------------------------- postures
+def test_stance_posture_reports_self_collision() -> None:
+    model = mujoco.MjModel.from_xml_path(str(scene_path("humanoid.xml")))
+    start = model.key_qpos[model.key("stand").id].copy()
+    for joint, value in (("shoulder1_right", -0.254), ("shoulder2_right", 0.768)):
+        start[model.jnt_qposadr[model.joint(joint).id]] = value
+    start[model.jnt_qposadr[model.joint("elbow_right").id]] = 0.712  # hand in the head
+    kw = dict(stance="foot_right", swing="foot_left")
+    with pytest.warns(PostureWarning, match="self-collision.*head"):
+        posture = stance_posture(model, start, **kw)
+    assert any("head" in pair for pair in posture.collisions)
+    with pytest.raises(SolverError, match="head"):
+        stance_posture(model, start, on_collision="raise", **kw)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert stance_posture(model, start, on_collision="ignore", **kw).collisions
+        free = stance_posture(model, model.key_qpos[model.key("stand").id], **kw)
+    assert free.collisions == ()
+
+
+# ---------------------------------------------------------------- Menagerie quadrupeds
+def _menagerie(robot: str) -> None:
+    from mpcbox.core import menagerie
+
+    if not (os.environ.get("MENAGERIE_ROOT") and menagerie.available(robot)):
+        pytest.skip(f"no offline Menagerie copy with {robot} (set MENAGERIE_ROOT)")
+
+
+@pytest.mark.menagerie
+@pytest.mark.parametrize(
+    ("robot", "contact", "limits"),
+    [
+        ("unitree_go1", "geom:FR", [23.7, 23.7, 35.55]),
+        ("unitree_a1", "site:FR_calf_sole", [33.5, 33.5, 33.5]),
+    ],
+)
+def test_lqr_stands_a_menagerie_quadruped_under_the_generic_noise(robot, contact, limits):
+    from mpcbox.tasks.legged.quadruped import QuadrupedStand
+
+    _menagerie(robot)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # visual meshes missing offline
+        problem = QuadrupedStand(f"menagerie:{robot}", threads=1)
+    assert problem.contacts[0] == contact and problem.root == "trunk"
+    # Position servos (kp 100): the recipe's 5 % of the force range, as set-points.
+    np.testing.assert_allclose(problem.noise().std[:3], 0.05 * np.array(limits) / 100.0)
+    res = mpcbox.simulate(problem, mpcbox.LQR(problem), 3.0, noise=problem.noise(), seed=1)
+    assert res.metrics.success, res.failure
+    assert res.metrics.measures["tilt_rms_deg"] < 1.0
+
+
+@pytest.mark.menagerie
+def test_qp_mpc_stands_the_go1_on_four_friction_cones():
+    from mpcbox.tasks.legged.quadruped import QuadrupedStand
+
+    _menagerie("unitree_go1")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        problem = QuadrupedStand(threads=1)
+    qp = mpcbox.make_controller("qp", problem)
+    assert qp.points.count == 4
+    res = mpcbox.simulate(problem, qp, 1.0, noise=problem.noise(), seed=0)
+    assert res.survived, res.failure
+    assert res.metrics.fallbacks <= 0.01 * res.metrics.solve_ticks
