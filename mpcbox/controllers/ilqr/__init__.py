@@ -4,6 +4,8 @@
 - :mod:`~mpcbox.controllers.ilqr.backward_pass`: the Riccati recursion with box-QP
   feed-forward (:mod:`~mpcbox.controllers.ilqr.boxqp`).
 - :mod:`~mpcbox.controllers.ilqr.forward_pass`: closed-loop rollouts and the line search.
+- :mod:`~mpcbox.controllers.ilqr.multiple_shooting`: FDDP-style multiple shooting from a
+  state-trajectory guess (defects closed during the iterations).
 - :mod:`~mpcbox.controllers.ilqr.solver`: :class:`ILQRSolver`, the offline iterations.
 - :mod:`~mpcbox.controllers.ilqr.result`: :class:`ILQRResult`, :class:`Timing` and
   :class:`StopReason`.
@@ -20,6 +22,11 @@ from mpcbox.controllers.ilqr.backward_pass import (
 from mpcbox.controllers.ilqr.boxqp import BoxQPResult, solve_box_qp
 from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.ilqr.controller import ILQR
+from mpcbox.controllers.ilqr.multiple_shooting import (
+    GappedRollout,
+    optimize_multiple_shooting,
+    straight_line_states,
+)
 from mpcbox.controllers.ilqr.result import ILQRResult, StopReason, Timing
 from mpcbox.controllers.ilqr.solver import ILQRSolver
 
@@ -27,6 +34,7 @@ __all__ = [
     "ILQR",
     "BackwardPass",
     "BoxQPResult",
+    "GappedRollout",
     "ILQRConfig",
     "ILQRResult",
     "ILQRSolver",
@@ -34,5 +42,7 @@ __all__ = [
     "Timing",
     "backward_pass",
     "interpolate_linearization",
+    "optimize_multiple_shooting",
     "solve_box_qp",
+    "straight_line_states",
 ]

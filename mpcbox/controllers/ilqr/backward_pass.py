@@ -70,6 +70,47 @@ def interpolate_linearization(
     return Linearization((1 - w) * A[seg] + w * A[seg + 1], (1 - w) * B[seg] + w * B[seg + 1])
 
 
+def _scalar_box_step(
+    quu_reg: np.ndarray,
+    qu: np.ndarray,
+    qux: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
+    t: int,
+) -> tuple[np.ndarray, np.ndarray, bool]:
+    r"""Feed-forward, gain and freedom of one control (``nu = 1``) under box limits.
+
+    The one-dimensional box QP :math:`\min_{dk} \tfrac12 h\,dk^2 + q_u dk` over
+    :math:`[lo, hi]` has the solution :math:`\mathrm{clip}(-q_u / h, lo, hi)`; the control is
+    free (gain :math:`-Q_{ux} / h`) when the unconstrained minimizer is inside, clamped (gain
+    0) otherwise. This is what :func:`~mpcbox.controllers.ilqr.boxqp.solve_box_qp` returns
+    for ``n = 1``, computed with the same ``numpy.linalg.solve`` calls (so the same bits)
+    but without its general machinery, which dominated the backward pass of single-input
+    problems (about 100 us per knot).
+
+    Args:
+        quu_reg: Regularized :math:`Q_{uu}` ``(1, 1)``.
+        qu: :math:`Q_u` ``(1,)``.
+        qux: :math:`Q_{ux}` ``(1, nx)``.
+        low: Lower bound of the control change ``(1,)``.
+        high: Upper bound ``(1,)``.
+        t: Knot index, for the error message.
+
+    Returns:
+        ``k`` ``(1,)``, ``K`` ``(1, nx)`` and whether the control is free.
+
+    Raises:
+        SolverError: If :math:`Q_{uu} + \mu` is not positive (or not finite).
+    """
+    h = quu_reg[0, 0]
+    if not (np.isfinite(h) and h > 0.0):
+        raise SolverError(f"Q_uu is not positive definite at knot {t}")
+    k = -np.linalg.solve(quu_reg, qu)
+    if low[0] <= k[0] <= high[0]:
+        return k, -np.linalg.solve(quu_reg, qux), True
+    return np.clip(k, low, high), np.zeros_like(qux), False
+
+
 def backward_pass(
     lin: Linearization,
     quad: Quadratization,
@@ -78,6 +119,7 @@ def backward_pass(
     ctrl_high: np.ndarray,
     regularization: float,
     k_init: np.ndarray | None = None,
+    gaps: np.ndarray | None = None,
 ) -> BackwardPass:
     r"""Riccati recursion with box-constrained feed-forward (see the module docstring).
 
@@ -89,6 +131,11 @@ def backward_pass(
         ctrl_high: Upper control bounds ``(nu,)``.
         regularization: :math:`\mu \ge 0` added to the diagonal of :math:`Q_{uu}`.
         k_init: Warm start of the box QPs ``(T, nu)``.
+        gaps: Defects ``(T, nx)`` of a multiple-shooting trajectory, ``gaps[t] =
+            f(x_t, u_t) ⊖ x_{t+1}``; the linear model is then
+            :math:`dx_{t+1} = A_t dx_t + B_t du_t + f_t`, so the value gradient seen from knot
+            ``t`` is :math:`V_x + V_{xx} f_t` (FDDP, Mastalli et al. 2020). ``None``: no
+            defects (single shooting).
 
     Returns:
         A :class:`BackwardPass`.
@@ -109,6 +156,8 @@ def backward_pass(
     eye = regularization * np.eye(nu)
     for t in range(horizon - 1, -1, -1):
         At, Bt = A[t], B[t]
+        if gaps is not None:
+            vx = vx + vxx @ gaps[t]
         vxx_b = vxx @ Bt
         qx = quad.lx[t] + At.T @ vx
         qu = quad.lu[t] + Bt.T @ vx
@@ -117,7 +166,11 @@ def backward_pass(
         qux = quad.lux[t] + vxx_b.T @ At
         quu = 0.5 * (quu + quu.T)
         quu_reg = quu + eye
-        if limited:
+        if limited and nu == 1:
+            kt, Kt, free[t] = _scalar_box_step(
+                quu_reg, qu, qux, ctrl_low - ctrls[t], ctrl_high - ctrls[t], t
+            )
+        elif limited:
             res = solve_box_qp(
                 quu_reg,
                 qu,

@@ -72,6 +72,15 @@ class ILQRConfig:
         ctrl_low: Lower control bounds ``(nu,)`` (default and outer limit: the Problem's).
         ctrl_high: Upper control bounds ``(nu,)``.
         ctrls_init: Initial control guess ``(T, nu)`` or ``(nu,)`` (default ``ctrl_ref``).
+        states_init: Initial state guess ``(T + 1, nstate)`` of the first solve: multiple
+            shooting (:mod:`~mpcbox.controllers.ilqr.multiple_shooting`, FDDP), whose defects
+            between shooting nodes are closed during the iterations. ``None``: single
+            shooting from ``ctrls_init``.
+        defect_tolerance: Largest defect (tangent-space max norm) that counts as closed.
+        warm_start_states: In receding-horizon mode, warm-start each replan with the shifted
+            plan's states as well as its controls (multiple shooting from the measured state;
+            the defect at the first node is the prediction error). Off: the shifted
+            controls are rolled out from the measured state (single shooting).
         threads: Threads for derivatives and parallel line search (default: the Problem's).
         planning_timestep: Plan on a copy of the Problem whose planning model has this
             timestep (:meth:`~mpcbox.Problem.with_planning_timestep`); default: ``problem.dt``.
@@ -104,6 +113,9 @@ class ILQRConfig:
     ctrl_low: np.ndarray | None = None
     ctrl_high: np.ndarray | None = None
     ctrls_init: np.ndarray | None = None
+    states_init: np.ndarray | None = None
+    defect_tolerance: float = 1e-8
+    warm_start_states: bool = False
     threads: int | None = None
     planning_timestep: float | None = None
     terminal_value: TerminalValue | None = None
@@ -124,6 +136,10 @@ class ILQRConfig:
         if self.planning_timestep is not None:
             put("planning_timestep", positive("planning_timestep", self.planning_timestep))
         put("feedback", boolean("feedback", self.feedback))
+        put("warm_start_states", boolean("warm_start_states", self.warm_start_states))
+        put("defect_tolerance", positive("defect_tolerance", self.defect_tolerance))
+        if self.states_init is not None:
+            put("states_init", finite_array("states_init", self.states_init, (None, None)))
         if self.fd_centered is not None:
             put("fd_centered", boolean("fd_centered", self.fd_centered))
         self._check_regularization()

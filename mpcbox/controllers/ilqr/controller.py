@@ -2,9 +2,11 @@ r"""iLQR as a receding-horizon controller: replan from the measured state, feedb
 
 Every ``replan_period`` seconds the controller shifts the previous solution in time, runs
 ``mpc_iterations`` iterations of :class:`~mpcbox.controllers.ilqr.solver.ILQRSolver` from the
-measured state, and in between (when ``feedback`` is on and the simulation calls it every
-step) applies :math:`u = u_i + K_i\,(x \ominus \bar x(t))` with the nominal state
-interpolated at the time elapsed since the replan.
+measured state (the first from the config's ``states_init`` by multiple shooting when given,
+and every one from the shifted plan's states too when ``warm_start_states`` is on), and in
+between (when ``feedback`` is on and the simulation calls it every step) applies
+:math:`u = u_i + K_i\,(x \ominus \bar x(t))` with the nominal state interpolated at the
+time elapsed since the replan.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import numpy as np
 
 from mpcbox.controllers.base import Controller
 from mpcbox.controllers.ilqr.config import ILQRConfig
+from mpcbox.controllers.ilqr.multiple_shooting import optimize_multiple_shooting
 from mpcbox.controllers.ilqr.result import ILQRResult, Timing
 from mpcbox.controllers.ilqr.solver import ILQRSolver
 from mpcbox.core.problem import Problem
@@ -92,6 +95,17 @@ class ILQR(ILQRSolver, Controller):
             out[:, j] = np.interp(new_t, old_t, plan.ctrls[:, j])
         return out
 
+    def _shifted_states(self, time: float, state: np.ndarray) -> np.ndarray:
+        """The plan's states shifted by the whole knots elapsed, padded with its last state;
+        the first is the measured ``state``."""
+        plan = self._last_result
+        assert plan is not None
+        shift = round((time - self._plan_time) / self.problem.dt)
+        index = np.minimum(np.arange(self.horizon + 1) + shift, self.horizon)
+        out = plan.states[index].copy()
+        out[0] = state
+        return out
+
     def _feedback(self, state: np.ndarray, time: float) -> np.ndarray:
         plan, dt, p = self._last_result, self.problem.dt, self.problem
         assert plan is not None
@@ -132,8 +146,17 @@ class ILQR(ILQRSolver, Controller):
             iters = cfg.effective_first_iterations if first else cfg.mpc_iterations
             if first and iters > cfg.mpc_iterations:
                 self.last_call = "offline"  # the warm-up solve a real robot does beforehand
+            if first:
+                guess = self.states_init
+            else:
+                guess = self._shifted_states(time, state) if cfg.warm_start_states else None
             try:
-                result = self._optimize(state, warm, iters, self._regularization, None)
+                if guess is None:
+                    result = self._optimize(state, warm, iters, self._regularization, None)
+                else:
+                    result = optimize_multiple_shooting(
+                        self, state, guess, warm, iters, self._regularization
+                    )
             except MpcboxError:
                 result = None
             if result is None:

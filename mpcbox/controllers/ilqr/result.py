@@ -94,6 +94,9 @@ class ILQRResult(NamedTuple):
         status: Why the solver stopped, in words (for example ``"converged (relative
             decrease)"`` or ``"regularization limit (line search)"``).
         stop_reason: Why the solver stopped, a :class:`StopReason`.
+        defect: Largest defect ``max |F(x_t, u_t) ⊖ x_{t+1}|`` left between shooting nodes
+            of a multiple-shooting solve (a ``states_init`` guess); 0 for a feasible
+            trajectory. A solve with defects above ``defect_tolerance`` is not converged.
     """
 
     states: np.ndarray
@@ -109,6 +112,7 @@ class ILQRResult(NamedTuple):
     timing: Timing
     status: str
     stop_reason: StopReason
+    defect: float = 0.0
 
 
 __all__ = ["ILQRResult", "StopReason", "Timing"]

@@ -20,11 +20,12 @@ from mpcbox.controllers.base import check_problem
 from mpcbox.controllers.ilqr.backward_pass import backward_pass, interpolate_linearization
 from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.ilqr.forward_pass import Candidate, ClosedLoopRollout, line_search
+from mpcbox.controllers.ilqr.multiple_shooting import optimize_multiple_shooting
 from mpcbox.controllers.ilqr.result import ILQRResult, StopReason, Timing
 from mpcbox.core.divergence import check_planning_step
 from mpcbox.core.problem import Linearization, Problem, Quadratization
 from mpcbox.errors import DivergenceError, InvalidArgumentError, SolverError
-from mpcbox.validation import as_array, positive_int
+from mpcbox.validation import as_array, finite_array, positive_int
 
 #: Random directions (each tried with both signs) of the saddle probe at a stationary point.
 PROBES = 4
@@ -48,13 +49,15 @@ class ILQRSolver:
         ctrl_low: Lower control bounds ``(nu,)``, inside the Problem's.
         ctrl_high: Upper control bounds ``(nu,)``.
         ctrls_init: Default initial guess ``(T, nu)``.
+        states_init: Default state guess ``(T + 1, nstate)`` or ``None`` (single shooting).
         threads: Threads for derivatives and the parallel line search.
 
     Raises:
         InvalidTypeError: If ``problem`` is not a Problem or ``config`` not an ILQRConfig.
         UnknownOptionError: For an option that is not a config field; it lists the valid ones.
         InvalidArgumentError: Naming the option, for a value out of range.
-        ShapeError: If ``ctrl_low``, ``ctrl_high`` or ``ctrls_init`` has the wrong shape.
+        ShapeError: If ``ctrl_low``, ``ctrl_high``, ``ctrls_init`` or ``states_init`` has the
+            wrong shape.
         PlanningDivergenceError: If the planning model diverges at its timestep
             (:func:`~mpcbox.core.divergence.check_planning_step`).
     """
@@ -78,6 +81,9 @@ class ILQRSolver:
         self.threads = problem.threads if cfg.threads is None else cfg.threads
         self.ctrl_low, self.ctrl_high = _control_bounds(problem, cfg)
         self.ctrls_init = self._initial_ctrls(cfg.ctrls_init)
+        self.states_init = (
+            None if cfg.states_init is None else self._initial_states(cfg.states_init)
+        )
         self._rollout = ClosedLoopRollout(problem, self.ctrl_low, self.ctrl_high)
         self._knots = np.unique(
             np.r_[np.arange(0, self.horizon, cfg.linearize_every), self.horizon - 1]
@@ -98,6 +104,10 @@ class ILQRSolver:
         if not np.all(np.isfinite(ctrls)):
             raise InvalidArgumentError(f"{name} must be finite")
         return np.clip(ctrls, self.ctrl_low, self.ctrl_high)
+
+    def _initial_states(self, states: np.ndarray) -> np.ndarray:
+        shape = (self.horizon + 1, self.problem.nstate)
+        return finite_array("states_init", states, shape).copy()
 
     def _forward(
         self,
@@ -144,6 +154,7 @@ class ILQRSolver:
         x0: np.ndarray,
         ctrls_init: np.ndarray | None = None,
         *,
+        states_init: np.ndarray | None = None,
         max_iterations: int | None = None,
         regularization: float | None = None,
     ) -> ILQRResult:
@@ -153,6 +164,10 @@ class ILQRSolver:
             x0: Start state ``(nstate,)``.
             ctrls_init: Initial controls ``(T, nu)`` or ``(nu,)`` (default: the config's
                 ``ctrls_init``, else ``ctrl_ref``).
+            states_init: State guess ``(T + 1, nstate)`` (default: the config's
+                ``states_init``): solve by multiple shooting
+                (:func:`~mpcbox.controllers.ilqr.multiple_shooting.optimize_multiple_shooting`);
+                ``states_init[0]`` is replaced by ``x0``. ``None``: single shooting.
             max_iterations: Overrides the iteration cap.
             regularization: Overrides the initial :math:`\\mu`.
 
@@ -161,7 +176,7 @@ class ILQRSolver:
             raised) when the solver stalls; ``stop_reason`` says why it stopped.
 
         Raises:
-            ShapeError: If ``x0`` or ``ctrls_init`` has the wrong shape.
+            ShapeError: If ``x0``, ``ctrls_init`` or ``states_init`` has the wrong shape.
             DivergenceError: If ``x0`` is not finite or even the initial guess and ``ctrl_ref``
                 roll out to non-finite states.
         """
@@ -176,7 +191,10 @@ class ILQRSolver:
             else positive_int("max_iterations", max_iterations)
         )
         reg = self.config.regularization if regularization is None else float(regularization)
-        return self._optimize(x0, ctrls, iters, reg, None)
+        states = self.states_init if states_init is None else self._initial_states(states_init)
+        if states is None:
+            return self._optimize(x0, ctrls, iters, reg, None)
+        return optimize_multiple_shooting(self, x0, states, ctrls, iters, reg)
 
     def _optimize(
         self, x0: np.ndarray, ctrls: np.ndarray, iters: int, reg: float, k_warm: np.ndarray | None

@@ -97,7 +97,16 @@ class DmAcrobotSwingup(Swingup):
 
     Not yet solved: the tuned iLQR-MPC and MPPI pump energy but settle into a local minimum
     of this cost, one link up and the other down, and do not reach the target within 5 s
-    (``benchmarks/swingup_dm_control.py``).
+    (``benchmarks/swingup_dm_control.py``). A state guess does not help either: offline iLQR
+    by multiple shooting (``states_init``, FDDP style) from a straight line hanging -> upright
+    over 4 s converges to cost 42409 with the tip 1.96 m from the target, the same optimum
+    that IPOPT finds from the same guess (42409, 1.96 m); over 3, 5 and 8 s, with arrival at
+    60-100 % of the horizon, with an LQR terminal value, or from a growing-swing state guess
+    or sinusoidal control guesses, the tip ends 1.2-2.7 m away. An energy-pumping feedback
+    rollout (``u = clip(a sign(v1) cos(q2) + b v2 + c q2)``, whose tip comes within 0.68 m of
+    the target after 5.8 s) as state and control guess over 6-7 s ends 0.6-2.1 m away after
+    iLQR stops on short steps. Within this cost the swing-up still needs a better guess or
+    another method.
 
     Args:
         **kwargs: Passed to :class:`~mpcbox.tasks.swingup.task.Swingup`.
