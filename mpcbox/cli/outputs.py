@@ -173,27 +173,13 @@ def _plain(value: Any) -> bool:
 
 
 def _single_run(result, problem, task, options, saved, video) -> list[Path]:
-    from mpcbox.sim.trajectory import make_trajectory, save_trajectory
+    from mpcbox.comparison.records import run_trajectory
+    from mpcbox.sim.trajectory import save_trajectory
 
     run = next((r for r in result.runs if r.trace is not None), None)
     if run is None or run.trace.states is None:
         raise InvalidArgumentError("the run kept no trajectory to save or render")
-    scenario = result.scenarios[run.scenario]
-    trace = run.trace
-    traj = make_trajectory(
-        problem,
-        controller=run.controller,
-        time=trace.time,
-        states=trace.states,
-        ctrls=trace.ctrls,
-        series=trace.series,
-        failure=run.failure,
-        pushes=scenario.pushes,
-        mismatch=scenario.mismatch,
-        noise=scenario.resolve_noise(problem),
-        seed=run.seed,
-        metadata={"task": task, "task_options": dict(options), "scenario": scenario.label},
-    )
+    traj = run_trajectory(result, run, problem, {"task": task, "task_options": dict(options)})
     written: list[Path] = []
     if saved:
         written += list(save_trajectory(traj, saved))

@@ -35,11 +35,12 @@ from typing import Any
 
 import numpy as np
 
-from mpcbox.comparison.report import Comparison
+from mpcbox.comparison.report import Comparison, Run
 from mpcbox.config import resolve_config
 from mpcbox.core.problem import Problem
+from mpcbox.errors import InvalidArgumentError
 from mpcbox.registry import CONTROLLERS, controller_class
-from mpcbox.sim.trajectory import jsonable, make_trajectory, save_trajectory
+from mpcbox.sim.trajectory import Trajectory, jsonable, make_trajectory, save_trajectory
 
 #: Packages whose versions ``run.json`` records (distribution names).
 PACKAGES = ("mpcbox", "mujoco", "mujoco-warp", "warp-lang", "numpy", "scipy", "osqp")
@@ -213,6 +214,41 @@ def _slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9.]+", "_", text).strip("_") or "run"
 
 
+def run_trajectory(
+    comparison: Comparison,
+    run: Run,
+    problem: Problem,
+    metadata: Mapping[str, Any] | None = None,
+) -> Trajectory:
+    """The :class:`~mpcbox.sim.trajectory.Trajectory` of a run that kept its trace, with its
+    scenario's pushes, mismatch and noise (so that it replays).
+
+    Args:
+        comparison: The comparison the run belongs to.
+        run: A run whose ``trace`` holds states.
+        problem: The Problem it ran on.
+        metadata: Extra JSON entries; the scenario's label is added.
+    """
+    trace = run.trace
+    if trace is None or trace.states is None:
+        raise InvalidArgumentError(f"run {run.controller!r} seed {run.seed} kept no trajectory")
+    scenario = comparison.scenarios[run.scenario]
+    return make_trajectory(
+        problem,
+        controller=run.controller,
+        time=trace.time,
+        states=trace.states,
+        ctrls=trace.ctrls,
+        series=trace.series,
+        failure=run.failure,
+        pushes=scenario.pushes,
+        mismatch=scenario.mismatch,
+        noise=scenario.resolve_noise(problem),
+        seed=run.seed,
+        metadata={**dict(metadata or {}), "scenario": scenario.label},
+    )
+
+
 def write_trajectories(
     comparison: Comparison,
     problem: Problem,
@@ -239,20 +275,7 @@ def write_trajectories(
         if trace is None or trace.states is None:
             continue
         scenario = comparison.scenarios[run.scenario]
-        traj = make_trajectory(
-            problem,
-            controller=run.controller,
-            time=trace.time,
-            states=trace.states,
-            ctrls=trace.ctrls,
-            series=trace.series,
-            failure=run.failure,
-            pushes=scenario.pushes,
-            mismatch=scenario.mismatch,
-            noise=scenario.resolve_noise(problem),
-            seed=run.seed,
-            metadata={**dict(metadata or {}), "scenario": scenario.label},
-        )
+        traj = run_trajectory(comparison, run, problem, metadata)
         name = f"{_slug(scenario.label)}__{_slug(run.controller)}__seed{run.seed}"
         paths.append(save_trajectory(traj, folder / name)[0])
     return paths
