@@ -71,6 +71,8 @@ class Metrics(NamedTuple):
         offline_ms: Total time of offline solves (ms), e.g. IPOPT's before the loop.
         period_s: Seconds between controller calls (the simulation step when the controller
             sets no ``period``).
+        kept_up: Real-time runs (:func:`mpcbox.sim.realtime.simulate_realtime`): whether
+            the planner's p99 tick fit in ``period_s``; ``None`` for lock-step runs.
     """
 
     survived: bool
@@ -90,6 +92,7 @@ class Metrics(NamedTuple):
     held_ticks: int = 0
     offline_ms: float = 0.0
     period_s: float = 0.0
+    kept_up: bool | None = None
 
 
 @dataclass
@@ -300,9 +303,81 @@ def simulate(
             last = k
             break
     wall = _time.perf_counter() - wall0
+    return finish_run(
+        problem,
+        controller,
+        duration=duration,
+        times=times[: last + 1],
+        states=states[: last + 1],
+        ctrls=ctrls[: last + 1],
+        samples=samples[:, : last + 1],
+        measures=measures,
+        calls=calls,
+        failure=failure,
+        outcome=outcome,
+        fail_time=fail_time,
+        wall=wall,
+        fallbacks0=fallbacks0,
+        degraded_limit=degraded_limit,
+        period_s=every * dt,
+        pushes=pushes,
+        mismatch=mismatch,
+        noise=noise,
+        seed=seed,
+    )
 
-    n = last + 1
-    times, states, ctrls, samples = times[:n], states[:n], ctrls[:n], samples[:, :n]
+
+def finish_run(
+    problem: Problem,
+    controller: Controller,
+    *,
+    duration: float,
+    times: np.ndarray,
+    states: np.ndarray,
+    ctrls: np.ndarray,
+    samples: np.ndarray,
+    measures: tuple[Measure, ...],
+    calls: dict[str, list[float]],
+    failure: str | None,
+    outcome: str,
+    fail_time: float,
+    wall: float,
+    fallbacks0: float,
+    degraded_limit: float,
+    period_s: float,
+    pushes: tuple[Push, ...],
+    mismatch: ModelMismatch | None,
+    noise: ActuatorNoise | None,
+    seed: int,
+    kept_up: bool | None = None,
+) -> SimulationResult:
+    """The :class:`SimulationResult` of a finished loop (shared by :func:`simulate` and the
+    real-time loop, :mod:`mpcbox.sim.realtime`).
+
+    Args:
+        problem: The Problem.
+        controller: The controller (its ``stats`` are read).
+        duration: The asked duration (s).
+        times: Recorded times ``(T,)``.
+        states: Recorded states ``(T, nstate)``.
+        ctrls: Applied controls ``(T, nu)``.
+        samples: Measure samples ``(len(measures), T)``.
+        measures: The task's measures.
+        calls: Durations (s) of the controller's calls by ``last_call`` kind.
+        failure: Why the loop stopped, or ``None``.
+        outcome: The loop's outcome so far (goal and degradation are checked here).
+        fail_time: Time of the failure (s).
+        wall: Wall time of the loop (s).
+        fallbacks0: The controller's fallback counter before the loop.
+        degraded_limit: Largest share of fallbacks for a success.
+        period_s: Seconds between controller calls.
+        pushes: The pushes applied.
+        mismatch: The model mismatch.
+        noise: The actuator noise.
+        seed: The noise seed.
+        kept_up: Real-time runs: whether the planner kept up (:attr:`Metrics.kept_up`).
+    """
+    n = times.shape[0]
     series = {m.name: samples[i] for i, m in enumerate(measures)}
     summaries: dict[str, float] = {}
     for measure in measures:
@@ -338,7 +413,8 @@ def simulate(
         solve_ticks=len(calls["solve"]),
         held_ticks=len(calls["hold"]),
         offline_ms=float(sum(calls["offline"]) * 1e3),
-        period_s=every * dt,
+        period_s=period_s,
+        kept_up=kept_up,
     )
     return SimulationResult(
         problem=problem.name,

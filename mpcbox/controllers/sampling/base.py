@@ -123,6 +123,9 @@ class SamplingController(Controller):
         self.weights = self.spline.weights(np.arange(steps) * problem.dt)
         #: Standard deviation of the knot noise per control ``(nu,)``.
         self.noise_scale = config.noise_scales(problem.nu)
+        #: Standard deviation of the noise per knot and control ``(K, nu)``
+        #: (``noise_schedule`` times ``noise_scale``).
+        self.knot_noise = config.knot_noise(problem.nu)
         self.period = None if config.period is None else float(config.period)
         replan = config.replan_period
         self.replan_period = None if replan is None else float(replan)

@@ -18,9 +18,11 @@ class CEM(SamplingController):
     .. math::
         \mu \leftarrow \beta \mu + (1 - \beta) \operatorname{mean}_{n \in E} U^n, \qquad
         \sigma \leftarrow \operatorname{clip}\big(\beta \sigma + (1 - \beta)
-        \operatorname{std}_{n \in E} U^n, \sigma_{\min}, \sigma_0\big),
+        \operatorname{std}_{n \in E} U^n, \sigma_{\min}, \sigma_{\max}\big),
 
-    with :math:`\sigma_0` = ``noise_scale``. The nominal :attr:`knots` is :math:`\mu`; the
+    with :math:`\sigma_0` = ``std_init`` (default ``noise_scale``), the cap
+    :math:`\sigma_{\max} = \max(\sigma_0, \text{noise\_scale})` (both times the
+    per-knot ``noise_schedule``). The nominal :attr:`knots` is :math:`\mu`; the
     warm start shifts :math:`\mu` and keeps :math:`\sigma`.
 
     Args:
@@ -33,8 +35,8 @@ class CEM(SamplingController):
     config_class = CEMConfig
 
     def reset_algorithm(self) -> None:
-        shape = (self.spline.num_knots, self.problem.nu)
-        self.std = np.broadcast_to(self.noise_scale, shape).copy()
+        self.std = self.config.initial_std(self.problem.nu)
+        self.std_max = np.maximum(self.std, self.knot_noise)
 
     def sample(self) -> np.ndarray:
         return self.gaussian_candidates(self.std)
@@ -47,5 +49,4 @@ class CEM(SamplingController):
         beta = cfg.smoothing
         self.knots = beta * self.knots + (1 - beta) * elites.mean(axis=0)
         std = elites.std(axis=0) if len(elites) > 1 else self.std
-        upper = np.broadcast_to(self.noise_scale, self.std.shape)
-        self.std = np.clip(beta * self.std + (1 - beta) * std, cfg.std_min, upper)
+        self.std = np.clip(beta * self.std + (1 - beta) * std, cfg.std_min, self.std_max)

@@ -35,6 +35,10 @@ Backend = Literal["cpu", "warp"]
 Risk = Literal["mean", "worst", "cvar"]
 Integrator = Literal["euler", "implicitfast", "implicit", "rk4"]
 RISKS: tuple[str, ...] = ("mean", "worst", "cvar")
+NoiseSchedule = Literal["constant", "linear"]
+NOISE_SCHEDULES: tuple[str, ...] = ("constant", "linear")
+TemperatureMode = Literal["normalized", "absolute"]
+TEMPERATURE_MODES: tuple[str, ...] = ("normalized", "absolute")
 #: MuJoCo integrator names (``mjtIntegrator``) accepted by ``planning_integrator``.
 INTEGRATORS: dict[str, int] = {"euler": 0, "rk4": 1, "implicit": 2, "implicitfast": 3}
 
@@ -106,15 +110,21 @@ class Randomization:
 @checked_options
 @dataclass(frozen=True, kw_only=True)
 class SamplingConfig:
-    """Options shared by all sampling controllers.
+    r"""Options shared by all sampling controllers.
 
     Attributes:
         num_samples: Candidates ``N`` per iteration (>= 1).
         horizon: Planning horizon ``H`` in seconds (at least one planning timestep).
         num_knots: Spline knots ``K`` over the horizon.
-        interpolation: ``"zero"``, ``"linear"`` or ``"cubic"`` (see :mod:`.splines`).
+        interpolation: ``"zero"``, ``"linear"``, ``"cubic"`` (C1 Hermite) or ``"cubic_c2"``
+            (natural cubic spline, C2) (see :mod:`.splines`).
         noise_scale: Standard deviation of the knot noise, in control units; a scalar or one
             value per actuator ``(nu,)``.
+        noise_schedule: Multiplier :math:`g_k` of the noise standard deviation on knot ``k``,
+            so knot ``k`` of actuator ``j`` gets :math:`g_k \sigma_j`: ``"constant"``
+            (:math:`g_k = 1`, the default), ``"linear"`` (:math:`g_k = (k + 1) / K`, little
+            noise on the first knot, which the robot executes next, the full noise on the
+            last) or one non-negative value per knot ``(K,)``.
         iterations: Sample/update rounds per control tick.
         planning_timestep: Plan on a copy of the Problem whose planning model takes steps of
             this many seconds (:meth:`~mpcbox.Problem.with_planning_timestep`); default: the
@@ -160,6 +170,7 @@ class SamplingConfig:
     num_knots: int = 4
     interpolation: Interpolation = "cubic"
     noise_scale: float | Sequence[float] = 0.3
+    noise_schedule: NoiseSchedule | Sequence[float] = "constant"
     iterations: int = 1
     planning_timestep: float | None = None
     planning_integrator: Integrator | None = None
@@ -203,6 +214,7 @@ class SamplingConfig:
         positive_int("num_knots", self.num_knots)
         one_of("interpolation", self.interpolation, INTERPOLATIONS)
         self.noise_scales(nu)
+        self.noise_multipliers()
         if self.period is not None:
             positive("period", self.period)
         if self.replan_period is not None:
@@ -251,6 +263,30 @@ class SamplingConfig:
             )
         return scale
 
+    def noise_multipliers(self) -> np.ndarray:
+        """``noise_schedule`` as one multiplier per knot ``(K,)``.
+
+        Raises:
+            InvalidArgumentError: For an unknown name, a wrong length, a negative or a
+                non-finite value.
+        """
+        k = positive_int("num_knots", self.num_knots)
+        schedule = self.noise_schedule
+        if isinstance(schedule, str):
+            name = one_of("noise_schedule", schedule, NOISE_SCHEDULES)
+            return np.ones(k) if name == "constant" else np.arange(1, k + 1) / k
+        gains = as_array("noise_schedule", schedule, (None,))
+        if gains.shape != (k,) or not np.all(np.isfinite(gains)) or np.any(gains < 0):
+            raise InvalidArgumentError(
+                f"noise_schedule must be 'constant', 'linear' or {k} non-negative values "
+                f"(one per knot), got {schedule!r}"
+            )
+        return gains
+
+    def knot_noise(self, nu: int) -> np.ndarray:
+        """Noise standard deviation per knot and control ``(K, nu)``: schedule x scale."""
+        return self.noise_multipliers()[:, None] * self.noise_scales(nu)[None, :]
+
 
 @checked_options
 @dataclass(frozen=True, kw_only=True)
@@ -261,19 +297,27 @@ class PredictiveSamplingConfig(SamplingConfig):
 @checked_options
 @dataclass(frozen=True, kw_only=True)
 class MPPIConfig(SamplingConfig):
-    """MPPI options.
+    r"""MPPI options.
 
     Attributes:
-        temperature: Softmax temperature in units of the standard deviation of the valid
-            costs of one iteration (scale-free, so one value suits many tasks).
+        temperature: Softmax temperature :math:`\lambda`.
+        temperature_mode: ``"normalized"`` (default): :math:`\lambda` is in units of the
+            standard deviation :math:`s_J` of the valid costs of one iteration,
+            :math:`w_n \propto \exp(-(J_n - J^*) / (\lambda s_J))` (scale-free, so one
+            value suits many tasks); ``"absolute"``: :math:`\lambda` is in cost units,
+            :math:`w_n \propto \exp(-J_n / \lambda)`, the textbook MPPI weights (the
+            sharpness then follows the cost's scale, as in judo and MJPC).
     """
 
     temperature: float = 0.1
+    temperature_mode: TemperatureMode = "normalized"
 
     def validate(self, nu: int, dt: float) -> None:
-        """The shared checks (:meth:`SamplingConfig.validate`) and ``temperature > 0``."""
+        """The shared checks (:meth:`SamplingConfig.validate`), ``temperature > 0`` and the
+        temperature mode."""
         super().validate(nu, dt)
         positive("temperature", self.temperature)
+        one_of("temperature_mode", self.temperature_mode, TEMPERATURE_MODES)
 
 
 @checked_options
@@ -282,10 +326,13 @@ class CEMConfig(SamplingConfig):
     """Cross-entropy method options.
 
     The sampling distribution is a diagonal Gaussian over knots whose mean and standard
-    deviation are refitted to the elites; ``noise_scale`` is the initial (and largest)
-    standard deviation.
+    deviation are refitted to the elites. The initial standard deviation is ``std_init``
+    (default ``noise_scale``) and the refit is capped at ``max(std_init, noise_scale)``;
+    both are multiplied by ``noise_schedule`` per knot.
 
     Attributes:
+        std_init: Initial standard deviation, a scalar or one value per actuator ``(nu,)``;
+            ``None``: ``noise_scale``.
         num_elites: Number of lowest-cost candidates the distribution is refitted to.
         std_min: Floor of the standard deviation (keeps exploring).
         smoothing: Weight of the old distribution in the refit, in ``[0, 1)``.
@@ -294,6 +341,7 @@ class CEMConfig(SamplingConfig):
     num_elites: int = 16
     std_min: float = 0.05
     smoothing: float = 0.0
+    std_init: float | Sequence[float] | None = None
 
     def validate(self, nu: int, dt: float) -> None:
         """The shared checks (:meth:`SamplingConfig.validate`) and the elite/std options."""
@@ -304,3 +352,22 @@ class CEMConfig(SamplingConfig):
             )
         non_negative("std_min", self.std_min)
         in_range("smoothing", self.smoothing, 0.0, 1.0, low_open=False, high_open=True)
+        self.initial_std(nu)
+
+    def initial_std(self, nu: int) -> np.ndarray:
+        """``std_init`` (or ``noise_scale``) per knot and control ``(K, nu)``, scheduled.
+
+        Raises:
+            InvalidArgumentError: For a wrong shape, a negative or a non-finite value.
+        """
+        if self.std_init is None:
+            return self.knot_noise(nu)
+        std = as_array("std_init", self.std_init, (None,) * min(1, np.ndim(self.std_init)))
+        if std.ndim == 0:
+            std = np.full(nu, float(std))
+        if std.shape != (nu,) or not np.all(np.isfinite(std)) or np.any(std < 0):
+            raise InvalidArgumentError(
+                f"std_init must be None, a non-negative scalar or ({nu},) array, "
+                f"got {self.std_init!r}"
+            )
+        return self.noise_multipliers()[:, None] * std[None, :]

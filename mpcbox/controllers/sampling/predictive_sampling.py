@@ -26,7 +26,7 @@ class PredictiveSampling(SamplingController):
     config_class = PredictiveSamplingConfig
 
     def sample(self) -> np.ndarray:
-        return self.gaussian_candidates(self.noise_scale)
+        return self.gaussian_candidates(self.knot_noise)
 
     def update(self, candidates: np.ndarray, costs: np.ndarray) -> None:
         self.knots = candidates[int(np.argmin(costs))].copy()

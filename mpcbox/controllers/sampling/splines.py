@@ -7,7 +7,7 @@ a set of query times the whole map is one weight matrix :math:`W` of shape ``(T,
 
 .. math:: u(t_j) = \sum_k W_{jk} u_k .
 
-Three schemes (with :math:`s = (t - t_i) / h \in [0, 1)` inside interval ``i``):
+Four schemes (with :math:`s = (t - t_i) / h \in [0, 1)` inside interval ``i``):
 
 * ``"zero"`` (zero-order hold): :math:`u(t) = u_i`.
 * ``"linear"``: :math:`u(t) = (1 - s) u_i + s u_{i+1}`.
@@ -18,6 +18,14 @@ Three schemes (with :math:`s = (t - t_i) / h \in [0, 1)` inside interval ``i``):
   :math:`m_i = (u_{i+1} - u_{i-1}) / 2h` inside, :math:`m_0 = (-3u_0 + 4u_1 - u_2) / 2h` and
   :math:`m_{K-1} = (3u_{K-1} - 4u_{K-2} + u_{K-3}) / 2h` at the ends. The slopes are exact for
   quadratics, so the spline reproduces any quadratic exactly; with two knots it is linear.
+  It is C1 (continuous slope) but its second derivative jumps at the knots.
+* ``"cubic_c2"`` (natural cubic spline, C2): with the second derivatives :math:`M_k` at the
+  knots solving :math:`M_{i-1} + 4 M_i + M_{i+1} = 6 (u_{i-1} - 2 u_i + u_{i+1}) / h^2` for
+  :math:`0 < i < K - 1` and :math:`M_0 = M_{K-1} = 0`,
+  :math:`u(t) = (1 - s) u_i + s u_{i+1} + \tfrac{h^2}{6} \big(((1 - s)^3 - (1 - s)) M_i
+  + (s^3 - s) M_{i+1}\big)`. Value, slope and curvature are continuous at every knot; every
+  knot moves the whole curve a little (the weight matrix is dense). With two knots it is
+  linear.
 
 Times outside ``[0, H]`` are clamped (the first/last knot is held).
 """
@@ -30,8 +38,8 @@ import numpy as np
 
 from mpcbox.validation import one_of, positive, positive_int
 
-Interpolation = Literal["zero", "linear", "cubic"]
-INTERPOLATIONS: tuple[str, ...] = ("zero", "linear", "cubic")
+Interpolation = Literal["zero", "linear", "cubic", "cubic_c2"]
+INTERPOLATIONS: tuple[str, ...] = ("zero", "linear", "cubic", "cubic_c2")
 
 
 class Spline:
@@ -40,7 +48,7 @@ class Spline:
     Args:
         num_knots: Number of knots ``K`` (>= 1; one knot is a constant control).
         duration: Horizon ``H`` in seconds.
-        kind: ``"zero"``, ``"linear"`` or ``"cubic"``.
+        kind: ``"zero"``, ``"linear"``, ``"cubic"`` or ``"cubic_c2"``.
     """
 
     def __init__(self, num_knots: int, duration: float, kind: Interpolation = "cubic") -> None:
@@ -74,6 +82,14 @@ class Spline:
             out[rows, i] += 1.0 - s
             out[rows, i + 1] += s
             return out
+        if self.kind == "cubic_c2":
+            curv = self._curvature_matrix()  # (K, K): M = curv @ u
+            out[rows, i] += 1.0 - s
+            out[rows, i + 1] += s
+            a = h * h / 6.0 * ((1.0 - s) ** 3 - (1.0 - s))
+            b = h * h / 6.0 * (s**3 - s)
+            out += a[:, None] * curv[i] + b[:, None] * curv[i + 1]
+            return out
         h00 = 2 * s**3 - 3 * s**2 + 1
         h10 = s**3 - 2 * s**2 + s
         h01 = -2 * s**3 + 3 * s**2
@@ -83,6 +99,16 @@ class Spline:
         out[rows, i + 1] += h01
         out += h10[:, None] * slope[i] + h11[:, None] * slope[i + 1]
         return out
+
+    def _curvature_matrix(self) -> np.ndarray:
+        """``C`` with ``M_i = sum_j C_ij u_j``: the natural spline's knot second derivatives."""
+        k, h = self.num_knots, self.spacing
+        system = np.eye(k)
+        rhs = np.zeros((k, k))
+        for j in range(1, k - 1):
+            system[j, j - 1 : j + 2] = [1.0, 4.0, 1.0]
+            rhs[j, j - 1 : j + 2] = np.array([1.0, -2.0, 1.0]) * 6.0 / (h * h)
+        return np.linalg.solve(system, rhs)
 
     def _slope_matrix(self) -> np.ndarray:
         """``S`` with ``h m_i = sum_j S_ij u_j`` (finite-difference slopes times spacing)."""

@@ -1,0 +1,167 @@
+"""The planner side of the real-time loop (:mod:`mpcbox.sim.realtime`): a controller ticking
+in a thread of its own on the latest observed state, publishing plans the world reads.
+
+All exchange between the world and the planner goes through one lock: the world writes the
+latest state (:meth:`PlannerThread.observe`) and reads the control of the latest plan
+(:meth:`PlannerThread.control`); the planner copies the state, solves without the lock and
+publishes an immutable plan.
+"""
+
+from __future__ import annotations
+
+import threading
+import time as _time
+from typing import NamedTuple
+
+import numpy as np
+
+from mpcbox.controllers.base import Controller
+from mpcbox.core.problem import Problem
+from mpcbox.sim.simulation import _error_text
+
+
+class Plan(NamedTuple):
+    """One published plan.
+
+    Attributes:
+        time: Simulated time of the state it was planned from (s).
+        ctrl: The control the controller returned ``(nu,)``.
+        knots: Copy of the controller's spline knots ``(K, nu)``, or ``None`` (hold ``ctrl``).
+    """
+
+    time: float
+    ctrl: np.ndarray
+    knots: np.ndarray | None
+
+
+class PlannerThread:
+    """Runs ``controller`` in a thread, one tick per ``period`` of simulated time.
+
+    Args:
+        problem: The Problem (control clipping and shapes).
+        controller: The controller; a spline plan is used when it has ``spline`` and
+            ``knots`` attributes (the sampling controllers).
+        period: Simulated seconds between tick starts.
+        max_ticks: Bound on the ticks of one run (the loop is bounded).
+
+    Attributes:
+        latencies: Wall time of each tick published in the run (s).
+        kinds: ``Controller.last_call`` of each of those ticks.
+        error: ``"controller error: ..."`` once the controller raised or returned an
+            invalid control, else ``None``.
+    """
+
+    def __init__(
+        self, problem: Problem, controller: Controller, *, period: float, max_ticks: int
+    ) -> None:
+        self.problem = problem
+        self.controller = controller
+        self.period = float(period)
+        self.max_ticks = int(max_ticks)
+        spline = getattr(controller, "spline", None)
+        self.spline = spline if hasattr(controller, "knots") else None
+        self.latencies: list[float] = []
+        self.kinds: list[str] = []
+        self.error: str | None = None
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._new_state = threading.Event()
+        self._state: tuple[np.ndarray, float] | None = None
+        self._plan = Plan(0.0, problem.clip_ctrl(problem.ctrl_ref.copy()), None)
+        self._thread: threading.Thread | None = None
+        self._next_time = -np.inf
+
+    # ------------------------------------------------------------------ world side
+    def observe(self, state: np.ndarray, time: float) -> None:
+        """Record the latest state ``(nstate,)`` at simulated ``time``."""
+        with self._lock:
+            self._state = (state.copy(), float(time))
+        self._new_state.set()
+
+    def control(self, time: float) -> np.ndarray:
+        """The latest plan's control at simulated ``time`` ``(nu,)``."""
+        with self._lock:
+            plan = self._plan
+        if plan.knots is None or self.spline is None:
+            return plan.ctrl
+        offset = float(time) - plan.time
+        return self.problem.clip_ctrl(self.spline.evaluate(plan.knots, [offset])[0])
+
+    def prime(self, state: np.ndarray, time: float) -> float:
+        """Solve one tick before the clock starts; returns its wall time (s).
+
+        An exception is recorded in :attr:`error` (the run then ends at its first step).
+        """
+        start = _time.perf_counter()
+        try:
+            out = self.controller(state.copy(), float(time))
+        except Exception as exc:  # recorded; the world ends the run
+            self.error = _error_text(exc)
+            return _time.perf_counter() - start
+        seconds = _time.perf_counter() - start
+        if self._publish(out, float(time)):
+            self._next_time = float(time) + self.period
+        return seconds
+
+    def start(self, state: np.ndarray, time: float) -> None:
+        """Start the thread from ``state`` at ``time``."""
+        self.observe(state, time)
+        self._thread = threading.Thread(target=self._loop, name="mpcbox-planner", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Ask the thread to stop after its current tick and join it."""
+        self._stop.set()
+        self._new_state.set()
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+
+    def calls(self) -> dict[str, list[float]]:
+        """Tick durations (s) by ``last_call`` kind (``"solve"``, ``"hold"``, ``"offline"``)."""
+        out: dict[str, list[float]] = {"solve": [], "hold": [], "offline": []}
+        for kind, seconds in zip(self.kinds, self.latencies):
+            out[kind if kind in out else "solve"].append(seconds)
+        return out
+
+    # ------------------------------------------------------------------ planner side
+    def _loop(self) -> None:
+        for _ in range(self.max_ticks):
+            while not self._stop.is_set() and self.error is None:
+                self._new_state.clear()
+                with self._lock:
+                    state, time = self._state  # type: ignore[misc]
+                if time >= self._next_time - 1e-12:
+                    break
+                self._new_state.wait(0.05)
+            if self._stop.is_set() or self.error is not None:
+                return
+            self._next_time = time + self.period
+            start = _time.perf_counter()
+            try:
+                out = self.controller(state, time)
+            except Exception as exc:  # recorded; the world ends the run
+                self.error = _error_text(exc)
+                return
+            seconds = _time.perf_counter() - start
+            if not self._publish(out, time):
+                return
+            self.latencies.append(seconds)
+            self.kinds.append(str(getattr(self.controller, "last_call", "solve")))
+
+    def _publish(self, out: object, time: float) -> bool:
+        """Publish the controller's output; record an error and return False if invalid."""
+        ctrl = np.asarray(out, dtype=np.float64)
+        if ctrl.shape != (self.problem.nu,) or not np.all(np.isfinite(ctrl)):
+            self.error = (
+                f"controller error: invalid control (shape {ctrl.shape}, finite="
+                f"{bool(np.all(np.isfinite(ctrl)))})"
+            )
+            return False
+        if self.spline is not None and getattr(self.controller, "last_call", "") == "hold":
+            return True  # followed the current plan: keep its knots and plan time
+        knots = getattr(self.controller, "knots", None) if self.spline is not None else None
+        plan = Plan(time, ctrl.copy(), None if knots is None else np.array(knots, copy=True))
+        with self._lock:
+            self._plan = plan
+        return True

@@ -1,0 +1,310 @@
+r"""An asynchronous, real-time closed loop: the world does not wait for the planner.
+
+:func:`simulate` calls the controller and steps the world in lock-step, so a slow planner
+gets a world that freezes while it thinks. :func:`simulate_realtime` runs them concurrently,
+as on a robot:
+
+- the **world** (the calling thread) advances the simulation model in wall-clock time: step
+  ``k`` (simulated time :math:`t_k = k\,\delta t`) happens at wall time
+  :math:`w_0 + t_k / \text{speed}`; it sleeps when early and never waits for the planner
+  (when the world itself is slower than that, it falls behind, reported as ``world_lag_s``);
+- the **planner** (a thread of its own) repeatedly takes the latest state
+  :math:`(x(t_s), t_s)`, calls ``controller(x, t_s)`` and publishes the plan; a new tick
+  starts ``period`` simulated seconds after the previous one, or at once when that one
+  finished late;
+- the **executed control** at world time :math:`t` is the latest plan at :math:`t`: for a
+  controller with a spline plan (the sampling controllers: ``spline`` and ``knots``
+  attributes) the plan's knots, copied when published, evaluated :math:`t - t_s` seconds
+  into the plan; for any other controller the control it returned, held.
+
+Latency is part of the experiment. For tick :math:`i` started at simulated time
+:math:`t_{s,i}` and taking :math:`\ell_i` wall seconds, the simulated time that passes is
+:math:`a_i = \ell_i \cdot \text{speed}` (the *state age* at publication: how old the state
+the plan starts from is when the plan takes over). A tick is *over the period* when
+:math:`a_i > p` (the controller's ``period``, or the simulation step without one), and the
+planner *kept up* when the 99th percentile of :math:`a_i` is at most :math:`p`.
+
+Outcomes are those of :func:`simulate`; an exception raised in the planner thread ends the
+run as ``"controller error"`` with the trajectory up to that point. The planner thread is
+always joined before returning (also when the world raises).
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import mujoco
+import numpy as np
+
+from mpcbox.controllers.base import Controller
+from mpcbox.core.model import object_id
+from mpcbox.core.problem import Problem
+from mpcbox.errors import InvalidTypeError
+from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
+from mpcbox.sim.divergence import DivergenceMonitor
+from mpcbox.sim.measures import check_measures
+from mpcbox.sim.planner_thread import PlannerThread
+from mpcbox.sim.simulation import SimulationResult, _fallbacks, finish_run
+from mpcbox.validation import boolean, checked_keywords, in_range, instance, integer, positive
+
+
+class RealtimeStats(NamedTuple):
+    """Timing of the planner in a real-time run.
+
+    Attributes:
+        ticks: Planner ticks published during the run (the priming tick excluded).
+        latency_ms: Wall time of each tick ``(ticks,)`` (ms).
+        state_age_s: Simulated time between each tick's state and its publication
+            ``(ticks,)`` (s).
+        latency_p50_ms: Median tick latency (ms).
+        latency_p99_ms: 99th percentile tick latency (ms).
+        state_age_mean_s: Mean state age at publication (s).
+        over_period: Ticks whose state age exceeded the period.
+        over_period_share: ``over_period / ticks`` (0 without ticks).
+        kept_up: The 99th percentile state age is at most the period (and there were ticks).
+        period_s: The period the planner had to keep (s).
+        speed: Simulated seconds per wall-clock second the world was asked to keep.
+        sim_time_s: Simulated time reached (s).
+        wall_time_s: Wall time of the world loop (s).
+        world_lag_s: Largest lag of the world behind its wall-clock schedule (s of wall
+            time); near zero when the simulation itself keeps up with ``speed``.
+        prime_ms: Wall time of the priming tick before the clock started (ms; 0 without).
+    """
+
+    ticks: int
+    latency_ms: np.ndarray
+    state_age_s: np.ndarray
+    latency_p50_ms: float
+    latency_p99_ms: float
+    state_age_mean_s: float
+    over_period: int
+    over_period_share: float
+    kept_up: bool
+    period_s: float
+    speed: float
+    sim_time_s: float
+    wall_time_s: float
+    world_lag_s: float
+    prime_ms: float
+
+
+@dataclass
+class RealtimeResult(SimulationResult):
+    """A :class:`~mpcbox.sim.simulation.SimulationResult` with the planner's timing.
+
+    Attributes:
+        realtime: The :class:`RealtimeStats` of the run.
+    """
+
+    realtime: RealtimeStats | None = None
+
+
+@checked_keywords
+def simulate_realtime(
+    problem: Problem,
+    controller: Controller,
+    duration: float,
+    *,
+    noise: ActuatorNoise | None = None,
+    pushes: Sequence[Push] = (),
+    mismatch: ModelMismatch | None = None,
+    seed: int = 0,
+    initial_state: np.ndarray | None = None,
+    stop_on_failure: bool = True,
+    degraded_limit: float = 0.5,
+    speed: float = 1.0,
+    prime: bool = True,
+) -> RealtimeResult:
+    """Simulate ``problem.model`` in real time with ``controller`` planning concurrently.
+
+    See the module docstring for the loop, the executed control and the timing measures;
+    the arguments shared with :func:`~mpcbox.sim.simulation.simulate` mean the same.
+
+    Args:
+        problem: The Problem (its simulation model is simulated).
+        controller: The controller; ``reset()`` is called first. It is called from the
+            planner thread only.
+        duration: Simulated time (s).
+        noise: Smooth actuator noise, sampled with ``seed``.
+        pushes: Forces applied to bodies over time intervals.
+        mismatch: Changes to the simulated model the controller does not know about.
+        seed: Seed of the noise.
+        initial_state: Start state (default ``problem.initial_state()``).
+        stop_on_failure: Stop at the first task failure.
+        degraded_limit: Largest share of fallbacks for a success, in ``[0, 1]``.
+        speed: Simulated seconds per wall-clock second (> 0; 1 is real time, 0.5 gives the
+            planner twice the wall time per simulated second).
+        prime: Solve one tick from the initial state before the clock starts (a robot
+            waits for its first plan; compile time is not latency). Without it the world
+            applies ``problem.ctrl_ref`` until the first plan arrives.
+
+    Returns:
+        A :class:`RealtimeResult`; ``metrics.kept_up`` repeats ``realtime.kept_up``.
+    """
+    instance("problem", problem, Problem, "an mpcbox.Problem")
+    duration = positive("duration", duration)
+    if not isinstance(controller, Controller) and not callable(controller):
+        raise InvalidTypeError(f"controller must be an mpcbox.Controller, got {type(controller)}")
+    seed = integer("seed", seed)
+    speed = positive("speed", speed)
+    prime = boolean("prime", prime)
+    stop_on_failure = boolean("stop_on_failure", stop_on_failure)
+    degraded_limit = in_range(
+        "degraded_limit", degraded_limit, 0.0, 1.0, low_open=False, high_open=False
+    )
+    if noise is not None:
+        instance("noise", noise, ActuatorNoise, "an mpcbox.ActuatorNoise")
+    if mismatch is not None:
+        instance("mismatch", mismatch, ModelMismatch, "an mpcbox.ModelMismatch")
+    if isinstance(pushes, (str, bytes)) or not isinstance(pushes, Sequence):
+        raise InvalidTypeError(f"pushes must be a sequence of Push, got {type(pushes).__name__}")
+    pushes = tuple(pushes)
+    for push in pushes:
+        if not isinstance(push, Push):
+            raise InvalidTypeError(f"pushes must hold Push objects, got {type(push).__name__}")
+    model = problem.model if mismatch is None else mismatch.apply(problem.model)
+    data = mujoco.MjData(model)
+    dt = float(model.opt.timestep)
+    steps = math.ceil(duration / dt - 1e-9)
+    state0 = problem.initial_state() if initial_state is None else initial_state
+    state0 = problem.check_state(state0, "initial_state")
+    problem.set_state(data, state0)
+    mujoco.mj_forward(model, data)
+    push_ids = [object_id(model, "body", p.body, f"pushes[{i}].body") for i, p in enumerate(pushes)]
+    measures = check_measures(problem.measures(), type(problem).__name__)
+    period = getattr(controller, "period", None)
+    period = dt if period is None else positive("controller.period", period)
+    noise_seq = (
+        np.zeros((steps, problem.nu))
+        if noise is None
+        else noise.sample(steps, problem.nu, dt, seed)
+    )
+    if hasattr(controller, "reset"):
+        controller.reset()
+    fallbacks0 = _fallbacks(controller)
+
+    times = np.empty(steps + 1)
+    states = np.empty((steps + 1, problem.nstate))
+    ctrls = np.zeros((steps + 1, problem.nu))
+    samples = np.empty((len(measures), steps + 1))
+    failure: str | None = None
+    outcome = "success"
+    fail_time = duration
+    monitor = DivergenceMonitor(data)
+    planner = PlannerThread(problem, controller, period=period, max_ticks=steps + 2)
+    prime_s = planner.prime(state0, float(data.time)) if prime else 0.0
+    last = steps
+    lag = 0.0
+    sim0 = float(data.time)
+    wall0 = _time.perf_counter()
+    try:
+        planner.start(state0, float(data.time))
+        for k in range(steps + 1):
+            now = float(data.time)
+            target = wall0 + (now - sim0) / speed
+            early = target - _time.perf_counter()
+            if early > 0:
+                _time.sleep(early)
+            else:
+                lag = max(lag, -early)
+            times[k] = now
+            states[k] = problem.get_state(data)
+            planner.observe(states[k], now)
+            for i, measure in enumerate(measures):
+                samples[i, k] = measure.sample(model, data)
+            if failure is None:
+                reason = problem.failure(model, data)
+                if reason is not None:
+                    failure, fail_time, outcome = reason, now, "failed"
+                    if reason.startswith("non-finite"):
+                        outcome = "diverged"
+                    if stop_on_failure or outcome == "diverged":
+                        last = k
+                        break
+            error = planner.error
+            if error is not None:
+                failure, fail_time, outcome, last = error, now, "controller error", k
+                break
+            if k == steps:
+                break
+            data.ctrl[:] = problem.clip_ctrl(planner.control(now) + noise_seq[k])
+            ctrls[k] = data.ctrl
+            data.xfrc_applied[:] = 0.0
+            for push, bid in zip(pushes, push_ids):
+                if push.active(now):
+                    data.xfrc_applied[bid] += push.wrench()
+            monitor.before_step()
+            mujoco.mj_step(model, data)
+            reason = monitor.after_step()
+            if reason is not None:
+                failure, fail_time, outcome, last = reason, now, "diverged", k
+                break
+        wall = _time.perf_counter() - wall0
+    finally:
+        planner.stop()
+    calls = planner.calls()
+    if prime:
+        calls["offline"].append(prime_s)
+    stats = _stats(planner, period, speed, float(times[last]), wall, lag, prime_s)
+    res = finish_run(
+        problem,
+        controller,
+        duration=duration,
+        times=times[: last + 1],
+        states=states[: last + 1],
+        ctrls=ctrls[: last + 1],
+        samples=samples[:, : last + 1],
+        measures=measures,
+        calls=calls,
+        failure=failure,
+        outcome=outcome,
+        fail_time=fail_time,
+        wall=wall,
+        fallbacks0=fallbacks0,
+        degraded_limit=degraded_limit,
+        period_s=period,
+        pushes=pushes,
+        mismatch=mismatch,
+        noise=noise,
+        seed=seed,
+        kept_up=stats.kept_up,
+    )
+    return RealtimeResult(**vars(res), realtime=stats)
+
+
+def _stats(
+    planner: PlannerThread,
+    period: float,
+    speed: float,
+    sim_time: float,
+    wall: float,
+    lag: float,
+    prime_s: float,
+) -> RealtimeStats:
+    """The :class:`RealtimeStats` of a finished run."""
+    latency = np.asarray(planner.latencies, dtype=np.float64)
+    age = latency * speed
+    ticks = int(latency.size)
+    over = int(np.sum(age > period))
+    p99 = float(np.percentile(age, 99)) if ticks else math.inf
+    return RealtimeStats(
+        ticks=ticks,
+        latency_ms=latency * 1e3,
+        state_age_s=age,
+        latency_p50_ms=float(np.percentile(latency, 50) * 1e3) if ticks else math.nan,
+        latency_p99_ms=float(np.percentile(latency, 99) * 1e3) if ticks else math.nan,
+        state_age_mean_s=float(age.mean()) if ticks else math.nan,
+        over_period=over,
+        over_period_share=over / ticks if ticks else 0.0,
+        kept_up=bool(ticks and p99 <= period),
+        period_s=float(period),
+        speed=float(speed),
+        sim_time_s=sim_time,
+        wall_time_s=float(wall),
+        world_lag_s=float(lag),
+        prime_ms=prime_s * 1e3,
+    )
