@@ -141,3 +141,29 @@ def test_the_planner_thread_is_joined_when_the_world_raises(problem, monkeypatch
 def test_bad_speed_is_rejected(problem):
     with pytest.raises(mpcbox.errors.InvalidArgumentError, match="speed"):
         simulate_realtime(problem, Sleeper(problem, 0.0, 0.05), 0.1, speed=0.0)
+
+
+def test_compare_reports_whether_each_planner_kept_up(problem):
+    from mpcbox.comparison.runner import compare
+    from mpcbox.comparison.scenario import Scenario
+
+    def slow(p):
+        return Sleeper(p, 0.03, 0.01)
+
+    def fast(p):
+        return Sleeper(p, 0.0, 0.05)
+
+    lockstep = Scenario(duration=0.2, noise_scale=0.0)
+    live = Scenario(duration=0.3, noise_scale=0.0, realtime=True)
+    assert live.label.endswith("real time")
+    result = compare(problem, [slow, fast], [lockstep, live], seeds=1, workers=1, progress=False)
+    rows = {(r.scenario, r.controller): r for r in result.rows()}
+    assert rows[(lockstep.label, "slow")].kept_up is None
+    assert rows[(live.label, "slow")].kept_up == 0.0
+    assert rows[(live.label, "fast")].kept_up == 1.0
+    header = [c.strip() for c in result.to_markdown().splitlines()[0].strip("|").split("|")]
+    assert header[header.index("period (ms)") + 1] == "kept up"
+    assert "kept_up" in result.to_csv().splitlines()[0].split(",")
+    plain = compare(problem, [fast], lockstep, seeds=1, workers=1, progress=False)
+    assert "kept up" not in plain.to_markdown().splitlines()[0]
+    assert "kept_up" not in plain.to_csv().splitlines()[0].split(",")

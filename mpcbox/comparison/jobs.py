@@ -27,6 +27,7 @@ from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
 from mpcbox.registry import make_controller, task_class
 from mpcbox.sim.measures import Measure
+from mpcbox.sim.realtime import simulate_realtime
 from mpcbox.sim.simulation import Metrics, simulate
 
 
@@ -179,7 +180,10 @@ class Worker:
             problem, controller = self.problem, self.controller(job.controller)
             measures = tuple(problem.measures())
             scenario = self.setup.scenarios[job.scenario]
-            res = simulate(
+            loop, extra = simulate, {}
+            if scenario.realtime:  # the asynchronous loop (mpcbox.sim.realtime)
+                loop, extra = simulate_realtime, {"speed": scenario.speed}
+            res = loop(
                 problem,
                 controller,
                 scenario.duration,
@@ -187,6 +191,7 @@ class Worker:
                 pushes=scenario.pushes,
                 mismatch=scenario.mismatch,
                 seed=job.seed,
+                **extra,
             )
         except Exception as exc:  # one broken run must not end the sweep
             return Done(job, failed_run(job, exc), (), _where())

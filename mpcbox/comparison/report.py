@@ -92,6 +92,9 @@ class Row(NamedTuple):
         realtime_factor: Total simulated time over total wall time.
         fallbacks: Controller fallbacks summed over runs.
         fallback_rate: ``fallbacks`` over all controller calls of all runs.
+        kept_up: Real-time scenarios (``Scenario.realtime``): the share of runs whose
+            planner kept up (p99 tick within the period, :attr:`~mpcbox.Metrics.kept_up`);
+            ``None`` for lock-step runs.
     """
 
     scenario: str
@@ -111,6 +114,7 @@ class Row(NamedTuple):
     realtime_factor: float
     fallbacks: int
     fallback_rate: float
+    kept_up: float | None = None
 
 
 @dataclass
@@ -196,6 +200,7 @@ class Comparison:
                         realtime_factor=sim_time / wall if wall > 0 else float("inf"),
                         fallbacks=int(sum(m.fallbacks for m in metrics)),
                         fallback_rate=sum(m.fallbacks for m in metrics) / max(calls, 1),
+                        kept_up=_kept_up(metrics),
                     )
                 )
         return rows
@@ -206,7 +211,12 @@ class Comparison:
             labels += [k for k in limits if k not in labels]
         return labels
 
+    def _realtime(self) -> bool:
+        """Whether any run was real-time (then the tables get a "kept up" column)."""
+        return any(r.metrics.kept_up is not None for r in self.runs)
+
     def _table(self) -> tuple[list[str], list[list[str]]]:
+        realtime = self._realtime()
         labels = self._push_labels()
         columns = self._measure_columns()
         header = [
@@ -222,6 +232,7 @@ class Comparison:
             "compute mean (ms)",
             "compute p99 (ms)",
             "period (ms)",
+            *(["kept up"] if realtime else []),
             "real-time factor",
             "fallbacks",
         ]
@@ -245,6 +256,7 @@ class Comparison:
                     f"{row.compute_mean_ms:.2f}",
                     f"{row.compute_p99_ms:.2f}" + ("" if row.p99_fits else " (over)"),
                     f"{row.period_ms:.1f}",
+                    *([_share(row.kept_up)] if realtime else []),
                     f"{row.realtime_factor:.1f}",
                     f"{row.fallbacks} ({100 * row.fallback_rate:.0f}%)",
                 ]
@@ -271,13 +283,14 @@ class Comparison:
         pushes = [f"largest_push_{k}" for k in labels]
         buffer = io.StringIO()
         writer = csv.writer(buffer, lineterminator="\n")
+        fields = [f for f in Row._fields if f != "kept_up" or self._realtime()]
         header: list[str] = []
-        for name in Row._fields:
+        for name in fields:
             header += {"measures": measures, "largest_push": pushes}.get(name, [name])
         writer.writerow(header)
         for row in self.rows():
             values: list[object] = []
-            for name in Row._fields:
+            for name in fields:
                 if name == "measures":
                     values += [row.measures[k] for k in measures]
                 elif name == "largest_push":
@@ -296,6 +309,17 @@ class Comparison:
 
     def __str__(self) -> str:
         return self.to_markdown()
+
+
+def _kept_up(metrics: list[Metrics]) -> float | None:
+    """Share of the real-time runs that kept up, or ``None`` when none was real-time."""
+    flags = [m.kept_up for m in metrics if m.kept_up is not None]
+    return float(np.mean(flags)) if flags else None
+
+
+def _share(value: float | None) -> str:
+    """``"100%"``, or ``"-"`` for rows without real-time runs."""
+    return "-" if value is None else f"{100 * value:.0f}%"
 
 
 def _mean(values: list[float]) -> float:

@@ -12,6 +12,7 @@ from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError
 from mpcbox.sim.disturbances import MAX_FORCE, ActuatorNoise, ModelMismatch, Push
 from mpcbox.validation import (
+    boolean,
     checked_options,
     finite_array,
     instance,
@@ -57,6 +58,11 @@ class Scenario:
         noise: Explicit actuator noise (overrides the task's noise model).
         pushes: Pushes applied in every run.
         mismatch: Model mismatch of the simulated plant.
+        realtime: Run in the asynchronous real-time loop
+            (:func:`~mpcbox.sim.realtime.simulate_realtime`): the world does not wait for the
+            planner, and the table reports whether each planner kept up. Latency depends on
+            the machine's load: run real-time comparisons serially (``workers=1``).
+        speed: Simulated seconds per wall-clock second of a real-time run.
     """
 
     name: str = ""
@@ -65,9 +71,13 @@ class Scenario:
     noise: ActuatorNoise | None = None
     pushes: tuple[Push, ...] = ()
     mismatch: ModelMismatch | None = None
+    realtime: bool = False
+    speed: float = 1.0
 
     def __post_init__(self) -> None:
         string("name", self.name)
+        boolean("realtime", self.realtime)
+        positive("speed", self.speed)
         positive("duration", self.duration)
         _check_noise_scale(self.noise_scale)
         if isinstance(self.pushes, (str, bytes)) or not isinstance(self.pushes, Sequence):
@@ -98,6 +108,8 @@ class Scenario:
                 parts.append(f"friction x{m.friction_scale:g}")
             for body, value in (m.body_mass_scale or {}).items():
                 parts.append(f"{body} mass x{value:g}")
+        if self.realtime:
+            parts.append("real time" + ("" if self.speed == 1.0 else f" x{self.speed:g}"))
         return " ".join(parts)
 
     @property
