@@ -74,6 +74,8 @@ _LAZY: dict[str, str] = {
     "simulate": "mpcbox.sim.simulation",
     "SimulationResult": "mpcbox.sim.simulation",
     "Metrics": "mpcbox.sim.simulation",
+    "simulate_realtime": "mpcbox.sim.realtime",
+    "RealtimeStats": "mpcbox.sim.realtime",
     "compare": "mpcbox.comparison.runner",
     "Scenario": "mpcbox.comparison.scenario",
     "make_controller": "mpcbox.registry",

@@ -167,3 +167,12 @@ def test_compare_reports_whether_each_planner_kept_up(problem):
     plain = compare(problem, [fast], lockstep, seeds=1, workers=1, progress=False)
     assert "kept up" not in plain.to_markdown().splitlines()[0]
     assert "kept_up" not in plain.to_csv().splitlines()[0].split(",")
+
+
+
+def test_realtime_runner_is_exported_and_lockstep_runs_report_no_kept_up(problem):
+    assert mpcbox.simulate_realtime is simulate_realtime
+    res = mpcbox.simulate_realtime(problem, Sleeper(problem, 0.0, 0.05), 0.2, speed=2.0)
+    assert res.realtime.speed == 2.0 and res.metrics.kept_up is True
+    plain = mpcbox.simulate(problem, Sleeper(problem, 0.0, 0.05), 0.2)
+    assert plain.metrics.kept_up is None and not hasattr(plain, "realtime")
