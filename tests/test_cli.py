@@ -188,3 +188,16 @@ def test_replay_errors_exit_2_with_one_line(capsys, tmp_path) -> None:
     (tmp_path / "bad.csv").write_text("time\n0\n")
     code, _, err = run(capsys, "replay", str(bad))
     assert code == 2 and err.startswith("error:") and "bad" in err
+
+
+def test_compare_realtime_reports_kept_up(capsys, tmp_path):
+    import json
+
+    argv = ["compare", "pendulum_swingup", "--controllers", "lqr", "--seeds", "2"]
+    argv += ["--duration", "0.3", "--workers", "1", "--no-plots", "--no-progress"]
+    code, out, err = run(capsys, *argv, "--realtime", "--out", str(tmp_path))
+    assert code == 0, err
+    table = [line for line in out.splitlines() if line.startswith("| scenario")]
+    assert table and "kept up" in table[0] and "real time" in out, out
+    groups = json.loads((tmp_path / "groups.json").read_text())
+    assert 0.0 <= groups[0]["kept_up_mean"] <= 1.0

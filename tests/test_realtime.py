@@ -169,7 +169,6 @@ def test_compare_reports_whether_each_planner_kept_up(problem):
     assert "kept_up" not in plain.to_csv().splitlines()[0].split(",")
 
 
-
 def test_realtime_runner_is_exported_and_lockstep_runs_report_no_kept_up(problem):
     assert mpcbox.simulate_realtime is simulate_realtime
     res = mpcbox.simulate_realtime(problem, Sleeper(problem, 0.0, 0.05), 0.2, speed=2.0)

@@ -37,6 +37,8 @@ DEFAULTS: dict[str, Any] = {
     "seeds": 5,
     "seed": 0,
     "duration": 10.0,
+    "realtime": False,
+    "speed": 1.0,
     "noise": None,
     "push": 0.0,
     "push_time": 2.0,
@@ -117,6 +119,14 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
     add("--seeds", type=int, default=d["seeds"], help="number of seeds per scenario")
     add("--seed", type=int, default=d["seed"], help="first seed")
     add("--duration", type=float, default=d["duration"], help="simulated seconds per run")
+    add(
+        "--realtime",
+        action="store_true",
+        default=d["realtime"],
+        help="asynchronous real-time loop: the world does not wait for the planner; the "
+        "table reports whether each planner kept up (use --workers 1)",
+    )
+    add("--speed", type=float, default=d["speed"], help="real time: sim seconds per wall second")
     add(
         "--noise",
         default=d["noise"] if d["noise"] is not None else _default_noise(task),
@@ -215,7 +225,12 @@ def _scenarios(args: argparse.Namespace):
     if args.mass_scale != 1.0 or args.friction_scale != 1.0:
         mismatch = ModelMismatch(mass_scale=args.mass_scale, friction_scale=args.friction_scale)
     return Scenario.noise_sweep(
-        scales or [0.0], duration=args.duration, pushes=pushes, mismatch=mismatch
+        scales or [0.0],
+        duration=args.duration,
+        pushes=pushes,
+        mismatch=mismatch,
+        realtime=args.realtime,
+        speed=args.speed,
     )
 
 

@@ -87,6 +87,12 @@ def _numeric(value: Any) -> bool:
     return isinstance(value, bool | int | float | np.integer | np.floating)
 
 
+def _float(value: Any) -> float:
+    """``value`` as a float; NaN for a missing or ``None`` value (``Metrics.kept_up`` of
+    a lock-step run, or of a real-time run that raised before it started)."""
+    return np.nan if value is None else float(value)
+
+
 def group_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     """Per scenario and controller (first-seen order), ``runs`` and :data:`STATS` of every
     numeric column of ``rows`` (except ``seed``), as ``<column>_<stat>``."""
@@ -101,7 +107,7 @@ def group_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
         group["outcomes"] = "; ".join(f"{o} {outcomes.count(o)}" for o in dict.fromkeys(outcomes))
         columns = [k for k, v in members[0].items() if k not in _KEYS and _numeric(v)]
         for column in columns:
-            values = np.array([float(m.get(column, np.nan)) for m in members])
+            values = np.array([_float(m.get(column)) for m in members])
             group[f"{column}_mean"] = float(np.mean(values))
             group[f"{column}_std"] = float(np.std(values, ddof=1)) if len(values) > 1 else 0.0
             group[f"{column}_min"] = float(np.min(values))
