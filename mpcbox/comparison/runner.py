@@ -34,8 +34,8 @@ from mpcbox.comparison.executors import (
     SerialExecutor,
 )
 from mpcbox.comparison.jobs import Done, Job, Setup, picklable
-from mpcbox.comparison.push_limits import PushLimit
 from mpcbox.comparison.report import Comparison
+from mpcbox.comparison.robustness import PushLimit
 from mpcbox.comparison.scenario import PushTest, Scenario, check_noise_models
 from mpcbox.config import check_option_names
 from mpcbox.controllers.base import Controller
