@@ -158,3 +158,10 @@ def test_cli_executor_flags_are_checked(tmp_path, capsys):
     assert len(list((tmp_path / "runs").glob("*/*.pkl"))) == 1
     assert main(argv) == 0
     assert "jobs: 1 on " in capsys.readouterr().out
+    # The streamed rows and the final table both hold the run; run.json says where it ran.
+    import json
+
+    assert len((tmp_path / "runs.jsonl").read_text().splitlines()) == 1
+    assert len(json.loads((tmp_path / "runs.json").read_text())) == 1
+    placement = json.loads((tmp_path / "run.json").read_text())["placement"]
+    assert sum(placement.values()) == 1

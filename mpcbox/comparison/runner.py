@@ -120,6 +120,7 @@ def compare(
     workers: int | None = None,
     executor: str | Executor | None = None,
     checkpoint: str | Path | None = None,
+    on_done: Callable[[Done], None] | None = None,
     progress: bool = True,
 ) -> Comparison:
     """Run each controller on identical seeded scenarios and collect the metrics.
@@ -148,6 +149,9 @@ def compare(
             ``workers``.
         checkpoint: A folder where each finished job is kept as it finishes; a re-run with
             the same folder and setup skips those jobs.
+        on_done: Called with each finished :class:`~mpcbox.comparison.jobs.Done` as it
+            finishes (first the jobs loaded from ``checkpoint``), e.g. a
+            :class:`~mpcbox.comparison.stream.RunStream` that appends rows to files.
         progress: Show a tqdm progress bar.
 
     Returns:
@@ -249,13 +253,20 @@ def compare(
         desc=f"compare {problem_name} ({runner.name})",
         disable=not progress,
     )
-    done: list[Done] = list(finished.values())
+    if on_done is not None and not callable(on_done):
+        raise InvalidTypeError(f"on_done must be callable, got {type(on_done).__name__}")
+    done: list[Done] = [finished[job] for job in jobs if job in finished]
+    if on_done is not None:
+        for item in done:
+            on_done(item)
     try:
         if todo:
             for item in runner.run(setup, todo, instance):
                 if store is not None:
                     store.save(item)
                 done.append(item)
+                if on_done is not None:
+                    on_done(item)
                 bar.update()
     finally:
         bar.close()
