@@ -65,7 +65,7 @@ def _run(
     built: Problem | None = None
     if isinstance(problem, str):
         if problem not in TASKS:
-            raise UnknownNameError("task", problem, TASKS)
+            raise UnknownNameError("task", problem, TASKS, "problem")
         problem_class: Any = task_class(problem)
         task: str | None = problem
     else:
