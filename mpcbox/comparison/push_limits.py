@@ -34,7 +34,7 @@ from mpcbox.comparison.robustness import (
     SurvivalSummary,
     summarize_push_grid,
 )
-from mpcbox.comparison.runner import ControllerSpec, _executor, resolve_controllers
+from mpcbox.comparison.runner import ControllerSpec, pick_executor, resolve_controllers
 from mpcbox.comparison.scenario import PushTest, Scenario, check_noise_models
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError, UnknownNameError
@@ -88,7 +88,8 @@ def _run(
         trace_seed=-(2**62),  # no run keeps its time series
     )
     jobs: list[Job] = jobs_of(label)
-    runner = _executor(executor or "serial", None, len(jobs), built is None and picklable(setup))
+    portable = built is None and picklable(setup)
+    runner = pick_executor(executor or "serial", None, len(jobs), portable)
     from tqdm.auto import tqdm
 
     order = {job: i for i, job in enumerate(jobs)}

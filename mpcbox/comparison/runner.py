@@ -240,7 +240,7 @@ def compare(
         for s in range(len(scenarios))
         for seed in seed_list
     ]
-    runner = _executor(executor, workers, len(jobs), instance is None and picklable(setup))
+    runner = pick_executor(executor, workers, len(jobs), instance is None and picklable(setup))
     store = None if checkpoint is None else Checkpoint(checkpoint, setup)
     finished = {} if store is None else store.load(jobs)
     todo = [job for job in jobs if job not in finished]
@@ -291,10 +291,18 @@ def compare(
     )
 
 
-def _executor(
+def pick_executor(
     executor: str | Executor | None, workers: int | None, jobs: int, portable: bool
 ) -> Executor:
-    """The executor to use: the one asked for, or processes when ``workers`` allows it."""
+    """The executor to use: the one asked for, or processes when ``workers`` allows it.
+
+    Args:
+        executor: A name of :data:`~mpcbox.comparison.executors.EXECUTORS`, an
+            :class:`~mpcbox.comparison.executors.Executor`, or ``None`` (from ``workers``).
+        workers: Worker processes (``None``: one per core).
+        jobs: Number of jobs (no more workers than jobs).
+        portable: Whether the setup can leave this process; when not, the serial executor.
+    """
     if isinstance(executor, Executor):
         return executor if portable else SerialExecutor()
     if executor is not None:
