@@ -230,3 +230,38 @@ def test_task_script_entry_point(tmp_path, capsys):
     assert "| noise x1 push 10N@2s | lqr | 1 | 100% |" in stdout
     with pytest.raises(UnknownNameError, match="seeds"):
         run_task_script("humanoid_balance", [], seedz=1)
+
+
+def test_rows_stream_as_runs_finish_and_a_rerun_loads_the_finished_ones(tmp_path):
+    """Each finished run is in runs.jsonl and runs.csv before the next one starts; a re-run
+    with the same checkpoint streams the finished runs (loaded, same timings) and then runs
+    only the new seed."""
+    import json
+
+    from mpcbox.comparison.stream import RunStream
+
+    out = tmp_path / "out"
+    scenario = Scenario(duration=0.1, noise_scale=0.0)
+    kwargs = dict(scenarios=scenario, executor="serial", checkpoint=out / "runs", progress=False)
+    stream, seen = RunStream(out, [scenario]), []
+
+    def hook(done):
+        stream(done)
+        lines = (out / "runs.jsonl").read_text().splitlines()
+        with (out / "runs.csv").open() as f:
+            rows = list(csv.DictReader(f))
+        seen.append((done.job.seed, len(lines), len(rows), rows[-1]["seed"]))
+
+    first = compare("pendulum_swingup", ["lqr"], seeds=3, on_done=hook, **kwargs)
+    assert seen == [(0, 1, 1, "0"), (1, 2, 2, "1"), (2, 3, 3, "2")]
+    rows = [json.loads(line) for line in (out / "runs.jsonl").read_text().splitlines()]
+    assert [r["cost"] for r in rows] == [r.metrics.cost for r in first.runs]
+    assert all(r["where"] for r in rows)
+
+    stream, seen = RunStream(out, [scenario]), []
+    second = compare("pendulum_swingup", ["lqr"], seeds=4, on_done=hook, **kwargs)
+    assert [s[0] for s in seen] == [0, 1, 2, 3] and seen[-1][1:3] == (4, 4)
+    for x, y in zip(first.runs, second.runs[:3]):
+        assert x.metrics.compute_mean_ms == y.metrics.compute_mean_ms  # loaded, not re-run
+    with pytest.raises(TypeError, match="on_done"):
+        compare("pendulum_swingup", ["lqr"], seeds=1, on_done=3, **kwargs)

@@ -71,7 +71,7 @@ def test_bisection_below_float_resolution_ends(monkeypatch) -> None:
     """A tolerance the floats cannot resolve ends at the resolution instead of looping."""
     from types import SimpleNamespace
 
-    from mpcbox.comparison import push_limits
+    from mpcbox.comparison import robustness
 
     limit = 37.3
     calls = []
@@ -83,8 +83,54 @@ def test_bisection_below_float_resolution_ends(monkeypatch) -> None:
 
         return trial
 
-    monkeypatch.setattr(push_limits, "_push_trial", fake_trial)
-    result = largest_push(None, None, PushTest(max_force=400.0, tolerance=1e-300))
+    monkeypatch.setattr(robustness, "_push_trial", fake_trial)
+    result = robustness.largest_push(None, None, PushTest(max_force=400.0, tolerance=1e-300))
     assert result.force <= limit < result.smallest_failed
     assert result.smallest_failed - result.force <= 2 * np.spacing(limit)
     assert len(calls) < 100  # about 60 halvings of 400 N down to the spacing near 37 N
+
+
+def _lqr(problem):
+    """A module-level factory: worker processes rebuild the controller from it."""
+    return LQR(problem)
+
+
+def test_sweeps_on_executors_equal_the_serial_ones(two_feet):
+    """The grid's forces, the survival seeds and the bisection run as jobs of worker
+    processes (or of the serial executor) give the in-process results exactly."""
+    from mpcbox.comparison.executors import ProcessExecutor
+    from mpcbox.comparison.push_limits import survival
+
+    lqr = LQR(two_feet)
+    test = PushTest(settle=1.5, direction=(1.0, 0.0, 0.0), max_force=400.0, tolerance=150.0)
+    task = dict(problem_options={"threads": 1})
+    forces = [400.0, 0.0, 40.0]
+    here = push_grid(two_feet, lqr, forces, test)
+    spread = push_grid("humanoid_two_feet", _lqr, forces, test, executor="processes", **task)
+    np.testing.assert_array_equal(spread.survived, here.survived)
+    np.testing.assert_array_equal(spread.time_to_fall, here.time_to_fall)
+    assert spread.survived.any() and not spread.survived.all()  # both outcomes compared
+
+    limit = largest_push(two_feet, lqr, test)
+    remote = largest_push(
+        "humanoid_two_feet", _lqr, test, executor=ProcessExecutor(workers=1), **task
+    )
+    assert tuple(remote) == tuple(limit)
+
+    noise, push = two_feet.noise(1.0), test.push(400.0)
+    kw = dict(seeds=[3, 4], duration=test.total_time, noise=noise, pushes=[push])
+    serial = survival(two_feet, lqr, **kw)
+    by_name = survival("humanoid_two_feet", _lqr, executor="serial", **kw, **task)
+    for a, b in zip(serial, by_name):
+        np.testing.assert_array_equal(a, b)
+    assert serial.rate < 1.0  # the push at 1.0 s felled the robot
+
+
+def test_sweeps_by_name_check_their_arguments():
+    from mpcbox.comparison.push_limits import survival
+    from mpcbox.errors import UnknownNameError
+
+    with pytest.raises(UnknownNameError, match="humanoid_two_feet"):
+        survival("no_such_task", "lqr", seeds=[0], duration=0.1, executor="serial")
+    with pytest.raises(UnknownNameError, match="'ray'"):
+        push_grid("pendulum_swingup", "lqr", [0.0], executor="dask")

@@ -236,6 +236,16 @@ def controller_type(rng) -> list[Bad]:
     return [Bad(42, True), Bad("lqr", True), Bad(None, True)]
 
 
+def sweep_problem_type(rng) -> list[Bad]:
+    """The evaluation sweeps also take a task name (to rebuild it in workers)."""
+    return [Bad(42, True), Bad("pendulum.xml"), Bad(None, True)]
+
+
+def sweep_controller_type(rng) -> list[Bad]:
+    """The evaluation sweeps also take a controller name."""
+    return [Bad(42, True), Bad("no_such_controller"), Bad(None, True)]
+
+
 def term_problem(term_factory: Callable) -> Callable:
     """A call that builds a cost term and a pendulum Problem that uses it."""
 
@@ -831,8 +841,8 @@ TARGETS: list[Target] = [
             "test": PushTest(body="pole", settle=0.05, start=0.01, duration=0.01),
         },
         {
-            "problem": problem_type(),
-            "controller": controller_type,
+            "problem": sweep_problem_type,
+            "controller": sweep_controller_type,
             "test": instance(),
             "seed": lambda rng: integer(rng, minimum=0),
         },
@@ -848,8 +858,8 @@ TARGETS: list[Target] = [
             "test": PushTest(body="pole", settle=0.05, start=0.01, duration=0.01),
         },
         {
-            "problem": problem_type(),
-            "controller": controller_type,
+            "problem": sweep_problem_type,
+            "controller": sweep_controller_type,
             "forces": only(Bad([]), Bad([NAN]), Bad([-1.0]), Bad([1e300]), Bad("ab", True)),
             "test": instance(),
             "seed": lambda rng: integer(rng, minimum=0),
@@ -866,8 +876,8 @@ TARGETS: list[Target] = [
             "duration": 0.02,
         },
         {
-            "problem": problem_type(),
-            "controller": controller_type,
+            "problem": sweep_problem_type,
+            "controller": sweep_controller_type,
             "seeds": only(Bad([]), Bad([-1]), Bad(["a"], True), Bad(1.5, True), Bad([0.5], True)),
             "duration": positive,
         },

@@ -158,3 +158,55 @@ def test_cli_executor_flags_are_checked(tmp_path, capsys):
     assert len(list((tmp_path / "runs").glob("*/*.pkl"))) == 1
     assert main(argv) == 0
     assert "jobs: 1 on " in capsys.readouterr().out
+    # The streamed rows and the final table both hold the run; run.json says where it ran.
+    import json
+
+    assert len((tmp_path / "runs.jsonl").read_text().splitlines()) == 1
+    assert len(json.loads((tmp_path / "runs.json").read_text())) == 1
+    placement = json.loads((tmp_path / "run.json").read_text())["placement"]
+    assert sum(placement.values()) == 1
+
+
+def test_warp_runs_ask_ray_for_one_gpu_each():
+    """A setup with a warp-backend controller makes every actor ask Ray for a GPU, so a
+    2-GPU host runs two closed loops at a time; CPU setups ask for CPUs only (no GPU needed
+    to check: the options are computed from the cluster's resources)."""
+    from mpcbox.comparison.executors import uses_warp
+    from mpcbox.comparison.jobs import Setup
+    from mpcbox.errors import BackendUnavailableError
+
+    base = dict(
+        task="pendulum_swingup",
+        task_options={},
+        controllers={"lqr": "lqr", "mppi": "mppi"},
+        scenarios=(Scenario(duration=0.1, noise_scale=0.0),),
+        push_tests=(),
+        trace_seed=0,
+    )
+    cpu = Setup(overrides={"mppi": {"backend": "cpu"}}, **base)
+    gpu = Setup(overrides={"mppi": {"backend": "warp"}}, **base)
+    assert not uses_warp(cpu) and uses_warp(gpu)
+    host = {"CPU": 16.0, "GPU": 2.0}
+    count, options = RayExecutor().actor_options(gpu, host, 200)
+    assert count == 2 and options["num_gpus"] == 1.0 and options["num_cpus"] == 1.0
+    count, options = RayExecutor().actor_options(cpu, host, 200)
+    assert count == 16 and options["num_gpus"] == 0.0
+    assert options["max_restarts"] == 3 and options["max_task_retries"] == 3
+    assert RayExecutor(cpus_per_run=4.0).actor_options(cpu, host, 200)[0] == 4
+    assert RayExecutor().actor_options(cpu, host, 3)[0] == 3  # at most one actor per job
+    assert RayExecutor(gpus_per_run=0.5).actor_options(gpu, host, 200)[0] == 4
+    assert RayExecutor(gpus_per_run=0.0).actor_options(gpu, host, 200)[1]["num_gpus"] == 0.0
+    with pytest.raises(BackendUnavailableError, match="no GPU"):
+        RayExecutor().actor_options(gpu, {"CPU": 16.0}, 200)
+
+
+def test_survival_sweep_on_ray_equals_serial(cluster):
+    """The evaluation sweeps spread their runs over the same Ray actors as compare."""
+    from mpcbox.comparison.push_limits import survival
+    from mpcbox.sim.disturbances import ActuatorNoise
+
+    kw = dict(seeds=[0, 1, 2], duration=0.3, noise=ActuatorNoise(std=0.5, width=0.1))
+    on_ray = survival("pendulum_swingup", "lqr", executor=RayExecutor(), **kw)
+    serial = survival("pendulum_swingup", "lqr", **kw)
+    for a, b in zip(on_ray, serial):
+        np.testing.assert_array_equal(a, b)

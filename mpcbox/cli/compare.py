@@ -282,6 +282,7 @@ def run_comparison(
     from mpcbox.comparison.plots import plot_comparison
     from mpcbox.comparison.runner import compare, resolve_controllers
     from mpcbox.comparison.scenario import PushTest
+    from mpcbox.comparison.stream import RunStream
     from mpcbox.registry import task_class
 
     stream = stream or sys.stdout
@@ -311,11 +312,12 @@ def run_comparison(
             PushTest(direction=(-1.0, 0.0, 0.0), name="backward", **common),
         )
     seeds = range(args.seed, args.seed + args.seeds)
+    scenarios = _scenarios(args)
     t0 = time.perf_counter()
     result = compare(
         task,
         chosen,
-        _scenarios(args),
+        scenarios,
         seeds,
         push_tests=push_tests,
         problem_options=task_options,
@@ -323,6 +325,7 @@ def run_comparison(
         workers=args.workers or None,
         executor=_executor(args),
         checkpoint=out / "runs",
+        on_done=RunStream(out, scenarios),
         progress=args.progress,
     )
     elapsed = time.perf_counter() - t0

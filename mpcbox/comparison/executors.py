@@ -173,25 +173,8 @@ class RayExecutor(Executor):
                 include_dashboard=False,
                 logging_level="ERROR",
             )
-        gpus = uses_warp(setup) if self.gpus_per_run is None else self.gpus_per_run
-        gpus = float(gpus)
-        resources = ray.cluster_resources()
-        fit = int(resources.get("CPU", 1) // self.cpus_per_run)
-        if gpus > 0:
-            fit = min(fit, int(resources.get("GPU", 0) // gpus))
-            if fit == 0:
-                raise BackendUnavailableError(
-                    f"the Ray cluster has no GPU for runs that ask for {gpus} (resources: "
-                    f"{resources})"
-                )
-        count = self.workers if self.workers is not None else max(fit, 1)
-        count = min(count, max(len(jobs), 1))
-        actor_class = ray.remote(_RayWorker).options(
-            num_cpus=self.cpus_per_run,
-            num_gpus=gpus,
-            max_restarts=self.max_restarts,
-            max_task_retries=self.max_task_retries,
-        )
+        count, options = self.actor_options(setup, ray.cluster_resources(), len(jobs))
+        actor_class = ray.remote(_RayWorker).options(**options)
         actors = [actor_class.remote(setup) for _ in range(count)]
         try:
             pool = ray.util.ActorPool(actors)
@@ -199,6 +182,44 @@ class RayExecutor(Executor):
         finally:
             for actor in actors:
                 ray.kill(actor)
+
+    def actor_options(
+        self, setup: Setup, resources: dict[str, float], jobs: int
+    ) -> tuple[int, dict[str, float | int]]:
+        """How many actors to start and the Ray options of each.
+
+        Each actor asks for ``cpus_per_run`` CPUs and, for a setup whose controllers use the
+        warp backend (:func:`uses_warp`, unless ``gpus_per_run`` says otherwise), one GPU:
+        Ray then places at most one closed loop per GPU at a time, so a host with ``g``
+        GPUs runs ``g`` warp loops in parallel. The default count is what the cluster holds
+        (``CPU // cpus_per_run``, and ``GPU // gpus`` for GPU runs), at most one per job.
+
+        Args:
+            setup: The comparison's setup.
+            resources: The cluster's resources (``ray.cluster_resources()``), e.g.
+                ``{"CPU": 16.0, "GPU": 2.0}``.
+            jobs: Number of jobs.
+
+        Raises:
+            BackendUnavailableError: If the runs need GPUs and the cluster has none.
+        """
+        gpus = float(uses_warp(setup) if self.gpus_per_run is None else self.gpus_per_run)
+        fit = int(resources.get("CPU", 1) // self.cpus_per_run)
+        if gpus > 0:
+            fit = min(fit, int(resources.get("GPU", 0) // gpus))
+            if fit == 0:
+                raise BackendUnavailableError(
+                    f"the Ray cluster has no GPU for runs that ask for {gpus:g} (resources: "
+                    f"{resources})"
+                )
+        count = self.workers if self.workers is not None else max(fit, 1)
+        options = {
+            "num_cpus": self.cpus_per_run,
+            "num_gpus": gpus,
+            "max_restarts": self.max_restarts,
+            "max_task_retries": self.max_task_retries,
+        }
+        return min(count, max(jobs, 1)), options
 
 
 def uses_warp(setup: Setup) -> bool:

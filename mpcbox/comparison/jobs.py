@@ -20,8 +20,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from mpcbox.comparison.push_limits import PushLimit, largest_push
 from mpcbox.comparison.report import Run, Trace
+from mpcbox.comparison.robustness import PushLimit, largest_push
 from mpcbox.comparison.scenario import PushTest, Scenario
 from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
@@ -74,7 +74,8 @@ class Setup:
 
 @dataclass(frozen=True)
 class Job:
-    """One closed-loop run (``scenario`` and ``seed``) or one push search (``push``)."""
+    """One closed-loop run (``scenario`` and ``seed``) or one push search (``push``, with
+    the noise of ``seed``)."""
 
     controller: str
     scenario: int = -1
@@ -86,7 +87,7 @@ class Job:
         """A file-name-safe identifier of the job."""
         label = "".join(c if c.isalnum() or c in "-_." else "_" for c in self.controller)
         if self.push >= 0:
-            return f"{label}__push{self.push}"
+            return f"{label}__push{self.push}" + (f"__seed{self.seed}" if self.seed else "")
         return f"{label}__scenario{self.scenario}__seed{self.seed}"
 
 
@@ -171,7 +172,7 @@ class Worker:
             try:
                 problem, controller = self.problem, self.controller(job.controller)
                 test = self.setup.push_tests[job.push]
-                limit = largest_push(problem, controller, test, seed=0)
+                limit = largest_push(problem, controller, test, seed=job.seed)
             except Exception:  # one broken search must not end the sweep: NaN in the table
                 nan = float("nan")
                 return Done(job, PushLimit(nan, nan, nan, 0), (), _where())

@@ -5,87 +5,106 @@ The pushes are described by :class:`~mpcbox.comparison.scenario.PushTest`, the s
 that :func:`mpcbox.compare` takes. A run "survives" here when its outcome is ``"success"``
 (:data:`mpcbox.sim.simulation.OUTCOMES`): a run that diverged, or whose controller fell back
 on most calls, does not count, whatever the state at the end.
+
+Each sweep runs in this process by default. Given the problem as a task name
+(:data:`mpcbox.registry.TASKS`, with ``problem_options``) and the controller as a name or a
+module-level factory ``problem -> Controller``, it can also spread its closed loops over an
+``executor`` (``"processes"``, ``"ray"`` or an
+:class:`~mpcbox.comparison.executors.Executor`): each run becomes a
+:class:`~mpcbox.comparison.jobs.Job` of a :class:`~mpcbox.comparison.jobs.Setup`, exactly as
+in :func:`mpcbox.compare`, so the results equal the serial ones (a run depends only on its
+controller, scenario and seed). The bisection of :func:`largest_push` is sequential: an
+executor runs the whole search as one job (on a GPU worker, say).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from typing import NamedTuple
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
-from mpcbox.comparison.scenario import PushTest, task_noise
-from mpcbox.controllers.base import Controller
+from mpcbox.comparison import robustness as _here
+from mpcbox.comparison.executors import Executor
+from mpcbox.comparison.jobs import Done, Job, Setup, picklable
+from mpcbox.comparison.robustness import (
+    DEFAULT_PUSH,
+    PushGrid,
+    PushLimit,
+    SurvivalSummary,
+    summarize_push_grid,
+)
+from mpcbox.comparison.runner import ControllerSpec, pick_executor, resolve_controllers
+from mpcbox.comparison.scenario import PushTest, Scenario, check_noise_models
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError, InvalidTypeError
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError, UnknownNameError
+from mpcbox.registry import TASKS, task_class
 from mpcbox.sim.disturbances import MAX_FORCE, ActuatorNoise, ModelMismatch, Push
-from mpcbox.sim.simulation import SimulationResult, simulate
 from mpcbox.validation import checked_keywords, instance, integer, integers, number, positive
 
-#: The push test used when none is given (every :class:`PushTest` default).
-DEFAULT_PUSH = PushTest()
+
+def _local(problem: object, controller: object, executor: object) -> bool:
+    """Whether the sweep runs in this process the classic way (no executor, built objects)."""
+    return executor is None and isinstance(problem, Problem) and not isinstance(controller, str)
 
 
-class SurvivalSummary(NamedTuple):
-    """Survival over seeds.
+def _run(
+    problem: Problem | str,
+    controller: ControllerSpec,
+    jobs_of: Any,
+    *,
+    scenarios: Sequence[Scenario] = (),
+    push_tests: Sequence[PushTest] = (),
+    problem_options: Mapping[str, Any] | None,
+    controller_options: Mapping[str, Any] | None,
+    executor: str | Executor | None,
+    progress: bool,
+    desc: str,
+) -> list[Done]:
+    """Run the jobs ``jobs_of(label)`` of one controller on ``executor``, in job order."""
+    built: Problem | None = None
+    if isinstance(problem, str):
+        if problem not in TASKS:
+            raise UnknownNameError("task", problem, TASKS, "problem")
+        problem_class: Any = task_class(problem)
+        task: str | None = problem
+    else:
+        instance("problem", problem, Problem, "an mpcbox.Problem or a task name")
+        if problem_options:
+            raise InvalidArgumentError("problem_options only applies when problem is a task name")
+        built, task, problem_class = problem, None, type(problem)
+    specs = resolve_controllers(built or problem_class, [controller])
+    label = next(iter(specs))
+    if controller_options is not None:
+        instance("controller_options", controller_options, Mapping, "a mapping of options")
+    check_noise_models(built or problem_class, [*scenarios, *push_tests])
+    setup = Setup(
+        task=task,
+        task_options=dict(problem_options or {}),
+        controllers=specs,
+        overrides={label: dict(controller_options)} if controller_options else {},
+        scenarios=tuple(scenarios),
+        push_tests=tuple(push_tests),
+        trace_seed=-(2**62),  # no run keeps its time series
+    )
+    jobs: list[Job] = jobs_of(label)
+    portable = built is None and picklable(setup)
+    runner = pick_executor(executor or "serial", None, len(jobs), portable)
+    from tqdm.auto import tqdm
 
-    Attributes:
-        seeds: The seeds ``(n,)``.
-        survived: Whether each run survived ``(n,)``.
-        time_to_fall: Failure time, or the duration, per run ``(n,)`` (s).
-        rate: Fraction of runs that survived.
-        mean_time: Mean of ``time_to_fall`` (s).
-    """
-
-    seeds: np.ndarray
-    survived: np.ndarray
-    time_to_fall: np.ndarray
-    rate: float
-    mean_time: float
-
-
-class PushGrid(NamedTuple):
-    """Survival of one push at each force of a grid.
-
-    Attributes:
-        forces: The force magnitudes, increasing ``(n,)`` (N).
-        survived: Whether each push was survived ``(n,)``.
-        time_to_fall: Failure time, or the trial's duration, per force ``(n,)`` (s).
-        limit: Largest grid force below which every grid force is survived (N): the last
-            force before the first failure, ``0`` when the smallest force already fails.
-        largest_survived: Largest grid force survived (N), ``0`` when none is.
-        monotone: No force is survived above a failed one (the bisection of
-            :func:`largest_push` is only meaningful when this holds).
-    """
-
-    forces: np.ndarray
-    survived: np.ndarray
-    time_to_fall: np.ndarray
-    limit: float
-    largest_survived: float
-    monotone: bool
-
-
-class PushLimit(NamedTuple):
-    """Largest survived push found by bisection.
-
-    Attributes:
-        force: Largest force magnitude that was survived (N).
-        impulse: ``force * duration`` (N s).
-        smallest_failed: Smallest force that was not survived (N), ``inf`` if none failed.
-        simulations: Number of simulations run.
-    """
-
-    force: float
-    impulse: float
-    smallest_failed: float
-    simulations: int
+    order = {job: i for i, job in enumerate(jobs)}
+    done: list[Done] = []
+    with tqdm(total=len(jobs), desc=f"{label} {desc} ({runner.name})", disable=not progress) as bar:
+        for item in runner.run(setup, jobs, built):
+            done.append(item)
+            bar.update()
+    return sorted(done, key=lambda item: order[item.job])
 
 
 @checked_keywords
 def survival(
-    problem: Problem,
-    controller: Controller,
+    problem: Problem | str,
+    controller: ControllerSpec,
     *,
     seeds: Sequence[int],
     duration: float,
@@ -93,96 +112,68 @@ def survival(
     pushes: Sequence[Push] = (),
     mismatch: ModelMismatch | None = None,
     progress: bool = False,
+    problem_options: Mapping[str, Any] | None = None,
+    controller_options: Mapping[str, Any] | None = None,
+    executor: str | Executor | None = None,
 ) -> SurvivalSummary:
     """Run one simulation per seed and summarize survival.
 
     Args:
-        problem: The Problem.
-        controller: The controller (reset before each run).
+        problem: The Problem, or a task name (:data:`mpcbox.registry.TASKS`).
+        controller: The controller (reset before each run), a controller name or a factory
+            ``problem -> Controller``.
         seeds: Noise seeds.
         duration: Simulated time per run (s).
         noise: Actuator noise (seeded per run).
         pushes: Pushes applied in every run.
         mismatch: Model mismatch applied in every run.
         progress: Show a progress bar.
+        problem_options: Keyword arguments of the task class when ``problem`` is a name.
+        controller_options: Keyword overrides of a controller given by name.
+        executor: Where the runs go (``"serial"``, ``"processes"``, ``"ray"`` or an
+            :class:`~mpcbox.comparison.executors.Executor`); a Problem instance or a
+            controller that does not pickle runs in this process.
     """
-    _check_runner(problem, controller)
-    seeds = np.asarray(integers("seeds", seeds), dtype=int)
-    positive("duration", duration)
-    iterator = seeds
-    if progress:
-        from tqdm import tqdm
-
-        iterator = tqdm(seeds, desc=f"{getattr(controller, 'name', 'controller')} survival")
-    survived, times = [], []
-    for seed in iterator:
-        res = simulate(
+    if _local(problem, controller, executor) and not (problem_options or controller_options):
+        return _here.survival(
             problem,
             controller,
-            duration,
+            seeds=seeds,
+            duration=duration,
             noise=noise,
             pushes=pushes,
             mismatch=mismatch,
-            seed=int(seed),
+            progress=progress,
         )
-        survived.append(res.metrics.success)
-        times.append(res.metrics.time_to_fall)
-    surv, t = np.array(survived), np.array(times)
-    return SurvivalSummary(seeds, surv, t, float(surv.mean()), float(t.mean()))
+    seed_list = integers("seeds", seeds)
+    positive("duration", duration)
+    scenario = Scenario(
+        name="survival",
+        duration=duration,
+        noise_scale=0.0 if noise is None else 1.0,
+        noise=noise,
+        pushes=tuple(pushes),
+        mismatch=mismatch,
+    )
+    done = _run(
+        problem,
+        controller,
+        lambda label: [Job(label, scenario=0, seed=s) for s in seed_list],
+        scenarios=(scenario,),
+        problem_options=problem_options,
+        controller_options=controller_options,
+        executor=executor,
+        progress=progress,
+        desc="survival",
+    )
+    surv = np.array([d.result.metrics.success for d in done], dtype=bool)
+    times = np.array([d.result.metrics.time_to_fall for d in done], dtype=float)
+    return SurvivalSummary(
+        np.asarray(seed_list, dtype=int), surv, times, float(surv.mean()), float(times.mean())
+    )
 
 
-def _check_runner(problem: object, controller: object) -> None:
-    """``problem`` must be a Problem and ``controller`` a Controller (or a callable)."""
-    instance("problem", problem, Problem, "an mpcbox.Problem")
-    if not (isinstance(controller, Controller) or callable(controller)):
-        raise InvalidTypeError(
-            f"controller must be an mpcbox.Controller, got {type(controller).__name__}"
-        )
-
-
-def _push_trial(
-    problem: Problem, controller: Controller, test: PushTest, seed: int
-) -> Callable[[float], SimulationResult]:
-    """``trial(force) -> SimulationResult`` for the push of ``test`` at a force magnitude."""
-    _check_runner(problem, controller)
-    instance("test", test, PushTest, "an mpcbox.comparison.scenario.PushTest")
-    seed = integer("seed", seed)
-    noise = task_noise(problem, test.noise_scale)
-
-    def trial(force: float) -> SimulationResult:
-        return simulate(
-            problem, controller, test.total_time, noise=noise, pushes=[test.push(force)], seed=seed
-        )
-
-    return trial
-
-
-@checked_keywords
-def push_grid(
-    problem: Problem,
-    controller: Controller,
-    forces: Sequence[float],
-    test: PushTest = DEFAULT_PUSH,
-    *,
-    seed: int = 0,
-    progress: bool = False,
-) -> PushGrid:
-    """Survival of the push of ``test`` at every force of a grid (its search settings unused).
-
-    Unlike the bisection of :func:`largest_push`, the grid shows when survival is not
-    monotone in the force (a controller that falls at 60 N and survives 100 N);
-    :attr:`PushGrid.limit` is then the honest figure, the largest force below which nothing
-    failed.
-
-    Args:
-        problem: The Problem.
-        controller: The controller (reset by each simulation).
-        forces: Force magnitudes, at least one, in ``[0, MAX_FORCE]`` (N); sorted here.
-        test: The push (direction, duration, start, settle, body) and the trials' noise.
-        seed: Noise seed.
-        progress: Show a progress bar.
-    """
-    trial = _push_trial(problem, controller, test, seed)
+def _grid(forces: Sequence[float]) -> np.ndarray:
     if isinstance(forces, (str, bytes)) or not isinstance(forces, Sequence | np.ndarray):
         raise InvalidTypeError(f"forces must be a sequence of numbers, got {type(forces).__name__}")
     grid = np.sort(np.array([number("forces", f) for f in np.ravel(forces)], dtype=float))
@@ -190,84 +181,125 @@ def push_grid(
         raise InvalidArgumentError(
             f"forces must hold at least one force in [0, {MAX_FORCE:g}] N, got {list(forces)!r}"
         )
-    iterator = grid
-    if progress:
-        from tqdm import tqdm
-
-        iterator = tqdm(grid, desc=f"{getattr(controller, 'name', 'controller')} push grid")
-    results = [trial(float(f)) for f in iterator]
-    survived = np.array([r.metrics.success for r in results], dtype=bool)
-    times = np.array([r.metrics.time_to_fall for r in results])
-    return summarize_push_grid(grid, survived, times)
+    return grid
 
 
-def summarize_push_grid(
-    forces: np.ndarray, survived: np.ndarray, time_to_fall: np.ndarray | None = None
+@checked_keywords
+def push_grid(
+    problem: Problem | str,
+    controller: ControllerSpec,
+    forces: Sequence[float],
+    test: PushTest = DEFAULT_PUSH,
+    *,
+    seed: int = 0,
+    progress: bool = False,
+    problem_options: Mapping[str, Any] | None = None,
+    controller_options: Mapping[str, Any] | None = None,
+    executor: str | Executor | None = None,
 ) -> PushGrid:
-    """:class:`PushGrid` of survival outcomes at increasing ``forces`` ``(n,)``.
+    """Survival of the push of ``test`` at every force of a grid (its search settings unused).
+
+    Unlike the bisection of :func:`largest_push`, the grid shows when survival is not
+    monotone in the force (a controller that falls at 60 N and survives 100 N);
+    :attr:`PushGrid.limit` is then the honest figure, the largest force below which nothing
+    failed. The forces are independent runs, so an ``executor`` runs them in parallel.
 
     Args:
-        forces: Increasing force magnitudes ``(n,)`` (N).
-        survived: Outcome per force ``(n,)``.
-        time_to_fall: Failure time per force ``(n,)`` (s); NaN when not given.
+        problem: The Problem, or a task name (:data:`mpcbox.registry.TASKS`).
+        controller: The controller (reset by each simulation), a name or a factory.
+        forces: Force magnitudes, at least one, in ``[0, MAX_FORCE]`` (N); sorted here.
+        test: The push (direction, duration, start, settle, body) and the trials' noise.
+        seed: Noise seed.
+        progress: Show a progress bar.
+        problem_options: Keyword arguments of the task class when ``problem`` is a name.
+        controller_options: Keyword overrides of a controller given by name.
+        executor: Where the runs go (see :func:`survival`).
     """
-    forces = np.asarray(forces, dtype=float)
-    survived = np.asarray(survived, dtype=bool)
-    if forces.ndim != 1 or survived.shape != forces.shape:
-        raise InvalidArgumentError(
-            f"forces and survived must be 1-D of one length, got {forces.shape} and "
-            f"{survived.shape}"
+    if _local(problem, controller, executor) and not (problem_options or controller_options):
+        return _here.push_grid(problem, controller, forces, test, seed=seed, progress=progress)
+    instance("test", test, PushTest, "an mpcbox.comparison.scenario.PushTest")
+    seed = integer("seed", seed)
+    grid = _grid(forces)
+    scenarios = [
+        Scenario(
+            name=f"{test.label} {f:g}N",
+            duration=test.total_time,
+            noise_scale=test.noise_scale,
+            pushes=(test.push(float(f)),),
         )
-    if np.any(np.diff(forces) <= 0):
-        raise InvalidArgumentError("forces must be strictly increasing")
-    times = (
-        np.full(forces.shape, np.nan) if time_to_fall is None else np.asarray(time_to_fall, float)
+        for f in grid
+    ]
+    done = _run(
+        problem,
+        controller,
+        lambda label: [Job(label, scenario=i, seed=seed) for i in range(len(grid))],
+        scenarios=scenarios,
+        problem_options=problem_options,
+        controller_options=controller_options,
+        executor=executor,
+        progress=progress,
+        desc="push grid",
     )
-    failed = np.flatnonzero(~survived)
-    first_fail = failed[0] if failed.size else forces.size
-    limit = float(forces[first_fail - 1]) if first_fail > 0 else 0.0
-    largest = float(forces[survived].max()) if survived.any() else 0.0
-    monotone = not bool(survived[first_fail:].any())
-    return PushGrid(forces, survived, times, limit, largest, monotone)
+    survived = np.array([d.result.metrics.success for d in done], dtype=bool)
+    times = np.array([d.result.metrics.time_to_fall for d in done], dtype=float)
+    return summarize_push_grid(grid, survived, times)
 
 
 @checked_keywords
 def largest_push(
-    problem: Problem, controller: Controller, test: PushTest = DEFAULT_PUSH, *, seed: int = 0
+    problem: Problem | str,
+    controller: ControllerSpec,
+    test: PushTest = DEFAULT_PUSH,
+    *,
+    seed: int = 0,
+    problem_options: Mapping[str, Any] | None = None,
+    controller_options: Mapping[str, Any] | None = None,
+    executor: str | Executor | None = None,
 ) -> PushLimit:
     """Largest force magnitude of the push of ``test`` that is survived.
 
     Bisection on the magnitude over ``[0, test.max_force]`` until the bracket is narrower
     than ``test.tolerance``, assuming that surviving a force means surviving every smaller
     one; :func:`push_grid` checks that assumption. Each trial simulates
-    ``test.total_time`` seconds.
+    ``test.total_time`` seconds. With an ``executor`` the whole search is one job; to search
+    several controllers or directions at once, give them to :func:`mpcbox.compare`
+    (``push_tests``), whose searches are jobs of the same executors.
 
     Args:
-        problem: The Problem.
-        controller: The controller.
+        problem: The Problem, or a task name (:data:`mpcbox.registry.TASKS`).
+        controller: The controller, a name or a factory.
         test: The push, the search settings and the trials' noise
             (:class:`~mpcbox.comparison.scenario.PushTest`).
         seed: Noise seed.
+        problem_options: Keyword arguments of the task class when ``problem`` is a name.
+        controller_options: Keyword overrides of a controller given by name.
+        executor: Where the search runs (see :func:`survival`).
     """
-    trial = _push_trial(problem, controller, test, seed)
-    max_force, count = test.max_force, 0
+    if _local(problem, controller, executor) and not (problem_options or controller_options):
+        return _here.largest_push(problem, controller, test, seed=seed)
+    instance("test", test, PushTest, "an mpcbox.comparison.scenario.PushTest")
+    seed = integer("seed", seed)
+    (done,) = _run(
+        problem,
+        controller,
+        lambda label: [Job(label, push=0, seed=seed)],
+        push_tests=(test,),
+        problem_options=problem_options,
+        controller_options=controller_options,
+        executor=executor,
+        progress=False,
+        desc="largest push",
+    )
+    return done.result
 
-    def survives(force: float) -> bool:
-        nonlocal count
-        count += 1
-        return trial(force).metrics.success
 
-    if not survives(0.0):
-        return PushLimit(0.0, 0.0, 0.0, count)
-    if survives(max_force):
-        return PushLimit(max_force, max_force * test.duration, float("inf"), count)
-    lo, hi = 0.0, max_force
-    while hi - lo > test.tolerance:
-        mid = 0.5 * (lo + hi)
-        if not lo < mid < hi:  # the bracket is at float resolution: a smaller tolerance
-            break  # cannot be met, and the loop would never end
-        if survives(mid):
-            lo = mid
-        else:
-            hi = mid
-    return PushLimit(lo, lo * test.duration, hi, count)
+__all__ = [
+    "DEFAULT_PUSH",
+    "PushGrid",
+    "PushLimit",
+    "SurvivalSummary",
+    "largest_push",
+    "push_grid",
+    "summarize_push_grid",
+    "survival",
+]

@@ -10,7 +10,8 @@
   (sample standard deviation, 0 for one seed), ``min`` and ``max`` over seeds of every
   numeric column (booleans as 0/1, so ``survived_mean`` is the success rate);
 * ``run.json``: the task and its options, the scenarios, the controllers' settings (config
-  dataclasses as dicts), package versions, the command line, the machine and the date;
+  dataclasses as dicts), package versions, the command line, the machine and the date, and
+  where the jobs ran (``placement``: jobs per host, Ray node and GPU ids);
 * ``trajectories/``: the traced run (first seed) of each controller and scenario, as
   :func:`~mpcbox.sim.trajectory.save_trajectory` writes them.
 
@@ -56,31 +57,37 @@ def _outcome(metrics: Any) -> str:
     return "success" if metrics.survived else "failed"
 
 
-def run_rows(comparison: Comparison) -> list[dict[str, Any]]:
-    """One dict per run: keys, outcome, failure and every :class:`~mpcbox.Metrics` field.
+def run_row(run: Run, scenario: str) -> dict[str, Any]:
+    """One run's row: keys, outcome, failure and every :class:`~mpcbox.Metrics` field.
+
+    Args:
+        run: The run.
+        scenario: Its scenario's label.
 
     Dict-valued fields (``measures``) are spread into one entry per key.
     """
-    rows = []
-    for run in comparison.runs:
-        metrics = run.metrics
-        row: dict[str, Any] = {
-            "scenario": comparison.scenarios[run.scenario].label,
-            "controller": run.controller,
-            "seed": run.seed,
-            "outcome": _outcome(metrics),
-            "survived": bool(metrics.survived),
-            "time_to_fall": float(metrics.time_to_fall),
-            "failure": run.failure or "",
-        }
-        for name in type(metrics)._fields:
-            value = getattr(metrics, name)
-            if isinstance(value, Mapping):
-                row.update({str(k): v for k, v in value.items()})
-            elif name not in row:
-                row[name] = value
-        rows.append(row)
-    return rows
+    metrics = run.metrics
+    row: dict[str, Any] = {
+        "scenario": scenario,
+        "controller": run.controller,
+        "seed": run.seed,
+        "outcome": _outcome(metrics),
+        "survived": bool(metrics.survived),
+        "time_to_fall": float(metrics.time_to_fall),
+        "failure": run.failure or "",
+    }
+    for name in type(metrics)._fields:
+        value = getattr(metrics, name)
+        if isinstance(value, Mapping):
+            row.update({str(k): v for k, v in value.items()})
+        elif name not in row:
+            row[name] = value
+    return row
+
+
+def run_rows(comparison: Comparison) -> list[dict[str, Any]]:
+    """:func:`run_row` of every run of ``comparison``, in its order."""
+    return [run_row(run, comparison.scenarios[run.scenario].label) for run in comparison.runs]
 
 
 def _numeric(value: Any) -> bool:
@@ -341,6 +348,7 @@ def write_records(
         },
         "command": command,
         "wall_time_s": comparison.wall_time,
+        "placement": dict(comparison.placement),
         **environment(),
         **dict(extra or {}),
     }

@@ -16,7 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mpcbox.comparison.push_limits import PushLimit
+from mpcbox.comparison.robustness import PushLimit
 from mpcbox.comparison.scenario import Scenario
 from mpcbox.sim.measures import Measure
 from mpcbox.sim.simulation import Metrics

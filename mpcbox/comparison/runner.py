@@ -34,8 +34,8 @@ from mpcbox.comparison.executors import (
     SerialExecutor,
 )
 from mpcbox.comparison.jobs import Done, Job, Setup, picklable
-from mpcbox.comparison.push_limits import PushLimit
 from mpcbox.comparison.report import Comparison
+from mpcbox.comparison.robustness import PushLimit
 from mpcbox.comparison.scenario import PushTest, Scenario, check_noise_models
 from mpcbox.config import check_option_names
 from mpcbox.controllers.base import Controller
@@ -120,6 +120,7 @@ def compare(
     workers: int | None = None,
     executor: str | Executor | None = None,
     checkpoint: str | Path | None = None,
+    on_done: Callable[[Done], None] | None = None,
     progress: bool = True,
 ) -> Comparison:
     """Run each controller on identical seeded scenarios and collect the metrics.
@@ -148,6 +149,9 @@ def compare(
             ``workers``.
         checkpoint: A folder where each finished job is kept as it finishes; a re-run with
             the same folder and setup skips those jobs.
+        on_done: Called with each finished :class:`~mpcbox.comparison.jobs.Done` as it
+            finishes (first the jobs loaded from ``checkpoint``), e.g. a
+            :class:`~mpcbox.comparison.stream.RunStream` that appends rows to files.
         progress: Show a tqdm progress bar.
 
     Returns:
@@ -236,7 +240,7 @@ def compare(
         for s in range(len(scenarios))
         for seed in seed_list
     ]
-    runner = _executor(executor, workers, len(jobs), instance is None and picklable(setup))
+    runner = pick_executor(executor, workers, len(jobs), instance is None and picklable(setup))
     store = None if checkpoint is None else Checkpoint(checkpoint, setup)
     finished = {} if store is None else store.load(jobs)
     todo = [job for job in jobs if job not in finished]
@@ -249,13 +253,20 @@ def compare(
         desc=f"compare {problem_name} ({runner.name})",
         disable=not progress,
     )
-    done: list[Done] = list(finished.values())
+    if on_done is not None and not callable(on_done):
+        raise InvalidTypeError(f"on_done must be callable, got {type(on_done).__name__}")
+    done: list[Done] = [finished[job] for job in jobs if job in finished]
+    if on_done is not None:
+        for item in done:
+            on_done(item)
     try:
         if todo:
             for item in runner.run(setup, todo, instance):
                 if store is not None:
                     store.save(item)
                 done.append(item)
+                if on_done is not None:
+                    on_done(item)
                 bar.update()
     finally:
         bar.close()
@@ -280,10 +291,18 @@ def compare(
     )
 
 
-def _executor(
+def pick_executor(
     executor: str | Executor | None, workers: int | None, jobs: int, portable: bool
 ) -> Executor:
-    """The executor to use: the one asked for, or processes when ``workers`` allows it."""
+    """The executor to use: the one asked for, or processes when ``workers`` allows it.
+
+    Args:
+        executor: A name of :data:`~mpcbox.comparison.executors.EXECUTORS`, an
+            :class:`~mpcbox.comparison.executors.Executor`, or ``None`` (from ``workers``).
+        workers: Worker processes (``None``: one per core).
+        jobs: Number of jobs (no more workers than jobs).
+        portable: Whether the setup can leave this process; when not, the serial executor.
+    """
     if isinstance(executor, Executor):
         return executor if portable else SerialExecutor()
     if executor is not None:
