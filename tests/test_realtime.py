@@ -175,3 +175,13 @@ def test_realtime_runner_is_exported_and_lockstep_runs_report_no_kept_up(problem
     assert res.realtime.speed == 2.0 and res.metrics.kept_up is True
     plain = mpcbox.simulate(problem, Sleeper(problem, 0.0, 0.05), 0.2)
     assert plain.metrics.kept_up is None and not hasattr(plain, "realtime")
+
+
+def test_actuator_noise_is_added_to_the_held_control(problem):
+    noise = mpcbox.ActuatorNoise(std=0.2)
+    res = simulate_realtime(problem, Sleeper(problem, 0.0, 0.05), 0.3, noise=noise, seed=3)
+    n = res.ctrls.shape[0] - 1
+    dt = problem.model.opt.timestep
+    expected = problem.clip_ctrl(problem.ctrl_ref + noise.sample(n, problem.nu, dt, 3))
+    np.testing.assert_allclose(res.ctrls[:n], expected, atol=1e-12)
+    assert np.std(res.ctrls[:n]) > 0.01

@@ -43,7 +43,7 @@ import numpy as np
 from mpcbox.controllers.base import Controller
 from mpcbox.core.model import object_id
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidTypeError
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.divergence import DivergenceMonitor
 from mpcbox.sim.measures import check_measures
@@ -183,6 +183,8 @@ def simulate_realtime(
         if noise is None
         else noise.sample(steps, problem.nu, dt, seed)
     )
+    if not np.all(np.isfinite(noise_seq)):
+        raise InvalidArgumentError("noise produced non-finite samples: check its std values")
     if hasattr(controller, "reset"):
         controller.reset()
     fallbacks0 = _fallbacks(controller)
