@@ -8,6 +8,10 @@ control period and whether the planner kept up::
 
     python benchmarks/realtime.py                                  # CPU, ps/mppi/cem, 2 seeds
     python benchmarks/realtime.py --backend warp --seeds 5 --json OUT.json
+    python benchmarks/realtime.py --task humanoid_stand --backend warp --loops realtime
+
+``--task`` takes any registered task (default the cart-pole swing-up); ``--period`` defaults
+to each controller's tuned period.
 """
 
 from __future__ import annotations
@@ -21,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 import mpcbox
+from mpcbox.registry import task_class
 from mpcbox.sim.realtime import simulate_realtime
-from mpcbox.tasks.swingup import CartpoleSwingup
 
 
 def gpu_name() -> str | None:
@@ -42,20 +46,22 @@ def gpu_name() -> str | None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--task", default="cartpole_swingup")
+    parser.add_argument("--loops", default="lockstep,realtime")
     parser.add_argument("--controllers", default="ps,mppi,cem")
     parser.add_argument("--seeds", type=int, default=2)
     parser.add_argument("--duration", type=float, default=6.0)
     parser.add_argument("--backend", default="cpu")
     parser.add_argument("--num-samples", type=int, default=None)
-    parser.add_argument("--period", type=float, default=0.02)
+    parser.add_argument("--period", type=float, default=None)
     parser.add_argument("--speed", type=float, default=1.0)
     parser.add_argument("--machine", default="2-core sandbox CPU, shared")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
 
-    problem = CartpoleSwingup()
+    problem = task_class(args.task)()
     report: dict = {
-        "task": "cartpole_swingup",
+        "task": args.task,
         "machine": args.machine,
         "gpu": gpu_name() if args.backend == "warp" else None,
         "platform": platform.platform(),
@@ -67,12 +73,16 @@ def main() -> None:
         "results": {},
     }
     for name in args.controllers.split(","):
-        options = {"backend": args.backend, "period": args.period}
+        options: dict = {"backend": args.backend}
+        if args.period is not None:
+            options["period"] = args.period
         if args.num_samples is not None:
             options["num_samples"] = args.num_samples
         ctrl = mpcbox.make_controller(name, problem, **options)
         entry: dict = {}
-        for loop in ("lockstep", "realtime"):
+        entry["period_s"] = ctrl.period
+        entry["num_samples"] = ctrl.config.num_samples
+        for loop in args.loops.split(","):
             rows = []
             for seed in range(args.seeds):
                 init = problem.initial_state()
