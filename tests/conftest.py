@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
 
@@ -15,7 +17,15 @@ def _cuda_available() -> bool:
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Skip tests marked ``gpu`` when Warp sees no CUDA device."""
+    """Skip tests marked ``gpu`` when Warp sees no CUDA device, and tests marked
+    ``menagerie`` when no offline Menagerie copy (``MENAGERIE_ROOT``) is there: they never
+    download robots."""
+    root = os.environ.get("MENAGERIE_ROOT")
+    if not (root and os.path.isdir(root)):
+        skip = pytest.mark.skip(reason="needs an offline Menagerie copy in MENAGERIE_ROOT")
+        for item in items:
+            if "menagerie" in item.keywords:
+                item.add_marker(skip)
     gpu_items = [item for item in items if "gpu" in item.keywords]
     if gpu_items and not _cuda_available():
         skip = pytest.mark.skip(reason="needs a CUDA GPU visible to Warp")
