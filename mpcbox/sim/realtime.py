@@ -41,15 +41,13 @@ import mujoco
 import numpy as np
 
 from mpcbox.controllers.base import Controller
-from mpcbox.core.model import object_id
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError, InvalidTypeError
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.divergence import DivergenceMonitor
-from mpcbox.sim.measures import check_measures
 from mpcbox.sim.planner_thread import PlannerThread
-from mpcbox.sim.simulation import SimulationResult, _fallbacks, finish_run
-from mpcbox.validation import boolean, checked_keywords, in_range, instance, integer, positive
+from mpcbox.sim.run_start import start_run
+from mpcbox.sim.simulation import SimulationResult, finish_run
+from mpcbox.validation import boolean, checked_keywords, positive
 
 
 class RealtimeStats(NamedTuple):
@@ -145,49 +143,26 @@ def simulate_realtime(
     Returns:
         A :class:`RealtimeResult`; ``metrics.kept_up`` repeats ``realtime.kept_up``.
     """
-    instance("problem", problem, Problem, "an mpcbox.Problem")
-    duration = positive("duration", duration)
-    if not isinstance(controller, Controller) and not callable(controller):
-        raise InvalidTypeError(f"controller must be an mpcbox.Controller, got {type(controller)}")
-    seed = integer("seed", seed)
     speed = positive("speed", speed)
     prime = boolean("prime", prime)
-    stop_on_failure = boolean("stop_on_failure", stop_on_failure)
-    degraded_limit = in_range(
-        "degraded_limit", degraded_limit, 0.0, 1.0, low_open=False, high_open=False
+    run = start_run(
+        problem,
+        controller,
+        duration,
+        noise=noise,
+        pushes=pushes,
+        mismatch=mismatch,
+        seed=seed,
+        initial_state=initial_state,
+        stop_on_failure=stop_on_failure,
+        degraded_limit=degraded_limit,
     )
-    if noise is not None:
-        instance("noise", noise, ActuatorNoise, "an mpcbox.ActuatorNoise")
-    if mismatch is not None:
-        instance("mismatch", mismatch, ModelMismatch, "an mpcbox.ModelMismatch")
-    if isinstance(pushes, (str, bytes)) or not isinstance(pushes, Sequence):
-        raise InvalidTypeError(f"pushes must be a sequence of Push, got {type(pushes).__name__}")
-    pushes = tuple(pushes)
-    for push in pushes:
-        if not isinstance(push, Push):
-            raise InvalidTypeError(f"pushes must hold Push objects, got {type(push).__name__}")
-    model = problem.model if mismatch is None else mismatch.apply(problem.model)
-    data = mujoco.MjData(model)
-    dt = float(model.opt.timestep)
-    steps = math.ceil(duration / dt - 1e-9)
-    state0 = problem.initial_state() if initial_state is None else initial_state
-    state0 = problem.check_state(state0, "initial_state")
-    problem.set_state(data, state0)
-    mujoco.mj_forward(model, data)
-    push_ids = [object_id(model, "body", p.body, f"pushes[{i}].body") for i, p in enumerate(pushes)]
-    measures = check_measures(problem.measures(), type(problem).__name__)
+    model, data, dt, steps, state0 = run.model, run.data, run.dt, run.steps, run.state0
+    pushes, push_ids, measures, noise_seq = run.pushes, run.push_ids, run.measures, run.noise
+    duration, degraded_limit = run.duration, run.degraded_limit
+    stop_on_failure, fallbacks0 = run.stop_on_failure, run.fallbacks0
     period = getattr(controller, "period", None)
     period = dt if period is None else positive("controller.period", period)
-    noise_seq = (
-        np.zeros((steps, problem.nu))
-        if noise is None
-        else noise.sample(steps, problem.nu, dt, seed)
-    )
-    if not np.all(np.isfinite(noise_seq)):
-        raise InvalidArgumentError("noise produced non-finite samples: check its std values")
-    if hasattr(controller, "reset"):
-        controller.reset()
-    fallbacks0 = _fallbacks(controller)
 
     times = np.empty(steps + 1)
     states = np.empty((steps + 1, problem.nstate))

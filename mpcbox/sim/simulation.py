@@ -7,7 +7,6 @@ controller statistics) in :class:`Metrics`, plus the task's own measures
 
 from __future__ import annotations
 
-import math
 import time as _time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -17,18 +16,14 @@ import mujoco
 import numpy as np
 
 from mpcbox.controllers.base import Controller
-from mpcbox.core.model import object_id
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError, InvalidTypeError, MpcboxError
+from mpcbox.errors import MpcboxError
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.divergence import DivergenceMonitor
-from mpcbox.sim.measures import Measure, check_measures
+from mpcbox.sim.measures import Measure
+from mpcbox.sim.run_start import controller_fallbacks, start_run
 from mpcbox.validation import (
-    boolean,
     checked_keywords,
-    in_range,
-    instance,
-    integer,
     positive,
 )
 
@@ -196,48 +191,24 @@ def simulate(
     Returns:
         A :class:`SimulationResult`.
     """
-    instance("problem", problem, Problem, "an mpcbox.Problem")
-    duration = positive("duration", duration)
-    if not isinstance(controller, Controller) and not callable(controller):
-        raise InvalidTypeError(f"controller must be an mpcbox.Controller, got {type(controller)}")
-    seed = integer("seed", seed)
-    degraded_limit = in_range(
-        "degraded_limit", degraded_limit, 0.0, 1.0, low_open=False, high_open=False
+    run = start_run(
+        problem,
+        controller,
+        duration,
+        noise=noise,
+        pushes=pushes,
+        mismatch=mismatch,
+        seed=seed,
+        initial_state=initial_state,
+        stop_on_failure=stop_on_failure,
+        degraded_limit=degraded_limit,
     )
-    stop_on_failure = boolean("stop_on_failure", stop_on_failure)
-    if noise is not None:
-        instance("noise", noise, ActuatorNoise, "an mpcbox.ActuatorNoise")
-    if mismatch is not None:
-        instance("mismatch", mismatch, ModelMismatch, "an mpcbox.ModelMismatch")
-    if isinstance(pushes, (str, bytes)) or not isinstance(pushes, Sequence):
-        raise InvalidTypeError(f"pushes must be a sequence of Push, got {type(pushes).__name__}")
-    pushes = tuple(pushes)
-    for push in pushes:
-        if not isinstance(push, Push):
-            raise InvalidTypeError(f"pushes must hold Push objects, got {type(push).__name__}")
-    model = problem.model if mismatch is None else mismatch.apply(problem.model)
-    data = mujoco.MjData(model)
-    dt = float(model.opt.timestep)
-    steps = math.ceil(duration / dt - 1e-9)
-    state0 = problem.initial_state() if initial_state is None else initial_state
-    state0 = problem.check_state(state0, "initial_state")
-    problem.set_state(data, state0)
-    mujoco.mj_forward(model, data)
-    push_ids = [object_id(model, "body", p.body, f"pushes[{i}].body") for i, p in enumerate(pushes)]
-    measures = check_measures(problem.measures(), type(problem).__name__)
-
+    model, data, dt, steps = run.model, run.data, run.dt, run.steps
+    pushes, push_ids, measures, noise_seq = run.pushes, run.push_ids, run.measures, run.noise
+    duration, degraded_limit = run.duration, run.degraded_limit
+    stop_on_failure, fallbacks0 = run.stop_on_failure, run.fallbacks0
     period = getattr(controller, "period", None)
     every = 1 if period is None else max(1, round(positive("controller.period", period) / dt))
-    noise_seq = (
-        np.zeros((steps, problem.nu))
-        if noise is None
-        else noise.sample(steps, problem.nu, dt, seed)
-    )
-    if not np.all(np.isfinite(noise_seq)):
-        raise InvalidArgumentError("noise produced non-finite samples: check its std values")
-    if hasattr(controller, "reset"):
-        controller.reset()
-    fallbacks0 = _fallbacks(controller)
 
     times = np.empty(steps + 1)
     states = np.empty((steps + 1, problem.nstate))
@@ -383,7 +354,7 @@ def finish_run(
     for measure in measures:
         summaries.update(measure.summarize(series[measure.name], times))
     stats = dict(getattr(controller, "stats", {}) or {})
-    fallbacks = max(0, round(_fallbacks(controller) - fallbacks0))
+    fallbacks = max(0, round(controller_fallbacks(controller) - fallbacks0))
     ncalls = sum(len(v) for v in calls.values())
     if failure is None:
         goal = problem.goal_failure(times, states)
@@ -433,14 +404,6 @@ def finish_run(
         noise=noise,
         seed=seed,
     )
-
-
-def _fallbacks(controller: Controller) -> float:
-    """The controller's fallback counter (0 when it keeps none)."""
-    try:
-        return float((getattr(controller, "stats", {}) or {}).get("fallbacks", 0.0))
-    except Exception:  # a broken stats property must not end the run
-        return 0.0
 
 
 def _error_text(exc: BaseException) -> str:
