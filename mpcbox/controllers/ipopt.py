@@ -28,6 +28,7 @@ CasADi is optional: it is imported on first use and a missing install raises
 from __future__ import annotations
 
 import time as _time
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -81,130 +82,94 @@ class IpoptSolution(NamedTuple):
     solve_time: float
 
 
-def _make_callbacks(problem: Problem) -> tuple[Any, list[Any]]:
-    """The step ``f(x, u)`` as a CasADi Callback (and objects that must stay alive)."""
+def _callback_class(
+    ins: tuple[tuple[int, int], ...],
+    outs: tuple[tuple[int, int], ...],
+    fn: Callable[[np.ndarray, np.ndarray], list[Any]],
+    jacobian: Any = None,
+) -> Any:
+    """A CasADi Callback class evaluating ``fn(x, u)`` with NumPy.
+
+    Args:
+        ins: Shapes of the dense inputs; the first two are ``x`` and ``u`` (a Jacobian's
+            third input, the nominal output, is not used).
+        outs: Shapes of the dense outputs.
+        fn: ``(x (nstate,), u (nu,)) -> outputs``, each convertible by ``casadi.DM``.
+        jacobian: The class of the Jacobian callback, or ``None`` for none.
+
+    Instances are built as ``cls(name, opts)``; an instance keeps its Jacobian alive.
+    """
     ca = _casadi()
-    ns, nu = problem.nstate, problem.nu
 
-    class _StepJacobian(ca.Callback):
-        def __init__(self, name: str, opts: dict) -> None:
-            ca.Callback.__init__(self)
-            self.construct(name, opts)
-
-        def get_n_in(self) -> int:
-            return 3
-
-        def get_n_out(self) -> int:
-            return 2
-
-        def get_sparsity_in(self, i: int) -> Any:
-            return ca.Sparsity.dense(nu if i == 1 else ns, 1)
-
-        def get_sparsity_out(self, i: int) -> Any:
-            return ca.Sparsity.dense(ns, ns if i == 0 else nu)
-
-        def eval(self, arg: list) -> list:
-            x = np.asarray(arg[0]).ravel()
-            u = np.asarray(arg[1]).ravel()
-            lin = problem.linearize(x, problem.clip_ctrl(u))
-            return [ca.DM(lin.A), ca.DM(lin.B)]
-
-    class _Step(ca.Callback):
+    class _NumpyCallback(ca.Callback):
         def __init__(self, name: str, opts: dict) -> None:
             ca.Callback.__init__(self)
             self._jac: Any = None
             self.construct(name, opts)
 
         def get_n_in(self) -> int:
-            return 2
+            return len(ins)
 
         def get_n_out(self) -> int:
-            return 1
+            return len(outs)
 
         def get_sparsity_in(self, i: int) -> Any:
-            return ca.Sparsity.dense(ns if i == 0 else nu, 1)
+            return ca.Sparsity.dense(*ins[i])
 
         def get_sparsity_out(self, i: int) -> Any:
-            return ca.Sparsity.dense(ns, 1)
+            return ca.Sparsity.dense(*outs[i])
 
         def eval(self, arg: list) -> list:
             x = np.asarray(arg[0]).ravel()
             u = np.asarray(arg[1]).ravel()
-            return [ca.DM(problem.step(x, problem.clip_ctrl(u)))]
+            return [ca.DM(value) for value in fn(x, u)]
 
         def has_jacobian(self) -> bool:
-            return True
+            return jacobian is not None
 
         def get_jacobian(self, name: str, inames: list, onames: list, opts: dict) -> Any:
-            self._jac = _StepJacobian(name, opts)
+            self._jac = jacobian(name, opts)
             return self._jac
 
-    step = _Step("mujoco_step", {"enable_fd": False})
+    return _NumpyCallback
+
+
+def _make_callbacks(problem: Problem) -> tuple[Any, list[Any]]:
+    """The step ``f(x, u)`` as a CasADi Callback (and objects that must stay alive)."""
+    ns, nu = problem.nstate, problem.nu
+
+    def jacobian(x: np.ndarray, u: np.ndarray) -> list[Any]:
+        lin = problem.linearize(x, problem.clip_ctrl(u))
+        return [lin.A, lin.B]
+
+    step_jacobian = _callback_class(((ns, 1), (nu, 1), (ns, 1)), ((ns, ns), (ns, nu)), jacobian)
+    step_class = _callback_class(
+        ((ns, 1), (nu, 1)),
+        ((ns, 1),),
+        lambda x, u: [problem.step(x, problem.clip_ctrl(u))],
+        step_jacobian,
+    )
+    step = step_class("mujoco_step", {"enable_fd": False})
     return step, [step]
 
 
 def _cost_callback(problem: Problem, terminal: bool) -> Any:
     """Running (or terminal) cost evaluated by the Problem, with its Gauss-Newton gradient."""
-    ca = _casadi()
     ns, nu = problem.nstate, problem.nu
 
-    class _Gradient(ca.Callback):
-        def __init__(self, name: str, opts: dict) -> None:
-            ca.Callback.__init__(self)
-            self.construct(name, opts)
+    def gradient(x: np.ndarray, u: np.ndarray) -> list[Any]:
+        q = problem.quadratize(x, u, terminal=terminal)
+        lu = np.zeros(nu) if terminal else q.lu
+        return [q.lx[None], lu[None]]
 
-        def get_n_in(self) -> int:
-            return 3
+    def cost(x: np.ndarray, u: np.ndarray) -> list[Any]:
+        if terminal:
+            return [problem.terminal_cost(x)]
+        return [problem.running_cost(x, u)]
 
-        def get_n_out(self) -> int:
-            return 2
-
-        def get_sparsity_in(self, i: int) -> Any:
-            return ca.Sparsity.dense((ns, nu, 1)[i], 1)
-
-        def get_sparsity_out(self, i: int) -> Any:
-            return ca.Sparsity.dense(1, ns if i == 0 else nu)
-
-        def eval(self, arg: list) -> list:
-            x = np.asarray(arg[0]).ravel()
-            u = np.asarray(arg[1]).ravel()
-            q = problem.quadratize(x, u, terminal=terminal)
-            lu = np.zeros(nu) if terminal else q.lu
-            return [ca.DM(q.lx[None]), ca.DM(lu[None])]
-
-    class _Cost(ca.Callback):
-        def __init__(self, name: str, opts: dict) -> None:
-            ca.Callback.__init__(self)
-            self._jac: Any = None
-            self.construct(name, opts)
-
-        def get_n_in(self) -> int:
-            return 2
-
-        def get_n_out(self) -> int:
-            return 1
-
-        def get_sparsity_in(self, i: int) -> Any:
-            return ca.Sparsity.dense(ns if i == 0 else nu, 1)
-
-        def get_sparsity_out(self, i: int) -> Any:
-            return ca.Sparsity.dense(1, 1)
-
-        def eval(self, arg: list) -> list:
-            x = np.asarray(arg[0]).ravel()
-            u = np.asarray(arg[1]).ravel()
-            if terminal:
-                return [ca.DM(problem.terminal_cost(x))]
-            return [ca.DM(problem.running_cost(x, u))]
-
-        def has_jacobian(self) -> bool:
-            return True
-
-        def get_jacobian(self, name: str, inames: list, onames: list, opts: dict) -> Any:
-            self._jac = _Gradient(name, opts)
-            return self._jac
-
-    return _Cost("terminal_cost" if terminal else "running_cost", {"enable_fd": False})
+    gradient_class = _callback_class(((ns, 1), (nu, 1), (1, 1)), ((1, ns), (1, nu)), gradient)
+    cost_class = _callback_class(((ns, 1), (nu, 1)), ((1, 1),), cost, gradient_class)
+    return cost_class("terminal_cost" if terminal else "running_cost", {"enable_fd": False})
 
 
 def _symbolic_terms(problem: Problem, terms: list[CostTerm], x: Any, u: Any) -> Any | None:
