@@ -48,6 +48,8 @@ class ArmDrive(NamedTuple):
         actuators: The servo of each joint, same order.
         posture: Rest angles ``(n,)`` the IK is lightly pulled toward.
         gripper: The gripper's actuator, or ``None``.
+        ik_ranges: Joint ranges the IK keeps to, one ``(low, high)`` or ``None`` per joint
+            (see :class:`~mpcbox.core.arm_ik.ArmIK`), or ``None`` for the model's.
     """
 
     frame: str
@@ -55,6 +57,7 @@ class ArmDrive(NamedTuple):
     actuators: tuple[str, ...]
     posture: tuple[float, ...]
     gripper: str | None = None
+    ik_ranges: tuple[tuple[float, float] | None, ...] | None = None
 
 
 class Waypoint(NamedTuple):
@@ -165,6 +168,7 @@ class WaypointController(Controller):
                     posture=np.asarray(arm.posture, dtype=float),
                     iterations=self.config.ik_iterations,
                     tolerance=self.config.ik_tolerance,
+                    ranges=arm.ik_ranges,
                 )
             )
             act = np.array([model.actuator(a).id for a in arm.actuators])

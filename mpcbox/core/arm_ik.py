@@ -16,6 +16,7 @@ until the frame is within ``tolerance`` of the target. Every joint that is not t
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -23,6 +24,7 @@ import mujoco
 import numpy as np
 
 from mpcbox.core.model import check_mjmodel, frame_object, object_id
+from mpcbox.errors import InvalidArgumentError
 from mpcbox.validation import finite_array, positive, positive_int
 
 
@@ -42,6 +44,29 @@ class IKSolution(NamedTuple):
     iterations: int
 
 
+def _narrowed(
+    model: mujoco.MjModel,
+    joints: Sequence[str],
+    ranges: Sequence[tuple[float, float] | None],
+) -> mujoco.MjModel:
+    """A copy of ``model`` whose ``joints`` are limited to ``ranges`` (``None``: unchanged)."""
+    if len(ranges) != len(joints):
+        raise InvalidArgumentError(
+            f"ranges must have one entry per joint ({len(joints)}), got {len(ranges)}"
+        )
+    model = copy.copy(model)
+    for joint, bounds in zip(joints, ranges, strict=True):
+        if bounds is None:
+            continue
+        low, high = (float(v) for v in bounds)
+        if not low < high:
+            raise InvalidArgumentError(f"ranges: joint {joint!r} needs low < high, got {bounds}")
+        j = object_id(model, "joint", joint, "joints")
+        model.jnt_range[j] = [low, high]
+        model.jnt_limited[j] = 1
+    return model
+
+
 class ArmIK:
     """Inverse kinematics of the joints ``joints`` of ``model`` for the site or body ``frame``.
 
@@ -57,6 +82,9 @@ class ArmIK:
         orientation_cost: Weight of the orientation task relative to position.
         gain: Share of the remaining error each step removes, in ``(0, 1]`` (1: Gauss-Newton
             steps, which may jump to another branch of the IK from far away).
+        ranges: Joint ranges ``(low, high)`` (rad) the IK keeps to instead of the model's,
+            one per joint or ``None`` to keep the model's; they keep the IK on one branch
+            (an arm whose forearm can roll half a turn reaches a pose two ways).
         solver: QP solver name for :func:`mink.solve_ik`.
 
     Raises:
@@ -75,11 +103,15 @@ class ArmIK:
         posture_cost: float = 1e-3,
         orientation_cost: float = 0.5,
         gain: float = 0.5,
+        ranges: Sequence[tuple[float, float] | None] | None = None,
         solver: str = "daqp",
     ) -> None:
         import mink
 
-        self.model = check_mjmodel(model)
+        model = check_mjmodel(model)
+        if ranges is not None:
+            model = _narrowed(model, joints, ranges)
+        self.model = model
         self.kind = frame_object(model, frame, "frame")[0]
         self.frame = frame
         ids = [object_id(model, "joint", j, "joints") for j in joints]

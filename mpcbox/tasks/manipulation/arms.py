@@ -54,6 +54,8 @@ class ArmSpec(NamedTuple):
         mount_yaw: Yaw of the base (rad).
         reach: Range ``(near, far)`` of horizontal distances from the base at which the
             arm grasps top-down comfortably (m); random cube layouts are drawn in it.
+        ik_ranges: Joint ranges for the IK (one ``(low, high)`` or ``None`` per joint) that
+            keep it on the branch of top-down grasps.
     """
 
     name: str
@@ -73,6 +75,7 @@ class ArmSpec(NamedTuple):
     mount: tuple[float, float, float]
     mount_yaw: float
     reach: tuple[float, float]
+    ik_ranges: tuple[tuple[float, float] | None, ...] | None = None
 
     def prefixed(self, prefix: str) -> ArmSpec:
         """The same arm with ``prefix`` in front of every name (as after attaching it)."""
@@ -138,6 +141,9 @@ def _aloha(side: str = "left") -> ArmSpec:
         mount=(-0.30, 0.0, 0.02),
         mount_yaw=0.0,
         reach=(0.26, 0.42),
+        # The forearm can roll half a turn and reach the same pose with the wrist flipped;
+        # that branch runs the wrist's rotation into its limit when the cube turns.
+        ik_ranges=(None, None, None, (-1.2, 1.2), None, None),
     )
 
 

@@ -195,6 +195,7 @@ def arm_drive(arm: ArmSpec) -> ArmDrive:
         actuators=arm.actuators,
         posture=arm.home,
         gripper=arm.gripper,
+        ik_ranges=arm.ik_ranges,
     )
 
 
