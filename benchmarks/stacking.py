@@ -48,7 +48,9 @@ def cpu_trials(problem: StackCubes, seeds: range, duration: float) -> dict:
     wall0 = time.perf_counter()
     for seed in seeds:
         t0 = time.perf_counter()
-        sim = mpcbox.simulate(problem, controller, duration, initial_state=problem.trial_state(seed))
+        sim = mpcbox.simulate(
+            problem, controller, duration, initial_state=problem.trial_state(seed)
+        )
         check = problem.check(sim.states[-1])
         rows.append(
             {
@@ -159,7 +161,9 @@ def main() -> None:
         )
         if "cpu" in result:
             cpu_ok = {r["seed"]: r["success"] for r in result["cpu"]["per_trial"]}
-            same = [r["success"] == cpu_ok[r["seed"]] for r in w["per_trial"] if r["seed"] in cpu_ok]
+            same = [
+                r["success"] == cpu_ok[r["seed"]] for r in w["per_trial"] if r["seed"] in cpu_ok
+            ]
             w["agree_with_cpu"] = f"{sum(same)}/{len(same)}"
     name = "stacking" + (f"_{args.suffix}" if args.suffix else "") + ".json"
     path = Path(__file__).resolve().parent / "results" / name

@@ -154,7 +154,8 @@ class ArmIK:
         pos_err = rot_err = np.inf
         used = 0
         dt = 1.0
-        for used in range(1, self.iterations + 1):
+        while used < self.iterations:
+            used += 1
             vel = mink.solve_ik(
                 config,
                 [self.task, self.posture],

@@ -130,7 +130,7 @@ def pick_place_phases(
 
     def approach(m: mujoco.MjModel, d: mujoco.MjData) -> Waypoint:
         plan["yaw"] = grasp_yaw(d)
-        pos = d.body(obj).xpos + [0.0, 0.0, t.hover]
+        pos = d.body(obj).xpos + np.array([0.0, 0.0, t.hover])
         return Waypoint(pos, top_down(plan["yaw"]), arm.gripper_open)
 
     def descend(m: mujoco.MjModel, d: mujoco.MjData) -> Waypoint:
@@ -150,7 +150,7 @@ def pick_place_phases(
     def above_goal(d: mujoco.MjData, lift_by: float) -> Waypoint:
         # Move the end effector by the held object's error: the closed loop on the object.
         held = d.body(obj).xpos
-        want = d.body(goal).xpos + [0.0, 0.0, size + lift_by]
+        want = d.body(goal).xpos + np.array([0.0, 0.0, size + lift_by])
         yaw_now = frame_yaw(d, tcp)
         turn = nearest_quarter(body_yaw(d, goal), body_yaw(d, obj)) - body_yaw(d, obj)
         return Waypoint(d.site(tcp).xpos + (want - held), top_down(yaw_now + turn), None)
@@ -165,7 +165,7 @@ def pick_place_phases(
         return Waypoint(None, None, arm.gripper_open)
 
     def retreat(m: mujoco.MjModel, d: mujoco.MjData) -> Waypoint:
-        return Waypoint(d.site(tcp).xpos + [0.0, 0.0, t.hover], None, None)
+        return Waypoint(d.site(tcp).xpos + np.array([0.0, 0.0, t.hover]), None, None)
 
     def settle(m: mujoco.MjModel, d: mujoco.MjData) -> Waypoint:
         return Waypoint(None, None, None)

@@ -121,7 +121,10 @@ def stacking_scene(
     for key in list(spec.keys):  # the arm file's keyframes do not fit this scene
         spec.delete(key)
     spec.body(arm.tcp_body).add_site(
-        name=ARM_PREFIX + TCP_SITE, pos=list(arm.tcp_pos), quat=list(arm.tcp_quat), size=[0.005, 0, 0]
+        name=ARM_PREFIX + TCP_SITE,
+        pos=list(arm.tcp_pos),
+        quat=list(arm.tcp_quat),
+        size=[0.005, 0, 0],
     )
     spec.add_exclude(bodyname1="table", bodyname2=arm.base)
     model = spec.compile()

@@ -164,7 +164,9 @@ class StackCubes(Problem):
 
     def check(self, state: np.ndarray) -> StackCheck:
         """:func:`stack_check` of the cubes at ``state``."""
-        return stack_check(self.cube_position(state, "red_cube"), self.cube_position(state, "blue_cube"))
+        return stack_check(
+            self.cube_position(state, "red_cube"), self.cube_position(state, "blue_cube")
+        )
 
     def failure(self, model: mujoco.MjModel, data: mujoco.MjData) -> str | None:
         """Non-finite state, or a cube below the table top (fell off)."""
