@@ -82,7 +82,8 @@ def warp_trials(problem: StackCubes, worlds: int, duration: float, device: str) 
     from mpcbox.sim.batch_warp import simulate_batch_warp
 
     seeds = range(worlds)
-    controllers = [stacking_controller(problem) for _ in seeds]
+    template = stacking_controller(problem)
+    controllers = [template.fork() for _ in seeds]
     states0 = np.stack([problem.trial_state(s) for s in seeds])
     out = simulate_batch_warp(problem, controllers, states0, duration, device=device)
     rows = []

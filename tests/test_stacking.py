@@ -123,7 +123,7 @@ def test_nearest_quarter_and_top_down():
 def test_waypoint_controller_reaches_a_waypoint(aloha):
     target = np.array([0.05, 0.05, 0.12])
 
-    def above(m, d):
+    def above(m, d, memo):
         return Waypoint(target, top_down(np.pi / 2 + np.arctan2(0.05, 0.35)), None)
 
     controller = WaypointController(
@@ -143,7 +143,8 @@ def test_waypoint_controller_rejects_bad_input(aloha):
         WaypointController(aloha, arms=[drive], phases=[])
     bad = ArmDrive(drive.frame, drive.joints, drive.actuators[::-1], drive.posture)
     with pytest.raises(InvalidArgumentError, match="position servo"):
-        WaypointController(aloha, arms=[bad], phases=[Phase("x", lambda m, d: Waypoint(), 1.0)])
+        phase = Phase("x", lambda m, d, memo: Waypoint(), 1.0)
+        WaypointController(aloha, arms=[bad], phases=[phase])
 
 
 @pytest.mark.parametrize("seed", [1, 2])
@@ -165,7 +166,8 @@ def test_warp_batch_matches_cpu_closed_loop(aloha):
     seeds = (0, 1)
     duration = 0.3
     states0 = np.stack([aloha.trial_state(s) for s in seeds])
-    controllers = [stacking_controller(aloha) for _ in seeds]
+    template = stacking_controller(aloha)
+    controllers = [template.fork() for _ in seeds]
     out = simulate_batch_warp(aloha, controllers, states0, duration, device="cpu")
     assert not out.overflow.any() and not out.diverged.any() and out.errors == ["", ""]
     assert out.nconmax >= 2 * out.calibration[0] and out.calibration[0] > 0
@@ -188,7 +190,7 @@ def test_panda_scene_and_top_down_reach():
     controller = WaypointController(
         problem,
         arms=[arm_drive(problem.arm)],
-        phases=[Phase("reach", lambda m, d: Waypoint(target, top_down(np.pi / 2), None), 1.0, 0.5)],
+        phases=[Phase("reach", lambda m, d, memo: Waypoint(target, top_down(np.pi / 2)), 1.0, 0.5)],
     )
     sim = mpcbox.simulate(problem, controller, 1.5)
     data = mujoco.MjData(problem.model)

@@ -24,6 +24,7 @@ waypoints.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -75,8 +76,10 @@ class Waypoint(NamedTuple):
     gripper: float | None = None
 
 
-#: ``target(model, data)``: the waypoint (or one per arm) from the measured scene.
-Target = Callable[[mujoco.MjModel, mujoco.MjData], "Waypoint | Sequence[Waypoint]"]
+#: ``target(model, data, memo)``: the waypoint (or one per arm) from the measured scene;
+#: ``memo`` is a dict that lives for one run (emptied by ``reset``), where a phase can leave
+#: what a later phase needs (the yaw of a grasp, say).
+Target = Callable[[mujoco.MjModel, mujoco.MjData, dict], "Waypoint | Sequence[Waypoint]"]
 
 
 class Phase(NamedTuple):
@@ -203,7 +206,16 @@ class WaypointController(Controller):
         self._goal: np.ndarray | None = None
         self._q_goal: list[np.ndarray] = []
         self.ik_errors: list[tuple[str, float]] = []
+        self.memo: dict = {}
         self.last_call = "hold"
+
+    def fork(self) -> WaypointController:
+        """A controller for another run at the same time (another world of a batch): it
+        shares the model, the IK solvers and the scratch data (calls must not overlap, as in
+        a batch loop on one thread) and has its own phase, plan and memo, reset."""
+        twin = copy.copy(self)
+        twin.reset()
+        return twin
 
     @property
     def phase_name(self) -> str:
@@ -221,7 +233,7 @@ class WaypointController(Controller):
         assert self._goal is not None
         self._measure(state)
         m, d = self.model, self.data
-        targets = phase.target(m, d)
+        targets = phase.target(m, d, self.memo)
         if isinstance(targets, Waypoint):
             targets = (targets,)
         if len(targets) != len(self.arms):

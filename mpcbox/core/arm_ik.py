@@ -131,6 +131,10 @@ class ArmIK:
         self.posture.set_target(rest)
         self.constraints = [mink.DofFreezingTask(model, dof_indices=frozen)] if frozen else []
         self.limits = [mink.ConfigurationLimit(model)]
+        limited = model.jnt_limited[ids].astype(bool)
+        margin = 1e-4
+        self._low = np.where(limited, model.jnt_range[ids, 0] + margin, -np.inf)
+        self._high = np.where(limited, model.jnt_range[ids, 1] - margin, np.inf)
         self._mink = mink
 
     def solve(
@@ -146,29 +150,39 @@ class ArmIK:
         """
         mink = self._mink
         config = self.config
-        config.update(np.asarray(qpos, dtype=float).copy())
+        start = np.asarray(qpos, dtype=float).copy()
+        # A measured posture a hair outside a joint limit makes the limit QP infeasible.
+        start[self.qadr] = np.clip(start[self.qadr], self._low, self._high)
+        config.update(start)
         pose = config.get_transform_frame_to_world(self.frame, self.kind)
         rotation = pose.rotation() if quat is None else mink.SO3(wxyz=np.asarray(quat, float))
         target = mink.SE3.from_rotation_and_translation(rotation, np.asarray(position, float))
         self.task.set_target(target)
-        pos_err = rot_err = np.inf
+
+        def errors() -> tuple[float, float]:
+            now = config.get_transform_frame_to_world(self.frame, self.kind)
+            pos = float(np.linalg.norm(now.translation() - target.translation()))
+            return pos, float(np.linalg.norm((rotation.inverse() @ now.rotation()).log()))
+
+        pos_err, rot_err = errors()
         used = 0
         dt = 1.0
-        while used < self.iterations:
+        while used < self.iterations and not (
+            pos_err < self.tolerance and rot_err < 10 * self.tolerance
+        ):
             used += 1
-            vel = mink.solve_ik(
-                config,
-                [self.task, self.posture],
-                dt,
-                self.solver,
-                damping=1e-4,
-                limits=self.limits,
-                constraints=self.constraints,
-            )
+            try:
+                vel = mink.solve_ik(
+                    config,
+                    [self.task, self.posture],
+                    dt,
+                    self.solver,
+                    damping=1e-4,
+                    limits=self.limits,
+                    constraints=self.constraints,
+                )
+            except mink.NoSolutionFound:
+                break  # keep the last posture; its errors say how far it is
             config.integrate_inplace(vel, dt)
-            now = config.get_transform_frame_to_world(self.frame, self.kind)
-            pos_err = float(np.linalg.norm(now.translation() - target.translation()))
-            rot_err = float(np.linalg.norm((rotation.inverse() @ now.rotation()).log()))
-            if pos_err < self.tolerance and rot_err < 10 * self.tolerance:
-                break
+            pos_err, rot_err = errors()
         return IKSolution(config.q[self.qadr].copy(), pos_err, rot_err, used)

@@ -121,30 +121,28 @@ def pick_place_phases(
     tcp = ARM_PREFIX + TCP_SITE
     base = arm.base
     half = size / 2
-    plan: dict[str, float] = {}
 
     def grasp_yaw(d: mujoco.MjData) -> float:
         rel = d.body(obj).xpos - d.body(base).xpos
         natural = float(np.arctan2(rel[1], rel[0])) + np.pi / 2
         return nearest_quarter(body_yaw(d, obj), natural)
 
-    def approach(m: mujoco.MjModel, d: mujoco.MjData) -> Waypoint:
-        plan["yaw"] = grasp_yaw(d)
+    def approach(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> Waypoint:
+        memo["yaw"] = grasp_yaw(d)
         pos = d.body(obj).xpos + np.array([0.0, 0.0, t.hover])
-        return Waypoint(pos, top_down(plan["yaw"]), arm.gripper_open)
+        return Waypoint(pos, top_down(memo["yaw"]), arm.gripper_open)
 
-    def descend(m: mujoco.MjModel, d: mujoco.MjData) -> Waypoint:
+    def descend(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> Waypoint:
         pos = d.body(obj).xpos.copy()
         pos[2] = half
-        return Waypoint(pos, top_down(plan["yaw"]), arm.gripper_open)
+        return Waypoint(pos, top_down(memo["yaw"]), arm.gripper_open)
 
-    def close(m: mujoco.MjModel, d: mujoco.MjData) -> Waypoint:
+    def close(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> Waypoint:
         return Waypoint(None, None, arm.gripper_closed)
 
-    def lift(m: mujoco.MjModel, d: mujoco.MjData) -> Waypoint:
+    def lift(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> Waypoint:
         pos = d.site(tcp).xpos.copy()
         pos[2] = d.body(goal).xpos[2] + half + size + t.clearance + (pos[2] - d.body(obj).xpos[2])
-        plan["height"] = float(pos[2])
         return Waypoint(pos, None, None)
 
     def above_goal(d: mujoco.MjData, lift_by: float) -> Waypoint:
@@ -155,19 +153,19 @@ def pick_place_phases(
         turn = nearest_quarter(body_yaw(d, goal), body_yaw(d, obj)) - body_yaw(d, obj)
         return Waypoint(d.site(tcp).xpos + (want - held), top_down(yaw_now + turn), None)
 
-    def move(m: mujoco.MjModel, d: mujoco.MjData) -> Waypoint:
+    def move(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> Waypoint:
         return above_goal(d, t.clearance + t.drop)
 
-    def place(m: mujoco.MjModel, d: mujoco.MjData) -> Waypoint:
+    def place(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> Waypoint:
         return above_goal(d, t.drop)
 
-    def release(m: mujoco.MjModel, d: mujoco.MjData) -> Waypoint:
+    def release(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> Waypoint:
         return Waypoint(None, None, arm.gripper_open)
 
-    def retreat(m: mujoco.MjModel, d: mujoco.MjData) -> Waypoint:
+    def retreat(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> Waypoint:
         return Waypoint(d.site(tcp).xpos + np.array([0.0, 0.0, t.hover]), None, None)
 
-    def settle(m: mujoco.MjModel, d: mujoco.MjData) -> Waypoint:
+    def settle(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> Waypoint:
         return Waypoint(None, None, None)
 
     steps = (
