@@ -131,10 +131,16 @@ class ArmIK:
         self.posture.set_target(rest)
         self.constraints = [mink.DofFreezingTask(model, dof_indices=frozen)] if frozen else []
         self.limits = [mink.ConfigurationLimit(model)]
-        limited = model.jnt_limited[ids].astype(bool)
+        # Limited hinge and slide joints, the arm's and the frozen others': a posture a hair
+        # outside any limit makes the limit QP infeasible, so solves start clamped inside.
+        hinge_slide = (model.jnt_type == mujoco.mjtJoint.mjJNT_HINGE) | (
+            model.jnt_type == mujoco.mjtJoint.mjJNT_SLIDE
+        )
+        clamped = np.flatnonzero(hinge_slide & model.jnt_limited.astype(bool))
         margin = 1e-4
-        self._low = np.where(limited, model.jnt_range[ids, 0] + margin, -np.inf)
-        self._high = np.where(limited, model.jnt_range[ids, 1] - margin, np.inf)
+        self._clamp_adr = model.jnt_qposadr[clamped]
+        self._low = model.jnt_range[clamped, 0] + margin
+        self._high = model.jnt_range[clamped, 1] - margin
         self._mink = mink
 
     def solve(
@@ -151,8 +157,7 @@ class ArmIK:
         mink = self._mink
         config = self.config
         start = np.asarray(qpos, dtype=float).copy()
-        # A measured posture a hair outside a joint limit makes the limit QP infeasible.
-        start[self.qadr] = np.clip(start[self.qadr], self._low, self._high)
+        start[self._clamp_adr] = np.clip(start[self._clamp_adr], self._low, self._high)
         config.update(start)
         pose = config.get_transform_frame_to_world(self.frame, self.kind)
         rotation = pose.rotation() if quat is None else mink.SO3(wxyz=np.asarray(quat, float))
