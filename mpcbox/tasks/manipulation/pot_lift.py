@@ -21,7 +21,7 @@ import numpy as np
 from mpcbox.controllers.waypoints import ArmDrive, Phase, Waypoint, WaypointController
 from mpcbox.core.problem import Problem
 from mpcbox.tasks.manipulation.arms import aloha_scene_path
-from mpcbox.tasks.manipulation.pick_place import body_yaw, nearest_quarter, top_down
+from mpcbox.tasks.manipulation.pick_place import body_yaw, top_down
 
 #: Least rise of the pot's centre for a lift (m).
 LIFT_HEIGHT = 0.05
@@ -119,9 +119,8 @@ class PotLift(Problem):
 
     def pot_tilt(self, state: np.ndarray) -> float:
         """Angle between the pot's up axis and the world's (rad)."""
-        w, x, y, _ = state[self._pot_adr + 3 : self._pot_adr + 7] / np.linalg.norm(
-            state[self._pot_adr + 3 : self._pot_adr + 7]
-        )
+        quat = state[self._pot_adr + 3 : self._pot_adr + 7]
+        x, y = quat[1:3] / np.linalg.norm(quat)
         return float(np.arccos(np.clip(1.0 - 2.0 * (x * x + y * y), -1.0, 1.0)))
 
     def goal_failure(self, time: np.ndarray, states: np.ndarray) -> str | None:
@@ -144,39 +143,32 @@ def pot_lift_controller(
     t = PotLiftTiming() if timing is None else timing
     sides = ("left", "right")
 
-    def grasps(d: mujoco.MjData, memo: dict, lift: float, hover: float) -> list[Waypoint]:
+    def grasps(d: mujoco.MjData, memo: dict, hover: float) -> list[Waypoint]:
         pot = d.body(POT)
         rot = pot.xmat.reshape(3, 3)
         out = []
         for side in sides:
-            if "start" not in memo:
-                memo["pot_yaw"] = body_yaw(d, POT)
             handle = pot.xpos + rot @ np.asarray(HANDLES[side])
             handle[2] += hover - t.grasp_depth
-            if f"{side}_yaw" not in memo:
+            if side not in memo:  # the yaw of the grasp, chosen once per run
                 base = d.body(f"{side}\\base_link").xpos
-                natural = float(np.arctan2(*(handle - base)[1::-1])) + np.pi / 2
-                # Fingers close across the bar, along the pot's y axis.
-                memo[f"{side}_yaw"] = nearest_quarter(memo["pot_yaw"] + np.pi / 2, natural)
-                if abs(np.cos(memo[f"{side}_yaw"] - memo["pot_yaw"])) > 0.5:
-                    memo[f"{side}_yaw"] += np.pi / 2  # the other pair of faces is along x
-            out.append(Waypoint(handle, top_down(memo[f"{side}_yaw"]), None))
-        memo["start"] = True
-        return [w._replace(position=w.position + [0.0, 0.0, lift]) for w in out]
+                natural = float(np.arctan2(handle[1] - base[1], handle[0] - base[0])) + np.pi / 2
+                across = body_yaw(d, POT) + np.pi / 2  # fingers close along the pot's y axis
+                memo[side] = min((across, across + np.pi), key=lambda a: -np.cos(a - natural))
+            out.append(Waypoint(handle, top_down(memo[side]), 0.037))
+        return out
 
     def approach(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> list[Waypoint]:
-        return [w._replace(gripper=0.037) for w in grasps(d, memo, 0.0, t.hover)]
+        return grasps(d, memo, t.hover)
 
     def descend(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> list[Waypoint]:
-        return [w._replace(gripper=0.037) for w in grasps(d, memo, 0.0, 0.0)]
+        return grasps(d, memo, 0.0)
 
     def close(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> list[Waypoint]:
         return [Waypoint(None, None, 0.002)] * 2
 
     def lift(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> list[Waypoint]:
-        return [
-            Waypoint(d.site(f"{s}\\tcp").xpos + np.array([0.0, 0.0, t.lift_by])) for s in sides
-        ]
+        return [Waypoint(d.site(f"{s}\\tcp").xpos + np.array([0.0, 0.0, t.lift_by])) for s in sides]
 
     def hold(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> list[Waypoint]:
         return [Waypoint()] * 2
