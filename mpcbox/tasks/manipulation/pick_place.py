@@ -2,18 +2,16 @@ r"""Pick-and-place phases for :class:`~mpcbox.controllers.waypoints.WaypointCont
 
 The phases of a top-down pick-and-place, each replanned from the measured cube poses:
 
-========== ============================================================================
-approach   above the object, gripper open, yawed to the object's faces
-descend    down to grasp height (re-planned: follows the object if it moved)
-close      close the gripper
-lift       straight up
-move       above the goal, the held object yawed to the goal's faces (re-planned)
-place      lower until the held object's centre is at the goal (re-planned from the
-           measured object: the waypoint is the end effector plus the object's error)
-release    open the gripper
-retreat    straight up
-settle     wait (the success check is taken after it)
-========== ============================================================================
+* approach: above the object, gripper open, yawed to the object's faces;
+* descend: down to grasp height (replanned: follows the object if it moved);
+* close: close the gripper;
+* lift: straight up;
+* move: above the goal, the held object yawed to the goal's faces (replanned);
+* place: lower until the held object's centre is at the goal (replanned from the measured
+  object: the waypoint is the end effector plus the object's error);
+* release: open the gripper;
+* retreat: straight up;
+* settle: wait (the success check is taken after it).
 
 Top-down grasps are the rotation :math:`R_z(\psi) R_x(\pi)` of the arm's ``tcp`` site
 (:mod:`.arms`). Of the four yaws :math:`\psi` that align the fingers with a cube's faces
