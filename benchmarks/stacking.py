@@ -11,7 +11,10 @@ counts as failed. JSON with per-trial outcomes and failure reasons goes to
 ``benchmarks/results/stacking[_SUFFIX].json``.
 
     python benchmarks/stacking.py [--trials 100] [--arm aloha]
-    python benchmarks/stacking.py --trials 0 --worlds 2048 --device cuda --suffix gpu
+    python benchmarks/stacking.py --trials 100 --worlds 2048 --device cuda --suffix gpu
+
+(``--trials 0`` skips the CPU trials; with both, ``agree_with_cpu`` counts the seeds where
+the CPU and MJWarp outcomes agree.)
 """
 
 from __future__ import annotations
@@ -119,6 +122,7 @@ def warp_trials(problem: StackCubes, worlds: int, duration: float, device: str) 
         "calibration_contacts_constraints": list(out.calibration),
         "setup_s": round(out.setup_s, 2),
         "wall_s": round(out.wall_s, 2),
+        "controller_host_s": round(out.controller_s, 2),
         "world_steps_per_s": round(out.world_steps_per_s, 1),
         "failures": [r for r in rows if not r["success"]],
         "per_trial": rows if worlds <= 256 else [],

@@ -10,11 +10,12 @@ r"""The same closed-loop trials as ``N`` parallel MuJoCo Warp worlds, one contro
    (one small copy per control tick, none per physics step);
 3. each world's controller computes its control; the host uploads ``(N, nu)``.
 
-Capacity: ``nconmax`` and ``njmax`` (per world) come from a CPU calibration run of world 0
-under its controller, taken at every step (the largest contact count, or broadphase
-candidates, and constraint rows), times ``headroom``. A world whose contacts or constraints
-overflow is marked and counts as failed (:attr:`BatchResult.overflow`), as is a world whose
-state stops being finite or whose acceleration exceeds MuJoCo's divergence bound.
+Capacity: ``nconmax`` and ``njmax`` (per world) come from CPU calibration runs of the first
+worlds (four by default) under their controllers, taken at every step (the largest contact
+count, or broadphase candidates, and constraint rows), times ``headroom``. A world whose
+contacts or constraints overflow is marked and counts as failed
+(:attr:`BatchResult.overflow`), as is a world whose state stops being finite or whose
+acceleration exceeds MuJoCo's divergence bound.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from mpcbox.controllers.sampling.backends.warp import (
 )
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError
-from mpcbox.validation import as_array, positive
+from mpcbox.validation import as_array, integer, positive
 
 #: MuJoCo's bound on accelerations before it calls a state diverged (``mjMAXVAL``).
 MAX_ACCELERATION = 1e10
@@ -55,9 +56,10 @@ class BatchResult(NamedTuple):
         nconmax: Contacts allocated per world.
         njmax: Constraint rows allocated per world.
         calibration: ``(contacts or broadphase candidates, constraint rows)`` at the most
-            contact-dense step of the CPU calibration run.
+            contact-dense steps of the CPU calibration runs.
         device: The Warp device.
         wall_s: Wall time of the batched loop (s), setup excluded.
+        controller_s: Of it, the time in the controllers on the host (s).
         setup_s: Model upload, calibration and graph capture (s).
         world_steps_per_s: ``N * steps / wall_s``.
     """
@@ -72,6 +74,7 @@ class BatchResult(NamedTuple):
     calibration: tuple[int, int]
     device: str
     wall_s: float
+    controller_s: float
     setup_s: float
     world_steps_per_s: float
 
@@ -123,6 +126,7 @@ def simulate_batch_warp(
     nconmax: int | None = None,
     njmax: int | None = None,
     record_period: float = 0.1,
+    calibration_worlds: int = 4,
 ) -> BatchResult:
     """Run ``N`` closed-loop trials as parallel MJWarp worlds (see the module docstring).
 
@@ -136,6 +140,7 @@ def simulate_batch_warp(
         nconmax: Contacts per world (default: from the calibration run).
         njmax: Constraint rows per world (default: from the calibration run).
         record_period: Seconds between recorded states.
+        calibration_worlds: How many of the first worlds the CPU calibration runs.
 
     Raises:
         InvalidArgumentError: For a count of controllers other than of states, or
@@ -160,9 +165,12 @@ def simulate_batch_warp(
     ticks = math.ceil(positive("duration", duration) / (every * dt))
     record_every = max(1, round(positive("record_period", record_period) / (every * dt)))
     setup0 = _time.perf_counter()
+    integer("calibration_worlds", calibration_worlds, 1)
     calibration = (0, 0)
     if nconmax is None or njmax is None:
-        calibration = calibrate_capacity(problem, controllers[0], states0[0], duration)
+        for i in range(min(n, calibration_worlds)):
+            ncon, nefc = calibrate_capacity(problem, controllers[i], states0[i], duration)
+            calibration = (max(calibration[0], ncon), max(calibration[1], nefc))
     nconmax = nconmax or max(4, math.ceil(headroom * calibration[0]))
     njmax = njmax or max(8, math.ceil(headroom * calibration[1]))
     nq, nv, na = problem.nq, problem.nv, problem.na
@@ -198,6 +206,7 @@ def simulate_batch_warp(
     states = states0.copy()
     times, record = [], []
     capacity = int(_capacity_mask())
+    host = 0.0
     wall0 = _time.perf_counter()
     with wp.ScopedDevice(device):
         for k in range(ticks + 1):
@@ -215,6 +224,7 @@ def simulate_batch_warp(
                 record.append(states.copy())
             if k == ticks:
                 break
+            host0 = _time.perf_counter()
             for i, c in enumerate(controllers):
                 if diverged[i] or errors[i]:
                     continue
@@ -225,6 +235,7 @@ def simulate_batch_warp(
                     ctrl[i] = u
                 except Exception as exc:  # a controller error fails its world only
                     errors[i] = f"{type(exc).__name__}: {exc}"
+            host += _time.perf_counter() - host0
             d.ctrl.assign(problem.clip_ctrl(ctrl).astype(np.float32))
             if graph is not None:
                 wp.capture_launch(graph)
@@ -243,6 +254,7 @@ def simulate_batch_warp(
         calibration=calibration,
         device=device,
         wall_s=wall,
+        controller_s=host,
         setup_s=setup_s,
         world_steps_per_s=n * ticks * every / wall if wall > 0 else float("nan"),
     )
