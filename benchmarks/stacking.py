@@ -80,7 +80,9 @@ def cpu_trials(problem: StackCubes, seeds: range, duration: float) -> dict:
     }
 
 
-def warp_trials(problem: StackCubes, worlds: int, duration: float, device: str) -> dict:
+def warp_trials(
+    problem: StackCubes, worlds: int, duration: float, device: str, calibration_worlds: int
+) -> dict:
     """Trials ``0 .. worlds-1`` as parallel MJWarp worlds."""
     from mpcbox.sim.batch_warp import simulate_batch_warp
 
@@ -88,7 +90,14 @@ def warp_trials(problem: StackCubes, worlds: int, duration: float, device: str) 
     template = stacking_controller(problem)
     controllers = [template.fork() for _ in seeds]
     states0 = np.stack([problem.trial_state(s) for s in seeds])
-    out = simulate_batch_warp(problem, controllers, states0, duration, device=device)
+    out = simulate_batch_warp(
+        problem,
+        controllers,
+        states0,
+        duration,
+        device=device,
+        calibration_worlds=calibration_worlds,
+    )
     rows = []
     for i, seed in enumerate(seeds):
         reason = problem.goal_failure(out.time, out.states[:, i])
@@ -136,6 +145,9 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--worlds", type=int, default=0, help="MJWarp worlds (0: none)")
     parser.add_argument("--device", default=None, help="warp device: cuda, cuda:0 or cpu")
+    parser.add_argument(
+        "--calibration-worlds", type=int, default=16, help="CPU runs that size nconmax/njmax"
+    )
     parser.add_argument("--suffix", default="", help="results/stacking_SUFFIX.json")
     args = parser.parse_args()
     problem = StackCubes(args.arm, threads=1)
@@ -156,7 +168,9 @@ def main() -> None:
         cpu = result["cpu"]
         print(f"CPU: {cpu['successes']}/{cpu['trials']} stacked, {cpu['wall_s']} s", flush=True)
     if args.worlds:
-        result["warp"] = warp_trials(problem, args.worlds, duration, args.device)
+        result["warp"] = warp_trials(
+            problem, args.worlds, duration, args.device, args.calibration_worlds
+        )
         w = result["warp"]
         print(
             f"MJWarp ({w['device']}): {w['successes']}/{w['worlds']} stacked, "
