@@ -2,7 +2,7 @@ r"""Pick-and-place phases for :class:`~mpcbox.controllers.waypoints.WaypointCont
 
 The phases of a top-down pick-and-place, each replanned from the measured cube poses:
 
-* approach: above the object, gripper open, yawed to the object's faces;
+* approach: above the object, gripper open, yawed to the object's faces (replanned);
 * descend: down to grasp height (replanned: follows the object if it moved);
 * close: close the gripper;
 * lift: straight up;
@@ -16,8 +16,9 @@ The phases of a top-down pick-and-place, each replanned from the measured cube p
 Top-down grasps are the rotation :math:`R_z(\psi) R_x(\pi)` of the arm's ``tcp`` site
 (:mod:`.arms`). Of the four yaws :math:`\psi` that align the fingers with a cube's faces
 (cube yaw plus multiples of :math:`\pi/2`), the approach picks the one closest to the
-arm's natural yaw there, the bearing of the cube from the base plus :math:`\pi/2` (fingers
-closing across the reach direction), so the wrist turns at most 45 degrees.
+arm's natural yaw there: the yaw the end effector has at the arm's home posture, turned by
+the bearing of the cube from the base (ALOHA: fingers closing across the reach direction;
+Panda: along it), so the wrist turns at most 45 degrees from its home.
 """
 
 from __future__ import annotations
@@ -105,6 +106,7 @@ def pick_place_phases(
     goal: str,
     size: float,
     timing: PickPlaceTiming | None = None,
+    home_yaw: float = np.pi / 2,
 ) -> tuple[Phase, ...]:
     """The phases that put cube ``obj`` on top of cube ``goal`` (bodies of edge ``size``).
 
@@ -114,6 +116,8 @@ def pick_place_phases(
         goal: Body to stack it on.
         size: Cube edge (m).
         timing: Phase durations and heights.
+        home_yaw: Yaw of the end effector (its closing axis) at the arm's home posture,
+            relative to the base's heading (rad).
     """
     t = PickPlaceTiming() if timing is None else timing
     tcp = ARM_PREFIX + TCP_SITE
@@ -122,17 +126,21 @@ def pick_place_phases(
 
     def grasp_yaw(d: mujoco.MjData) -> float:
         rel = d.body(obj).xpos - d.body(base).xpos
-        natural = float(np.arctan2(rel[1], rel[0])) + np.pi / 2
+        natural = float(np.arctan2(rel[1], rel[0])) - arm.mount_yaw + home_yaw
         return nearest_quarter(body_yaw(d, obj), natural)
 
     def approach(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> Waypoint:
-        memo["yaw"] = grasp_yaw(d)
+        # The first plan picks the yaw; replans follow the object without jumping a quarter.
+        yaw = memo.get("yaw")
+        memo["yaw"] = grasp_yaw(d) if yaw is None else nearest_quarter(body_yaw(d, obj), yaw)
         pos = d.body(obj).xpos + np.array([0.0, 0.0, t.hover])
         return Waypoint(pos, top_down(memo["yaw"]), arm.gripper_open)
 
     def descend(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> Waypoint:
         pos = d.body(obj).xpos.copy()
         pos[2] = half
+        # Follow the object's yaw too (it may have been turned), without jumping a quarter.
+        memo["yaw"] = nearest_quarter(body_yaw(d, obj), memo["yaw"])
         return Waypoint(pos, top_down(memo["yaw"]), arm.gripper_open)
 
     def close(m: mujoco.MjModel, d: mujoco.MjData, memo: dict) -> Waypoint:
@@ -167,7 +175,7 @@ def pick_place_phases(
         return Waypoint(None, None, None)
 
     steps = (
-        ("approach", approach, False),
+        ("approach", approach, True),
         ("descend", descend, True),
         ("close", close, False),
         ("lift", lift, False),
@@ -211,7 +219,13 @@ def stacking_controller(
     """
     arm: ArmSpec = problem.arm  # type: ignore[attr-defined]
     size: float = problem.cube_size  # type: ignore[attr-defined]
-    phases = pick_place_phases(arm, obj="red_cube", goal="blue_cube", size=size, timing=timing)
+    data = mujoco.MjData(problem.model)  # type: ignore[attr-defined]
+    data.qpos[:] = problem.qpos_ref  # type: ignore[attr-defined]
+    mujoco.mj_kinematics(problem.model, data)  # type: ignore[attr-defined]
+    home_yaw = frame_yaw(data, ARM_PREFIX + TCP_SITE) - arm.mount_yaw
+    phases = pick_place_phases(
+        arm, obj="red_cube", goal="blue_cube", size=size, timing=timing, home_yaw=home_yaw
+    )
     return WaypointController(
         problem,  # type: ignore[arg-type]
         arms=[arm_drive(arm)],
