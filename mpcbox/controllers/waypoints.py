@@ -157,7 +157,9 @@ class WaypointController(Controller):
         model = problem.model
         self.model = model
         self.data = mujoco.MjData(model)
-        self._ends = np.cumsum([non_negative("duration", p.duration) + p.hold for p in phases])
+        for phase in self.phases:
+            non_negative(f"phase {phase.name!r} duration", phase.duration)
+            non_negative(f"phase {phase.name!r} hold", phase.hold)
         self._ik = []
         self._act: list[np.ndarray] = []
         self._dof: list[np.ndarray] = []

@@ -37,6 +37,7 @@ from mpcbox.controllers.waypoints import (
 )
 from mpcbox.tasks.manipulation.arms import ArmSpec
 from mpcbox.tasks.manipulation.scene import ARM_PREFIX, TCP_SITE
+from mpcbox.tasks.manipulation.stacking import StackCubes
 
 
 class PickPlaceTiming(NamedTuple):
@@ -204,7 +205,7 @@ def arm_drive(arm: ArmSpec) -> ArmDrive:
 
 
 def stacking_controller(
-    problem: object,
+    problem: StackCubes,
     *,
     timing: PickPlaceTiming | None = None,
     config: WaypointConfig | None = None,
@@ -217,17 +218,17 @@ def stacking_controller(
         timing: Phase durations and heights (run it for at least ``timing.total`` s).
         config: Options of the :class:`~mpcbox.controllers.waypoints.WaypointController`.
     """
-    arm: ArmSpec = problem.arm  # type: ignore[attr-defined]
-    size: float = problem.cube_size  # type: ignore[attr-defined]
-    data = mujoco.MjData(problem.model)  # type: ignore[attr-defined]
-    data.qpos[:] = problem.qpos_ref  # type: ignore[attr-defined]
-    mujoco.mj_kinematics(problem.model, data)  # type: ignore[attr-defined]
+    arm = problem.arm
+    size = problem.cube_size
+    data = mujoco.MjData(problem.model)
+    data.qpos[:] = problem.qpos_ref
+    mujoco.mj_kinematics(problem.model, data)
     home_yaw = frame_yaw(data, ARM_PREFIX + TCP_SITE) - arm.mount_yaw
     phases = pick_place_phases(
         arm, obj="red_cube", goal="blue_cube", size=size, timing=timing, home_yaw=home_yaw
     )
     return WaypointController(
-        problem,  # type: ignore[arg-type]
+        problem,
         arms=[arm_drive(arm)],
         phases=phases,
         config=config,
