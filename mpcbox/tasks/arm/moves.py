@@ -7,11 +7,11 @@ r"""Plans of an :class:`~mpcbox.tasks.arm.track.ArmTrack` move, their figures, a
   knots, started from the quintic's feedforward controls; the actuators' force limits hold
   by construction, since the rollouts go through MuJoCo's actuator model.
 
-:func:`move_report` scores a plan: the task's cost, the largest ratio of the inverse-dynamics
-torque (``mj_inverse``) to the actuators' limits (:mod:`mpcbox.core.torque_limits`), the
-clearance of the checked frames from the obstacle (m; negative inside it), the end
-effector's final distance to the target and the compute time. :func:`move_tracker` builds a
-time-varying LQR tracker of a plan followed by a hold.
+:func:`move_report` scores a plan: the task's cost, the effort and the largest ratio to the
+actuators' limits of the inverse-dynamics torque (``mj_inverse``,
+:mod:`mpcbox.core.torque_limits`), the clearance of the checked frames from the obstacle
+(m; negative inside it), the end effector's final distance to the target and the compute
+time. :func:`move_tracker` builds a time-varying LQR tracker of a plan followed by a hold.
 """
 
 from __future__ import annotations
@@ -60,11 +60,13 @@ class ArmMove(NamedTuple):
 
 
 class MoveReport(NamedTuple):
-    """Figures of a plan (:func:`move_report`).
+    r"""Figures of a plan (:func:`move_report`).
 
     Attributes:
         cost: The task's cost of the plan (running over ``N`` knots, terminal at the last).
-        torque_ratio: Largest :math:`|\\tau| / \\tau^{max}` over the joints and knots; above 1
+        effort: :math:`\sum_k \lVert \tau_k \rVert^2 \Delta t` of the inverse-dynamics
+            torques (N² m² s): the effort of the motion itself, whatever the actuators.
+        torque_ratio: Largest :math:`|\tau| / \tau^{max}` over the joints and knots; above 1
             the actuators cannot supply the motion.
         clearance: Smallest distance of the checked frames from the obstacle's surface (m;
             ``inf`` without an obstacle, negative inside it).
@@ -73,6 +75,7 @@ class MoveReport(NamedTuple):
     """
 
     cost: float
+    effort: float
     torque_ratio: float
     clearance: float
     final_error: float
@@ -148,7 +151,8 @@ def move_report(problem: ArmTrack, move: ArmMove) -> MoveReport:
                 )
                 clearance = min(clearance, float(gap) - problem.obstacle.radius)
     final = problem.reach_error(states[-1])
-    return MoveReport(cost, ratio, clearance, final, 1e3 * move.compute_s)
+    effort = float(np.sum(torques[:-1] ** 2) * problem.dt)
+    return MoveReport(cost, effort, ratio, clearance, final, 1e3 * move.compute_s)
 
 
 def held(problem: ArmTrack, move: ArmMove) -> np.ndarray:

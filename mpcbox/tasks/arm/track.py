@@ -29,6 +29,7 @@ The measures (:mod:`mpcbox.tasks.arm.measures`) compare the run with the current
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any, NamedTuple
 
 import mujoco
@@ -39,9 +40,10 @@ from mpcbox.controllers.trajectory.reference import reference_states
 from mpcbox.core.actuator_scales import actuator_scales
 from mpcbox.core.cost import ControlCost, Cost, FramePosition, SphereClearance, StateCost
 from mpcbox.core.equilibrium import find_equilibrium
-from mpcbox.core.model import ModelSource, frame_object, frame_position
+from mpcbox.core.model import ModelSource, frame_object, frame_position, object_id
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.sim.measures import Measure
+from mpcbox.tasks import scene_path
 from mpcbox.tasks.arm.measures import Overshoot, TargetError, TrackingError
 from mpcbox.tasks.reach import ArmReach
 from mpcbox.validation import as_array, finite_array, non_negative, positive
@@ -59,13 +61,65 @@ class Sphere(NamedTuple):
     radius: float
 
 
+#: Constructor arguments kept for :meth:`ArmTrack.task_options`.
+_OPTIONS = (
+    "model",
+    "frame",
+    "goal_qpos",
+    "target",
+    "relative",
+    "duration",
+    "hold",
+    "obstacle",
+    "margin",
+    "clearance_frames",
+    "site",
+    "site_offset",
+    "keyframe",
+    "start_qpos",
+    "tolerance",
+    "posture_weight",
+    "velocity_weight",
+    "torque_weight",
+    "goal_weight",
+    "obstacle_weight",
+    "avoid_collisions",
+    "free_objects",
+)
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (tuple, list)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def _options(arguments: dict[str, Any]) -> dict[str, Any] | None:
+    """The constructor's arguments as JSON values, or ``None`` when the model is not a path
+    or a Menagerie name (an MJCF string, a spec, a compiled model) or a Problem option is
+    not a plain number, string or flag."""
+    model = arguments["model"]
+    if not (isinstance(model, Path) or (isinstance(model, str) and "<" not in model)):
+        return None
+    extra = arguments.get("kwargs") or {}
+    if not all(isinstance(v, (int, float, str, bool, type(None))) for v in extra.values()):
+        return None
+    return {**{name: _jsonable(arguments[name]) for name in _OPTIONS}, **extra}
+
+
 class ArmTrack(ArmReach):
     """Move an arm from its start posture to a goal posture in ``duration`` seconds.
 
     Args:
-        model: The arm's MJCF (path, XML, spec, or ``"menagerie:NAME"``).
+        model: The arm's MJCF (path, XML, spec, or ``"menagerie:NAME"``); default: the
+            three-joint arm shipped with mpcbox (``scenes/arm3.xml``).
         frame: End-effector site or body name.
-        goal_qpos: Goal posture ``(nq,)``; or give ``target``.
+        goal_qpos: Goal posture ``(nq,)``; or give ``target``; with neither, the model's
+            keyframe ``"goal"``.
         target: End-effector target ``(3,)`` (m), reached by IK (see
             :class:`~mpcbox.tasks.reach.ArmReach`); ``relative`` reads it as an offset.
         relative: Read ``target`` as an offset from the start position.
@@ -97,9 +151,9 @@ class ArmTrack(ArmReach):
 
     def __init__(
         self,
-        model: ModelSource,
+        model: ModelSource | None = None,
         *,
-        frame: str,
+        frame: str = "ee",
         goal_qpos: np.ndarray | None = None,
         target: np.ndarray | None = None,
         relative: bool = False,
@@ -122,8 +176,12 @@ class ArmTrack(ArmReach):
         free_objects: str = "weld",
         **kwargs: Any,
     ) -> None:
-        if (goal_qpos is None) == (target is None):
-            raise InvalidArgumentError("ArmTrack needs exactly one of goal_qpos and target")
+        if model is None:
+            model = scene_path("arm3.xml")
+        self._options = _options(locals())
+        if goal_qpos is not None and target is not None:
+            raise InvalidArgumentError("ArmTrack takes one of goal_qpos and target, not both")
+        self._goal_key = goal_qpos is None and target is None
         self._goal_arg = (
             None if goal_qpos is None else finite_array("goal_qpos", goal_qpos, (None,))
         )
@@ -178,8 +236,31 @@ class ArmTrack(ArmReach):
             self.frame = self.site
         return out
 
+    def task_options(self) -> dict[str, Any]:
+        """The constructor's arguments as JSON values: ``ArmTrack(**task_options())``
+        rebuilds the task (for ``mpcbox replay``; save them as the trajectory's
+        ``task_options``).
+
+        Raises:
+            InvalidArgumentError: For a model given as XML text, spec or compiled model, or
+                Problem options other than numbers, strings and flags, which do not
+                round-trip through JSON.
+        """
+        if self._options is None:
+            raise InvalidArgumentError(
+                "ArmTrack.task_options: only a task built from an MJCF path or a Menagerie "
+                "name, with plain Problem options, can be rebuilt from JSON"
+            )
+        return dict(self._options)
+
     # ------------------------------------------------------------------ construction
     def prepare(self, model: mujoco.MjModel) -> None:
+        if self._goal_key:
+            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "goal") < 0:
+                raise InvalidArgumentError(
+                    "ArmTrack needs goal_qpos or target (the model has no keyframe 'goal')"
+                )
+            self._goal_arg = model.key_qpos[object_id(model, "keyframe", "goal")].copy()
         if self._goal_arg is None:
             super().prepare(model)  # IK goal posture for the target
         else:
