@@ -162,6 +162,7 @@ def tracking_reference(
     states: np.ndarray | JointTrajectory,
     weights: TrackingWeights | None = None,
     *,
+    ctrls: np.ndarray | None = None,
     ctrl_init: np.ndarray | None = None,
 ) -> TrackingReference:
     """Feedforward controls and time-varying LQR gains along reference states.
@@ -172,6 +173,8 @@ def tracking_reference(
             :class:`~mpcbox.controllers.trajectory.quintic.JointTrajectory` over all of
             ``qpos`` sampled every ``problem.dt``.
         weights: The LQR weights (default :class:`TrackingWeights`).
+        ctrls: Feedforward controls ``(K, nu)`` known to realize the states (a plan's own,
+            e.g. iLQR's); by default they are searched for (:func:`feedforward`).
         ctrl_init: Start of the feedforward search (see :func:`feedforward`).
 
     Returns:
@@ -184,12 +187,36 @@ def tracking_reference(
                 f"states: the trajectory must be sampled every problem.dt = {problem.dt} s"
             )
         states = reference_states(problem, states)
+    states = finite_array("states", states, (None, problem.nstate))
     weights = TrackingWeights() if weights is None else weights
-    ctrls, A, B, miss = feedforward(problem, states, ctrl_init)
+    if ctrls is None:
+        ctrls, A, B, miss = feedforward(problem, states, ctrl_init)
+    else:
+        ctrls = problem.clip_ctrl(finite_array("ctrls", ctrls, (states.shape[0], problem.nu)))
+        lin = problem.linearize_trajectory(states, ctrls)
+        A, B = lin.A, lin.B
+        miss = (
+            max(
+                float(
+                    np.max(
+                        np.abs(
+                            problem.state_difference(
+                                states[k + 1], problem.step(states[k], ctrls[k])
+                            )
+                        )
+                    )
+                )
+                for k in range(states.shape[0] - 1)
+            )
+            if states.shape[0] > 1
+            else 0.0
+        )
     nv, na = problem.nv, problem.na
     Q = np.diag(
         np.r_[
-            np.full(nv, weights.position_weight), np.full(nv, weights.velocity_weight), np.zeros(na)
+            np.full(nv, weights.position_weight),
+            np.full(nv, weights.velocity_weight),
+            np.zeros(na),
         ]
     )
     torque = actuator_scales(problem.planning_model, states[0, : problem.nq]).torque_per_ctrl

@@ -8,6 +8,7 @@ from mpcbox.tasks.arm.moves import (
     move_report,
     move_tracker,
     quintic_move,
+    step_move,
 )
 from mpcbox.tasks.arm.track import ArmTrack, Sphere
 
@@ -23,4 +24,5 @@ __all__ = [
     "move_report",
     "move_tracker",
     "quintic_move",
+    "step_move",
 ]

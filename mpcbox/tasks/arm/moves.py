@@ -30,6 +30,7 @@ from mpcbox.controllers.trajectory.reference import (
     tracking_reference,
 )
 from mpcbox.controllers.trajectory.tracker import TrajectoryTracker
+from mpcbox.core.equilibrium import find_equilibrium
 from mpcbox.core.model import frame_position
 from mpcbox.core.torque_limits import inverse_dynamics, torque_limits, torque_ratio
 from mpcbox.tasks.arm.track import ArmTrack
@@ -40,7 +41,7 @@ class ArmMove(NamedTuple):
     """A planned move of ``K = N + 1`` knots, one planning step apart.
 
     Attributes:
-        method: ``"quintic"`` or ``"ilqr"``.
+        method: ``"quintic"``, ``"ilqr"`` or ``"step"``.
         time: Knot times ``(K,)`` (s).
         states: States ``(K, nstate)``.
         ctrls: Controls ``(K, nu)`` (the last repeats the one before).
@@ -90,6 +91,22 @@ def quintic_move(problem: ArmTrack) -> ArmMove:
     states = reference_states(problem, traj)
     ctrls = feedforward(problem, states)[0]
     return ArmMove("quintic", traj.time, states, ctrls, traj.qacc, compute, "closed form")
+
+
+def step_move(problem: ArmTrack) -> ArmMove:
+    """The goal posture at rest from time 0 under its holding control: tracked by
+    :func:`move_tracker`, this is LQR about the goal (a step, no planned path)."""
+    goal = np.r_[problem.goal_qpos, np.zeros(problem.nv + problem.na)]
+    knots = problem.knots + 1
+    return ArmMove(
+        "step",
+        problem.dt * np.arange(knots),
+        np.tile(goal, (knots, 1)),
+        np.tile(problem.clip_ctrl(problem.ctrl_ref), (knots, 1)),
+        np.zeros((knots, problem.nv)),
+        0.0,
+        "goal posture",
+    )
 
 
 def ilqr_move(
@@ -155,12 +172,20 @@ def move_report(problem: ArmTrack, move: ArmMove) -> MoveReport:
     return MoveReport(cost, effort, ratio, clearance, final, 1e3 * move.compute_s)
 
 
-def held(problem: ArmTrack, move: ArmMove) -> np.ndarray:
-    """The plan's states followed by ``problem.hold`` seconds at rest on its last posture."""
+def held(problem: ArmTrack, move: ArmMove) -> tuple[np.ndarray, np.ndarray]:
+    """The plan's states and controls followed by ``problem.hold`` seconds at rest on its
+    last posture, under the control that holds it (:func:`~mpcbox.find_equilibrium`).
+
+    Returns:
+        States ``(K + H, nstate)`` and controls ``(K + H, nu)``.
+    """
     rest = move.states[-1].copy()
     rest[problem.nq : problem.nq + problem.nv] = 0.0
+    hold = find_equilibrium(problem.model, rest[: problem.nq], on_infeasible="ignore").ctrl
     steps = round(problem.hold / problem.dt)
-    return np.vstack([move.states, np.tile(rest, (steps, 1))])
+    states = np.vstack([move.states, np.tile(rest, (steps, 1))])
+    ctrls = np.vstack([move.ctrls, np.tile(problem.clip_ctrl(hold), (steps, 1))])
+    return states, ctrls
 
 
 def move_tracker(
@@ -170,11 +195,12 @@ def move_tracker(
     *,
     feedback: bool = True,
 ) -> TrajectoryTracker:
-    """A time-varying LQR tracker of ``move`` with its hold; the task's measures now compare
-    with this reference (:meth:`ArmTrack.set_reference`)."""
-    states = held(problem, move)
+    """A time-varying LQR tracker of ``move`` with its hold (:func:`held`), using the plan's
+    own controls as feedforward; the task's measures now compare with this reference
+    (:meth:`ArmTrack.set_reference`)."""
+    states, ctrls = held(problem, move)
     problem.set_reference(states)
-    reference = tracking_reference(problem, states, weights)
+    reference = tracking_reference(problem, states, weights, ctrls=ctrls)
     name = f"{move.method} + {'tv-lqr' if feedback else 'feedforward'}"
     return TrajectoryTracker(problem, reference, feedback=feedback, name=name)
 
@@ -187,4 +213,5 @@ __all__ = [
     "move_report",
     "move_tracker",
     "quintic_move",
+    "step_move",
 ]

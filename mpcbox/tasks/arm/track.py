@@ -9,13 +9,15 @@ the quintic in joint space (:meth:`ArmTrack.joint_reference`), and the iLQR-opti
 .. math::
     \sum_{t < N} \Big( \tfrac12 w_q \lVert q_t - q^\star \rVert^2
       + \tfrac12 w_v \lVert \dot q_t \rVert^2
-      + \tfrac12 w_\tau \lVert k \odot (u_t - u^\star) \rVert^2
+      + \tfrac12 w_\tau \lVert m \odot (f_t - f^\star) \rVert^2
       + \tfrac12 w_o \sum_i \max(0, \rho - \lVert p_i - c \rVert)^2 \Big)
     + \tfrac12 W \big( \lVert p_N - p^\star \rVert^2 + \lVert q_N - q^\star \rVert^2
       + \lVert \dot q_N \rVert^2 \big),
 
-with :math:`N = T / \Delta t`, :math:`k` the torque per unit of each control (so
-:math:`w_\tau` weighs torque), :math:`u^\star` the control holding :math:`q^\star`, and the
+with :math:`N = T / \Delta t`, :math:`f_t` the actuator forces
+(:class:`~mpcbox.core.cost.ActuatorForce`; for a position servo its torque, not its
+set-point), :math:`m` their gears (so :math:`w_\tau` weighs joint torque), :math:`f^\star`
+the forces holding :math:`q^\star`, and the
 obstacle term (:class:`~mpcbox.core.cost.SphereClearance`) only with an ``obstacle``: the
 frames ``clearance_frames`` (default: the end effector) keep :math:`\rho` = radius + margin
 from its centre. The obstacle is virtual: a cost, not a geom in the model.
@@ -30,15 +32,21 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, ClassVar, NamedTuple
 
 import mujoco
 import numpy as np
 
 from mpcbox.controllers.trajectory.quintic import JointTrajectory, quintic
 from mpcbox.controllers.trajectory.reference import reference_states
-from mpcbox.core.actuator_scales import actuator_scales
-from mpcbox.core.cost import ControlCost, Cost, FramePosition, SphereClearance, StateCost
+from mpcbox.core.actuation import actuator_moment
+from mpcbox.core.cost import (
+    ActuatorForce,
+    Cost,
+    FramePosition,
+    SphereClearance,
+    StateCost,
+)
 from mpcbox.core.equilibrium import find_equilibrium
 from mpcbox.core.model import ModelSource, frame_object, frame_position, object_id
 from mpcbox.errors import InvalidArgumentError
@@ -148,6 +156,11 @@ class ArmTrack(ArmReach):
     """
 
     name = "arm_track"
+    #: iLQR-MPC toward the goal posture (ArmReach's tuned config); the task's trackers of a
+    #: planned move come from :func:`~mpcbox.tasks.arm.moves.move_tracker`. LQR about the
+    #: goal on this cost is sluggish (it weighs effort against a small posture weight);
+    #: track :func:`~mpcbox.tasks.arm.moves.step_move` for a stiffer one.
+    controller_configs: ClassVar[dict[str, Any]] = {"ilqr": ArmReach.controller_configs["ilqr"]}
 
     def __init__(
         self,
@@ -170,7 +183,7 @@ class ArmTrack(ArmReach):
         posture_weight: float = 1.0,
         velocity_weight: float = 0.1,
         torque_weight: float = 1e-3,
-        goal_weight: float = 1e4,
+        goal_weight: float = 1e5,
         obstacle_weight: float = 1e5,
         avoid_collisions: bool = True,
         free_objects: str = "weld",
@@ -284,7 +297,11 @@ class ArmTrack(ArmReach):
 
     def build_cost(self, model: mujoco.MjModel) -> Cost:
         w = self.track_weights
-        torque = actuator_scales(model, self.goal_qpos).torque_per_ctrl
+        data = mujoco.MjData(model)
+        data.qpos[:], data.ctrl[:] = self.goal_qpos, self.ctrl_ref
+        mujoco.mj_forward(model, data)
+        holding = data.actuator_force.copy()  # the forces that hold the goal posture
+        lever = np.max(np.abs(actuator_moment(model, data)), axis=1)  # gear of joint actuators
         running = [
             StateCost(
                 self.goal_qpos,
@@ -292,7 +309,7 @@ class ArmTrack(ArmReach):
                 weight_qvel=w["velocity_weight"],
                 name="posture",
             ),
-            ControlCost(self.ctrl_ref, weight=w["torque_weight"] * torque**2, name="effort"),
+            ActuatorForce(holding, weight=w["torque_weight"] * lever**2, name="effort"),
         ]
         if self.obstacle is not None:
             running.append(
