@@ -19,7 +19,7 @@ import mpcbox
 from mpcbox.cli.replay import run_replay
 from mpcbox.controllers.trajectory import TrajectoryTracker, quintic, tracking_reference
 from mpcbox.controllers.trajectory.quintic import PEAK_ACCELERATION_RATIO, PEAK_VELOCITY_RATIO
-from mpcbox.core.cost import Cost, SphereClearance, StateCost
+from mpcbox.core.cost import ActuatorForce, Cost, SphereClearance, StateCost
 from mpcbox.core.torque_limits import inverse_dynamics, torque_limits, torque_ratio
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.sim.trajectory import load_trajectory, replay, save_trajectory, trajectory_from_result
@@ -129,6 +129,68 @@ def test_sphere_clearance_residual_and_jacobian_match_finite_differences() -> No
     d.qpos[:] = away
     mujoco.mj_forward(problem.planning_model, d)
     np.testing.assert_array_equal(term.jacobian(problem.planning_model, d).dq, 0.0)
+
+
+SERVO_ARM = """
+<mujoco>
+  <option timestep="0.005"/>
+  <worldbody>
+    <body>
+      <joint name="a" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="1"/>
+      <body pos="0.3 0 0">
+        <joint name="b" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="1"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <general name="servo" joint="a" gainprm="50" biastype="affine" biasprm="0 -50 -5"
+             forcerange="-3 3" ctrlrange="-2 2" gear="2"/>
+    <motor name="motor" joint="b" gear="1.5" ctrlrange="-1 1"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def test_actuator_force_jacobian_matches_finite_differences() -> None:
+    term = ActuatorForce(np.array([0.5, -0.2]), weight=1.0)
+    problem = mpcbox.Problem(SERVO_ARM, cost=Cost([term]), threads=1)
+    model = problem.planning_model
+
+    def residual(state: np.ndarray, ctrl: np.ndarray) -> np.ndarray:
+        return term.residual(problem.features(state, ctrl))[0]
+
+    data = mujoco.MjData(model)
+    for state, ctrl, saturated in (
+        (np.array([0.3, -0.2, 0.4, 0.1]), np.array([0.7, 0.5]), False),
+        (np.array([0.3, -0.2, 0.4, 0.1]), np.array([1.5, 0.5]), True),  # servo at 3 N
+    ):
+        data.qpos[:], data.qvel[:], data.ctrl[:] = state[:2], state[2:], ctrl
+        mujoco.mj_forward(model, data)
+        jac = term.jacobian(model, data)
+        eps = 1e-6
+        fd_x = np.stack(
+            [
+                (residual(state + d, ctrl) - residual(state - d, ctrl)) / (2 * eps)
+                for d in eps * np.eye(4)
+            ],
+            1,
+        )
+        fd_u = np.stack(
+            [
+                (residual(state, ctrl + d) - residual(state, ctrl - d)) / (2 * eps)
+                for d in eps * np.eye(2)
+            ],
+            1,
+        )
+        np.testing.assert_allclose(np.hstack([jac.dq, jac.dv]), fd_x, atol=1e-6)
+        np.testing.assert_allclose(jac.du, fd_u, atol=1e-6)
+        assert (jac.du[0, 0] == 0.0) == saturated
+    # The servo's force is its torque over the gear, not its set-point.
+    assert residual(np.r_[0.3, 0.0, 0.0, 0.0], np.array([0.62, 0.0]))[0] == pytest.approx(
+        50 * (0.62 - 2 * 0.3) - 0.5
+    )
 
 
 @pytest.mark.parametrize("offset", [[0.0, 0.0, 0.015], [0.0, -0.02, 0.0]])

@@ -25,6 +25,7 @@ import numpy as np
 
 from mpcbox.core.actuation import actuator_moment
 from mpcbox.core.cost.base import CostTerm, Features, Jacobian, SensorRequest
+from mpcbox.errors import InvalidArgumentError
 from mpcbox.validation import as_array, checked_options, finite_array
 
 _AFFINE_BIAS = (int(mujoco.mjtBias.mjBIAS_NONE), int(mujoco.mjtBias.mjBIAS_AFFINE))
@@ -32,6 +33,8 @@ _AFFINE_BIAS = (int(mujoco.mjtBias.mjBIAS_NONE), int(mujoco.mjtBias.mjBIAS_AFFIN
 
 class ActuatorForce(CostTerm):
     """Actuator forces against reference forces: ``r = f - f_ref``, one row per actuator.
+
+    The actuators must have names (the sensors refer to them by name).
 
     Args:
         force_ref: Reference forces ``(nu,)``; zeros by default.
@@ -60,15 +63,21 @@ class ActuatorForce(CostTerm):
         return f"mpcbox_{self.name}_{i}"
 
     def sensors(self, model: mujoco.MjModel) -> Sequence[SensorRequest]:
+        names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) for i in range(model.nu)]
+        unnamed = [i for i, name in enumerate(names) if not name]
+        if unnamed:
+            raise InvalidArgumentError(
+                f"cost term {self.name!r} (ActuatorForce) reads actuatorfrc sensors, which need "
+                f"named actuators; actuators {unnamed} have no name"
+            )
         out = []
-        for i in range(model.nu):
-            actuator = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i)
+        for i, actuator in enumerate(names):
             out.append(
                 SensorRequest(
                     self._sensor(i),
                     mujoco.mjtSensor.mjSENS_ACTUATORFRC,
                     mujoco.mjtObj.mjOBJ_ACTUATOR,
-                    actuator or "",
+                    actuator,
                 )
             )
         return out
