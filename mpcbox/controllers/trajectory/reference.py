@@ -138,6 +138,15 @@ def feedforward(
     return ctrls, A, B, miss
 
 
+def _largest_miss(problem: Problem, states: np.ndarray, ctrls: np.ndarray) -> float:
+    """Largest one-step miss ``max |x_{k+1} ⊖ f(x_k, u_k)|`` of controls along states."""
+    miss = 0.0
+    for k in range(states.shape[0] - 1):
+        left = problem.state_difference(states[k + 1], problem.step(states[k], ctrls[k]))
+        miss = max(miss, float(np.max(np.abs(left))))
+    return miss
+
+
 def riccati_gains(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.ndarray:
     """Time-varying LQR gains ``(K, nu, nx)`` by the backward recursion (module docstring).
 
@@ -195,22 +204,7 @@ def tracking_reference(
         ctrls = problem.clip_ctrl(finite_array("ctrls", ctrls, (states.shape[0], problem.nu)))
         lin = problem.linearize_trajectory(states, ctrls)
         A, B = lin.A, lin.B
-        miss = (
-            max(
-                float(
-                    np.max(
-                        np.abs(
-                            problem.state_difference(
-                                states[k + 1], problem.step(states[k], ctrls[k])
-                            )
-                        )
-                    )
-                )
-                for k in range(states.shape[0] - 1)
-            )
-            if states.shape[0] > 1
-            else 0.0
-        )
+        miss = _largest_miss(problem, states, ctrls)
     nv, na = problem.nv, problem.na
     Q = np.diag(
         np.r_[
