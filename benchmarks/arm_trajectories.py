@@ -207,10 +207,10 @@ def _finite(value: object) -> object:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=6)
+    parser.add_argument("--seeds", type=int, default=8)
     parser.add_argument("--start-noise", type=float, default=0.3)
     parser.add_argument("--move", type=float, default=0.7)
-    parser.add_argument("--durations", type=float, nargs=2, default=[0.4, 1.0])
+    parser.add_argument("--durations", type=float, nargs=2, default=[0.3, 1.0])
     parser.add_argument("--hold", type=float, default=0.5)
     parser.add_argument("--radius", type=float, default=0.05)
     parser.add_argument("--iterations", type=int, default=30)

@@ -211,6 +211,19 @@ def test_ilqr_move_goes_around_the_obstacle_within_the_torque_limits(offset) -> 
     assert np.all(m.ctrls >= problem.ctrl_low) and np.all(m.ctrls <= problem.ctrl_high)
 
 
+def test_too_fast_a_quintic_exceeds_the_torque_limits_where_the_ilqr_move_does_not() -> None:
+    fast = ArmTrack(duration=0.3, hold=0.3, threads=1)
+    q, m = quintic_move(fast), ilqr_move(fast, max_iterations=40)
+    rq, rm = move_report(fast, q), move_report(fast, m)
+    assert rq.torque_ratio > 1.5 and rm.torque_ratio <= 1.0 + 1e-2
+    assert rm.final_error < 0.01
+    rmse = {}
+    for plan in (q, m):
+        sim = mpcbox.simulate(fast, move_tracker(fast, plan), fast.duration + fast.hold)
+        rmse[plan.method] = sim.metrics.measures["tracking_error_rms_m"]
+    assert rmse["ilqr"] < 0.005 < 0.02 < rmse["quintic"]
+
+
 def test_tracking_with_time_varying_lqr_beats_feedforward_under_model_mismatch(arm) -> None:
     move = quintic_move(arm)
     mismatch = mpcbox.ModelMismatch(mass_scale=1.3)

@@ -4,8 +4,9 @@ Given reference states :math:`\bar x_k` every planning step (from a quintic
 :class:`~mpcbox.controllers.trajectory.quintic.JointTrajectory` or a planned rollout),
 :func:`tracking_reference` finds
 
-* the feedforward controls :math:`\bar u_k` that make one step of the planning model land on
-  the next reference state (one Gauss-Newton step per knot,
+* the feedforward controls :math:`\bar u_k` that make one step of the planning model (its
+  actuator force limits lifted) land on the next reference state (one Gauss-Newton step per
+  knot,
   :math:`\bar u_k = u + B_k^{+}\,(\bar x_{k+1} \ominus f(\bar x_k, u))` from the previous
   knot's control :math:`u`, clipped to the control range): inverse dynamics through
   whatever actuators the model has (motors, position servos, tendons);
@@ -24,6 +25,7 @@ A tracker then applies :math:`u = \bar u_k - K_k (x \ominus \bar x_k)`.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -31,6 +33,7 @@ import numpy as np
 
 from mpcbox.controllers.trajectory.quintic import JointTrajectory
 from mpcbox.core.actuator_scales import actuator_scales
+from mpcbox.core.dynamics import Dynamics
 from mpcbox.core.equilibrium import find_equilibrium
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError
@@ -99,10 +102,29 @@ def reference_states(problem: Problem, trajectory: JointTrajectory) -> np.ndarra
     return np.hstack([qpos, qvel, np.zeros((qpos.shape[0], problem.na))])
 
 
+def unlimited(problem: Problem) -> Problem:
+    """A shallow copy of ``problem`` whose planning model has no actuator force limits.
+
+    The feedforward search runs on it: where a reference needs more force than an actuator
+    can give, the control asks for it (the plant then saturates) instead of stalling where
+    the clamped force no longer responds to the control (a zero column of ``B``).
+    """
+    clone = copy.copy(problem)
+    model = copy.copy(problem.planning_model)
+    model.actuator_forcelimited[:] = 0
+    model.jnt_actfrclimited[:] = 0
+    clone.planning_model = model
+    clone.dynamics = Dynamics(model, problem.threads)
+    return clone
+
+
 def feedforward(
     problem: Problem, states: np.ndarray, ctrl_init: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """Feedforward controls along reference states, with the linearizations there.
+) -> tuple[np.ndarray, float]:
+    """Feedforward controls along reference states.
+
+    The search runs on the planning model without actuator force limits (:func:`unlimited`),
+    within the control range.
 
     Args:
         problem: The Problem (its planning model and timestep).
@@ -111,31 +133,28 @@ def feedforward(
             the first posture, :func:`~mpcbox.find_equilibrium`).
 
     Returns:
-        Controls ``(K, nu)``, ``A`` ``(K, nx, nx)``, ``B`` ``(K, nx, nu)`` and the largest
-        one-step miss (see :class:`TrackingReference`).
+        Controls ``(K, nu)`` and their largest one-step miss on the planning model itself,
+        force limits included (see :class:`TrackingReference`).
     """
     states = finite_array("states", states, (None, problem.nstate))
     if states.shape[0] < 2:
         raise InvalidArgumentError("states must hold at least two knots")
     if ctrl_init is None:
-        eq = find_equilibrium(
-            problem.planning_model, states[0, : problem.nq], on_infeasible="ignore"
-        )
-        ctrl_init = eq.ctrl
+        model, qpos = problem.planning_model, states[0, : problem.nq]
+        ctrl_init = find_equilibrium(model, qpos, on_infeasible="ignore").ctrl
     u = problem.clip_ctrl(as_array("ctrl_init", ctrl_init, (problem.nu,)))
-    K, nx, nu = states.shape[0], problem.nx, problem.nu
-    ctrls = np.empty((K, nu))
-    A, B = np.empty((K, nx, nx)), np.empty((K, nx, nu))
-    miss = 0.0
-    for k in range(K - 1):
-        lin = problem.linearize(states[k], u)
-        error = problem.state_difference(states[k + 1], problem.step(states[k], u))
-        u = problem.clip_ctrl(u + np.linalg.lstsq(lin.B, error, rcond=None)[0])
-        left = problem.state_difference(states[k + 1], problem.step(states[k], u))
-        miss = max(miss, float(np.max(np.abs(left))))
-        ctrls[k], A[k], B[k] = u, lin.A, lin.B
-    ctrls[-1], A[-1], B[-1] = ctrls[-2], A[-2], B[-2]
-    return ctrls, A, B, miss
+    free = unlimited(problem)
+    ctrls = np.empty((states.shape[0], problem.nu))
+    try:
+        for k in range(states.shape[0] - 1):
+            B = free.linearize(states[k], u).B
+            error = free.state_difference(states[k + 1], free.step(states[k], u))
+            u = free.clip_ctrl(u + np.linalg.lstsq(B, error, rcond=None)[0])
+            ctrls[k] = u
+    finally:
+        free.dynamics.close()
+    ctrls[-1] = ctrls[-2]
+    return ctrls, _largest_miss(problem, states, ctrls)
 
 
 def _largest_miss(problem: Problem, states: np.ndarray, ctrls: np.ndarray) -> float:
@@ -199,12 +218,12 @@ def tracking_reference(
     states = finite_array("states", states, (None, problem.nstate))
     weights = TrackingWeights() if weights is None else weights
     if ctrls is None:
-        ctrls, A, B, miss = feedforward(problem, states, ctrl_init)
+        ctrls, miss = feedforward(problem, states, ctrl_init)
     else:
         ctrls = problem.clip_ctrl(finite_array("ctrls", ctrls, (states.shape[0], problem.nu)))
-        lin = problem.linearize_trajectory(states, ctrls)
-        A, B = lin.A, lin.B
         miss = _largest_miss(problem, states, ctrls)
+    lin = problem.linearize_trajectory(states, ctrls)
+    A, B = lin.A, lin.B
     nv, na = problem.nv, problem.na
     Q = np.diag(
         np.r_[
@@ -227,4 +246,5 @@ __all__ = [
     "reference_states",
     "riccati_gains",
     "tracking_reference",
+    "unlimited",
 ]
