@@ -7,8 +7,9 @@ radius ``--radius`` placed 1-3 cm off the quintic's end-effector path at mid-mov
 
 Plans (:mod:`mpcbox.tasks.arm.moves`): the quintic in joint space and the iLQR-optimal move
 of :class:`~mpcbox.tasks.arm.track.ArmTrack`'s cost (started from the quintic), each with its
-cost, inverse-dynamics effort, largest torque over the actuators' limits (``mj_inverse``
-against ``forcerange``), clearance of the hand from the obstacle and compute time.
+cost, effort, largest joint torque over the actuators' limits (``forcerange``; the quintic's
+torque from inverse dynamics, what it needs; iLQR's as its actuators apply it), clearance of
+the hand from the obstacle and compute time.
 
 Tracking, in closed loop with ``mpcbox.simulate`` on a plant whose link masses are
 ``--mass-scale`` times the model's, with smooth actuator noise of ``--noise-torque`` N m per
@@ -180,7 +181,7 @@ def run_seed(seed: int, home: ArmTrack, args: argparse.Namespace) -> dict:
     out["tracking"]["LQR about the goal (step, tuned weights)"] = row
     if not args.skip_mpc:
         row = tracking_row(problem, make_controller("ilqr", problem), args, seed)
-        out["tracking"]["iLQR-MPC to the goal (ArmReach config)"] = row
+        out["tracking"]["iLQR-MPC to the goal (ArmReach config on this cost)"] = row
     return out
 
 

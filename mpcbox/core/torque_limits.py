@@ -106,6 +106,23 @@ def inverse_dynamics(
     return out
 
 
+def actuator_torques(model: mujoco.MjModel, states: np.ndarray, ctrls: np.ndarray) -> np.ndarray:
+    """Generalized forces ``(T, nv)`` the actuators apply (``qfrc_actuator``) at states
+    ``(T, nstate)`` ``[qpos, qvel, act]`` under controls ``(T, nu)``, after MuJoCo's clamps.
+    """
+    states = as_array("states", states, (None, model.nq + model.nv + model.na))
+    ctrls = as_array("ctrls", ctrls, (states.shape[0], model.nu))
+    data = mujoco.MjData(model)
+    out = np.empty((states.shape[0], model.nv))
+    nq, nv = model.nq, model.nv
+    for k in range(states.shape[0]):
+        data.qpos[:], data.qvel[:] = states[k, :nq], states[k, nq : nq + nv]
+        data.act[:], data.ctrl[:] = states[k, nq + nv :], ctrls[k]
+        mujoco.mj_forward(model, data)
+        out[k] = data.qfrc_actuator
+    return out
+
+
 def torque_ratio(torques: np.ndarray, limits: TorqueLimits) -> float:
     r"""Largest :math:`\tau_{k,j} / \tau_j^{max}` of the torques ``(T, nv)`` (the bound on
     the side of each torque's sign); 0 where no dof is bounded."""
@@ -116,4 +133,4 @@ def torque_ratio(torques: np.ndarray, limits: TorqueLimits) -> float:
     return float(np.max(ratio)) if ratio.size else 0.0
 
 
-__all__ = ["TorqueLimits", "inverse_dynamics", "torque_limits", "torque_ratio"]
+__all__ = ["TorqueLimits", "actuator_torques", "inverse_dynamics", "torque_limits", "torque_ratio"]

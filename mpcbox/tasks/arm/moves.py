@@ -8,8 +8,9 @@ r"""Plans of an :class:`~mpcbox.tasks.arm.track.ArmTrack` move, their figures, a
   by construction, since the rollouts go through MuJoCo's actuator model.
 
 :func:`move_report` scores a plan: the task's cost, the effort and the largest ratio to the
-actuators' limits of the inverse-dynamics torque (``mj_inverse``,
-:mod:`mpcbox.core.torque_limits`), the clearance of the checked frames from the obstacle
+actuators' limits (:mod:`mpcbox.core.torque_limits`) of its joint torques (the quintic's from
+inverse dynamics, ``mj_inverse``: what it needs; iLQR's as its actuators apply them), the
+clearance of the checked frames from the obstacle
 (m; negative inside it), the end effector's final distance to the target and the compute
 time. :func:`move_tracker` builds a time-varying LQR tracker of a plan followed by a hold.
 """
@@ -32,7 +33,12 @@ from mpcbox.controllers.trajectory.reference import (
 from mpcbox.controllers.trajectory.tracker import TrajectoryTracker
 from mpcbox.core.equilibrium import find_equilibrium
 from mpcbox.core.model import frame_position
-from mpcbox.core.torque_limits import inverse_dynamics, torque_limits, torque_ratio
+from mpcbox.core.torque_limits import (
+    actuator_torques,
+    inverse_dynamics,
+    torque_limits,
+    torque_ratio,
+)
 from mpcbox.tasks.arm.track import ArmTrack
 from mpcbox.validation import positive_int
 
@@ -45,8 +51,10 @@ class ArmMove(NamedTuple):
         time: Knot times ``(K,)`` (s).
         states: States ``(K, nstate)``.
         ctrls: Controls ``(K, nu)`` (the last repeats the one before).
-        qacc: Joint accelerations ``(K, nv)``: exact for the quintic, finite differences of
-            the velocities for iLQR.
+        torques: Joint torques ``(K, nv)`` of the motion: for the quintic, those it needs
+            (inverse dynamics of its exact accelerations, whether or not the actuators can
+            supply them); for a plan rolled out through the actuators (iLQR), those they
+            apply (``qfrc_actuator``).
         compute_s: Wall time of the plan (s): the polynomial's samples, or the iLQR solve.
         status: ``"closed form"``, or iLQR's stop status.
     """
@@ -55,7 +63,7 @@ class ArmMove(NamedTuple):
     time: np.ndarray
     states: np.ndarray
     ctrls: np.ndarray
-    qacc: np.ndarray
+    torques: np.ndarray
     compute_s: float
     status: str
 
@@ -65,8 +73,8 @@ class MoveReport(NamedTuple):
 
     Attributes:
         cost: The task's cost of the plan (running over ``N`` knots, terminal at the last).
-        effort: :math:`\sum_k \lVert \tau_k \rVert^2 \Delta t` of the inverse-dynamics
-            torques (N² m² s): the effort of the motion itself, whatever the actuators.
+        effort: :math:`\sum_k \lVert \tau_k \rVert^2 \Delta t` of the plan's torques
+            (:attr:`ArmMove.torques`, N² m² s).
         torque_ratio: Largest :math:`|\tau| / \tau^{max}` over the joints and knots; above 1
             the actuators cannot supply the motion.
         clearance: Smallest distance of the checked frames from the obstacle's surface (m;
@@ -90,7 +98,8 @@ def quintic_move(problem: ArmTrack) -> ArmMove:
     compute = _time.perf_counter() - t0
     states = reference_states(problem, traj)
     ctrls = feedforward(problem, states)[0]
-    return ArmMove("quintic", traj.time, states, ctrls, traj.qacc, compute, "closed form")
+    torques = inverse_dynamics(problem.model, traj.qpos, traj.qvel, traj.qacc)
+    return ArmMove("quintic", traj.time, states, ctrls, torques, compute, "closed form")
 
 
 def step_move(problem: ArmTrack) -> ArmMove:
@@ -98,15 +107,10 @@ def step_move(problem: ArmTrack) -> ArmMove:
     :func:`move_tracker`, this is LQR about the goal (a step, no planned path)."""
     goal = np.r_[problem.goal_qpos, np.zeros(problem.nv + problem.na)]
     knots = problem.knots + 1
-    return ArmMove(
-        "step",
-        problem.dt * np.arange(knots),
-        np.tile(goal, (knots, 1)),
-        np.tile(problem.clip_ctrl(problem.ctrl_ref), (knots, 1)),
-        np.zeros((knots, problem.nv)),
-        0.0,
-        "goal posture",
-    )
+    states = np.tile(goal, (knots, 1))
+    ctrls = np.tile(problem.clip_ctrl(problem.ctrl_ref), (knots, 1))
+    torques = actuator_torques(problem.model, states, ctrls)
+    return ArmMove("step", problem.dt * np.arange(knots), states, ctrls, torques, 0.0, "goal")
 
 
 def ilqr_move(
@@ -136,14 +140,13 @@ def ilqr_move(
         problem.initial_state(), max_iterations=positive_int("max_iterations", max_iterations)
     )
     states = result.states
-    qvel = states[:, problem.nq : problem.nq + problem.nv]
-    qacc = np.diff(qvel, axis=0) / problem.dt
+    ctrls = np.vstack([result.ctrls, result.ctrls[-1:]])
     return ArmMove(
         "ilqr",
         problem.dt * np.arange(states.shape[0]),
         states,
-        np.vstack([result.ctrls, result.ctrls[-1:]]),
-        np.vstack([qacc, qacc[-1:]]),
+        ctrls,
+        actuator_torques(problem.model, states, ctrls),
         result.timing.total,
         result.status,
     )
@@ -151,10 +154,9 @@ def ilqr_move(
 
 def move_report(problem: ArmTrack, move: ArmMove) -> MoveReport:
     """Score a plan (see :class:`MoveReport`)."""
-    states, ctrls, nq, nv = move.states, move.ctrls, problem.nq, problem.nv
+    states, ctrls, nq, torques = move.states, move.ctrls, problem.nq, move.torques
     running = sum(problem.running_cost(states[k], ctrls[k]) for k in range(len(states) - 1))
     cost = float(running + problem.terminal_cost(states[-1]))
-    torques = inverse_dynamics(problem.model, states[:, :nq], states[:, nq : nq + nv], move.qacc)
     ratio = torque_ratio(torques, torque_limits(problem.model))
     clearance = float("inf")
     if problem.obstacle is not None:
