@@ -9,7 +9,8 @@ Plans (:mod:`mpcbox.tasks.arm.moves`): the quintic in joint space and the iLQR-o
 of :class:`~mpcbox.tasks.arm.track.ArmTrack`'s cost (started from the quintic), each with its
 cost, effort, largest joint torque over the actuators' limits (``forcerange``; the quintic's
 torque from inverse dynamics, what it needs; iLQR's as its actuators apply it), clearance of
-the hand from the obstacle and compute time.
+the hand from the obstacle and compute time. The same move in ``--fast`` seconds (no obstacle)
+shows the quintic past the torque limits: its ratio, iLQR's, and both tracked by TV-LQR.
 
 Tracking, in closed loop with ``mpcbox.simulate`` on a plant whose link masses are
 ``--mass-scale`` times the model's, with smooth actuator noise of ``--noise-torque`` N m per
@@ -172,6 +173,15 @@ def run_seed(seed: int, home: ArmTrack, args: argparse.Namespace) -> dict:
         row = tracking_row(problem, tracker, args, seed)
         row["reference_ms"] = 1e3 * (time.perf_counter() - t0)
         out["tracking"][name] = row
+    # The same move in --fast seconds, without the obstacle: past the actuators' limits.
+    if args.fast > 0:
+        fast = build({**move, "duration": args.fast}, None, args.hold)
+        out["fast"] = {"duration_s": args.fast}
+        for plan in (quintic_move(fast), ilqr_move(fast, max_iterations=args.iterations)):
+            row = plan_row(fast, plan)
+            track = tracking_row(fast, move_tracker(fast, plan, WEIGHTS["tuned"]), args, seed)
+            row.update({f"tracked_{k}": v for k, v in track.items()})
+            out["fast"][plan.method] = row
     # Regulators toward the goal posture, measured against the quintic.
     t0 = time.perf_counter()
     step = move_tracker(problem, step_move(problem), WEIGHTS["tuned"])
@@ -215,6 +225,7 @@ def main() -> None:
     parser.add_argument("--hold", type=float, default=0.5)
     parser.add_argument("--radius", type=float, default=0.05)
     parser.add_argument("--iterations", type=int, default=30)
+    parser.add_argument("--fast", type=float, default=0.2, help="fast-move time (s); 0: none")
     parser.add_argument("--skip-mpc", action="store_true", help="leave out iLQR-MPC")
     parser.add_argument("--mass-scale", type=float, default=1.3)
     parser.add_argument("--noise-torque", type=float, default=2.0)
@@ -254,6 +265,18 @@ def main() -> None:
         clear = [r["plans"][method]["clearance_m"] for r in rows]
         plans[method]["seeds_over_torque_limit"] = int(sum(x > 1.0 + 1e-3 for x in ratios))
         plans[method]["seeds_inside_obstacle"] = int(sum(x < 0.0 for x in clear))
+    fast = {}
+    if args.fast > 0:
+        for method in ("quintic", "ilqr"):
+            runs = [r["fast"][method] for r in rows]
+            keys = ("max_torque_ratio", "final_error_m", "tracked_rmse_m", "tracked_final_error_m")
+            fast[method] = {key: summary([run[key] for run in runs]) for key in keys}
+            fast[method]["seeds_over_torque_limit"] = int(
+                sum(run["max_torque_ratio"] > 1.0 + 1e-3 for run in runs)
+            )
+            fast[method]["tracked_successes"] = sum(
+                run["tracked_outcome"] == "success" for run in runs
+            )
     tracking = {}
     for name in rows[0]["tracking"]:
         runs = [r["tracking"][name] for r in rows]
@@ -277,6 +300,7 @@ def main() -> None:
         },
         "plans": plans,
         "tracking": tracking,
+        "fast_moves": fast,
         "runs": rows,
     }
     text = json.dumps(_finite(out), indent=2, default=float)
