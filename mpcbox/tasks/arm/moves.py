@@ -175,18 +175,25 @@ def move_report(problem: ArmTrack, move: ArmMove) -> MoveReport:
 
 
 def held(problem: ArmTrack, move: ArmMove) -> tuple[np.ndarray, np.ndarray]:
-    """The plan's states and controls followed by ``problem.hold`` seconds at rest on its
-    last posture, under the control that holds it (:func:`~mpcbox.find_equilibrium`).
+    """The plan's states and controls followed by ``problem.hold`` seconds under the control
+    that holds its last posture (:func:`~mpcbox.find_equilibrium`), rolled out on the
+    planning model: a plan that ends at rest stays there, and one that ends moving (a move
+    too fast to stop in time) is continued as the actuators would brake it, so that the
+    reference stays one the dynamics can follow.
 
     Returns:
         States ``(K + H, nstate)`` and controls ``(K + H, nu)``.
     """
-    rest = move.states[-1].copy()
-    rest[problem.nq : problem.nq + problem.nv] = 0.0
-    hold = find_equilibrium(problem.model, rest[: problem.nq], on_infeasible="ignore").ctrl
+    last = move.states[-1]
+    hold = problem.clip_ctrl(
+        find_equilibrium(problem.model, last[: problem.nq], on_infeasible="ignore").ctrl
+    )
     steps = round(problem.hold / problem.dt)
-    states = np.vstack([move.states, np.tile(rest, (steps, 1))])
-    ctrls = np.vstack([move.ctrls, np.tile(problem.clip_ctrl(hold), (steps, 1))])
+    if steps == 0:
+        return move.states.copy(), move.ctrls.copy()
+    tail = problem.rollout(last, np.tile(hold, (steps, 1))).states[0, 1:]
+    states = np.vstack([move.states, tail])
+    ctrls = np.vstack([move.ctrls[:-1], np.tile(hold, (steps + 1, 1))])
     return states, ctrls
 
 
