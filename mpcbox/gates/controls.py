@@ -24,7 +24,12 @@ import mujoco
 import numpy as np
 
 from mpcbox.core.model import compile_spec, load_spec, object_id
-from mpcbox.errors import InvalidArgumentError, InvalidTypeError
+from mpcbox.errors import (
+    InvalidArgumentError,
+    InvalidTypeError,
+    ModelLoadError,
+    ModelNotFoundError,
+)
 from mpcbox.gates.config import GatesConfig
 
 #: Simulated seconds when neither ``duration`` nor a trajectory sets the length.
@@ -76,7 +81,11 @@ def load_scene(scene: str | Path | mujoco.MjModel) -> mujoco.MjModel:
             f"scene must be an MJCF path, 'menagerie:NAME' or a mujoco.MjModel, got "
             f"{type(scene).__name__}"
         )
-    return compile_spec(load_spec(scene))
+    try:
+        return compile_spec(load_spec(scene))
+    except (ModelNotFoundError, ModelLoadError) as exc:
+        text = str(exc).removeprefix("model: ")
+        raise type(exc)(f"scene: {text}") from exc
 
 
 def _state(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
@@ -140,7 +149,10 @@ def trajectory_controls(
     from mpcbox.registry import TASKS, task_class
     from mpcbox.sim.trajectory import load_trajectory
 
-    traj = load_trajectory(path)
+    try:
+        traj = load_trajectory(path)
+    except InvalidArgumentError as exc:
+        raise InvalidArgumentError(f"ctrl_trajectory: {exc}") from exc
     notes: list[str] = []
     if scene is None:
         task = traj.metadata.get("task")
