@@ -169,6 +169,7 @@ def run_validate(argv: Sequence[str], stream=None) -> int:
         import warp as wp
 
         wp.config.quiet = True
+        wp.config.log_level = max(wp.config.log_level, wp.LOG_WARNING)
     except ImportError:
         pass
     out = _check_out(args.out) if args.out else None
