@@ -124,7 +124,7 @@ def run_parity(
             mocap_quat=gate_input.mocap_quat,
             record=True,
         )
-        worlds.launch_steps(cpu.steps)
+        worlds.run(cpu.steps, block=config.block_steps)
         worlds.synchronize()
         counts = worlds.read()
         seconds = _time.perf_counter() - start

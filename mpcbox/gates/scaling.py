@@ -39,6 +39,8 @@ class Scaling(NamedTuple):
         perturbation: Noise of the start states (see :mod:`mpcbox.gates.starts`).
         diverged_worlds: Worlds flagged as diverged.
         host_reads: Copies back to the host over the run (one, after the last step).
+        graph: Whether the steps ran as CUDA graph replays (on CUDA; then MJWarp's solver
+            loop does not read back its convergence flag either).
         final_spread: :math:`\max_i \operatorname{std}_w q_{w,i}` of the final positions.
         world0_vs_single: :math:`\max_i |q_{0,i} - q^{\text{one world}}_i|` at the end.
         counts: The read-back counts.
@@ -51,6 +53,7 @@ class Scaling(NamedTuple):
     perturbation: float
     diverged_worlds: int
     host_reads: int
+    graph: bool
     final_spread: float
     world0_vs_single: float
     counts: WorldCounts
@@ -67,6 +70,7 @@ class Scaling(NamedTuple):
             **summarize_overflow(self.counts.overflow),
             "host_reads": self.host_reads,
             "per_step_host_copies": 0,
+            "graph": self.graph,
             "max_ncon_per_world": int(self.counts.max_ncon.max(initial=0)),
             "max_nefc_per_world": int(self.counts.max_nefc.max(initial=0)),
             "max_nacon_pool": self.counts.max_nacon,
@@ -102,7 +106,7 @@ def run_scaling(
         mocap_quat=gate_input.mocap_quat,
     )
     steps = parity.counts.steps
-    worlds.launch_steps(steps)
+    graph = worlds.run(steps, block=config.block_steps)
     worlds.synchronize()
     counts = worlds.read()
     seconds = _time.perf_counter() - t0
@@ -119,6 +123,7 @@ def run_scaling(
         perturbation=config.perturbation,
         diverged_worlds=diverged,
         host_reads=worlds.host_reads,
+        graph=graph,
         final_spread=spread,
         world0_vs_single=float(np.max(np.abs(qpos[0] - single), initial=0.0)),
         counts=counts,

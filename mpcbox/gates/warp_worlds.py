@@ -283,6 +283,30 @@ class WarpWorlds:
                 self.launch_steps(count, stats=stats)
         return capture.graph
 
+    def run(self, steps: int, *, block: int, stats: bool = True) -> bool:
+        """Launch ``steps`` steps; on CUDA as replays of captured graphs of ``block`` steps.
+
+        Off a graph, MJWarp's solver loop reads its convergence flag back on every
+        iteration; inside one it is a device-side conditional, so a captured run makes no
+        copy to the host at all. Does not synchronize.
+
+        Returns:
+            Whether graphs were used.
+        """
+        if not wp.get_device(self.scene.device).is_cuda:
+            self.launch_steps(steps, stats=stats)
+            return False
+        full, rest = divmod(steps, block)
+        graphs = []
+        if full:
+            graphs += [self.capture(block, stats=stats)] * full
+        if rest:
+            graphs.append(self.capture(rest, stats=stats))
+        with wp.ScopedDevice(self.scene.device):
+            for graph in graphs:
+                wp.capture_launch(graph)
+        return True
+
     def synchronize(self) -> None:
         """Wait for the device."""
         wp.synchronize_device(self.scene.device)
