@@ -145,6 +145,23 @@ def test_saved_trajectory_is_replayed_exactly_on_the_cpu(tmp_path) -> None:
     np.testing.assert_array_equal(cpu.qpos[-1], traj.states[-1][: problem.nq])
 
 
+def test_task_controls_replay_the_closed_loop_on_the_cpu() -> None:
+    from mpcbox.gates.cpu_baseline import run_cpu_baseline
+    from mpcbox.registry import make_controller, task_class
+    from mpcbox.sim.simulation import simulate
+
+    inputs = gate_input(None, GatesConfig(duration=0.3), task="pendulum_swingup", controller="lqr")
+    assert inputs.scene == "task:pendulum_swingup" and "'lqr'" in inputs.source
+    problem = task_class("pendulum_swingup")()
+    result = simulate(problem, make_controller("lqr", problem), 0.3)
+    np.testing.assert_array_equal(inputs.ctrls, result.ctrls[:-1])
+    cpu = run_cpu_baseline(inputs)  # open loop on the recorded controls: the same run
+    np.testing.assert_array_equal(cpu.qpos, result.states[:, : problem.nq])
+    held = gate_input("task:pendulum_swingup", GatesConfig(duration=0.1))
+    np.testing.assert_array_equal(held.ctrls, np.tile(problem.ctrl_ref, (held.steps, 1)))
+    np.testing.assert_array_equal(held.initial_state, problem.initial_state())
+
+
 def test_keyframe_walk_visits_every_keyframe_control() -> None:
     model = mujoco.MjModel.from_xml_path(os.path.join(DATA, "aloha_pot", "scene.xml"))
     inputs = gate_input(model, GatesConfig(duration=0.1, controls="keyframes"))

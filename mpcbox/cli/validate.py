@@ -45,8 +45,8 @@ def build_validate_parser() -> argparse.ArgumentParser:
         "scene",
         nargs="?",
         default=None,
-        help="MJCF path or menagerie:NAME (optional with --task, or with a trajectory that "
-        "names its task)",
+        help="MJCF path, menagerie:NAME or task:NAME (optional with --task, or with a "
+        "trajectory that names its task)",
     )
     src = p.add_argument_group("controls (default: the scene's keyframe control held)")
     src.add_argument(

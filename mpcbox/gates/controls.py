@@ -7,6 +7,8 @@ The controls come from one of three places:
   trajectory names);
 * a registered task run in closed loop by one of its tuned controllers
   (:func:`mpcbox.simulate`), whose applied controls are then replayed open loop;
+* a registered task's model (scene ``"task:NAME"``) from its initial state, with its
+  reference control held;
 * the scene alone: a held keyframe control, a walk through the keyframes' controls, or zeros
   (:data:`~mpcbox.gates.config.CONTROL_MODES`).
 
@@ -192,6 +194,32 @@ def trajectory_controls(
     return GateInput(model, traj.initial_state.copy(), ctrls, source, str(name), tuple(notes))
 
 
+def task_scene_controls(task: str, config: GatesConfig) -> GateInput:
+    """A registered task's model from its initial state, without running a controller.
+
+    ``config.controls`` ``"hold"`` keeps the task's reference control ``ctrl_ref``;
+    ``"zero"`` applies zeros; ``"keyframes"`` walks the model's keyframes as
+    :func:`scene_controls` does (from ``config.keyframe``).
+    """
+    from mpcbox.registry import task_class
+
+    problem = task_class(task)()
+    name = f"task:{task}"
+    if config.controls == "keyframes":
+        return scene_controls(problem.model, config, name)
+    steps = _steps(problem.model, config.duration or DEFAULT_DURATION)
+    hold = config.controls == "hold"
+    ctrl = np.asarray(problem.ctrl_ref if hold else np.zeros(problem.nu), dtype=np.float64)
+    what = "reference control held" if hold else "zero controls"
+    return GateInput(
+        problem.model,
+        np.asarray(problem.initial_state(), dtype=np.float64).copy(),
+        np.repeat(ctrl[None, :], steps, axis=0),
+        f"task {task!r}: {what} from its initial state",
+        name,
+    )
+
+
 def task_controls(task: str, config: GatesConfig, controller: str | None = None) -> GateInput:
     """Run ``task`` in closed loop with ``controller`` and keep its applied controls.
 
@@ -232,5 +260,6 @@ __all__ = [
     "load_scene",
     "scene_controls",
     "task_controls",
+    "task_scene_controls",
     "trajectory_controls",
 ]

@@ -15,6 +15,7 @@ from mpcbox.gates.controls import (
     load_scene,
     scene_controls,
     task_controls,
+    task_scene_controls,
     trajectory_controls,
 )
 from mpcbox.gates.cpu_baseline import run_cpu_baseline
@@ -59,6 +60,8 @@ def gate_input(
             "scene is required (an MJCF path or 'menagerie:NAME') unless task or "
             "ctrl_trajectory gives the model"
         )
+    if isinstance(scene, str) and scene.startswith("task:"):
+        return task_scene_controls(scene[len("task:") :], config)
     name = str(scene) if isinstance(scene, (str, Path)) else "model"
     return scene_controls(load_scene(scene), config, name)
 
@@ -101,7 +104,8 @@ def validate_scene(
     :attr:`GateReport.passed` false.
 
     Args:
-        scene: An MJCF path, ``"menagerie:NAME"`` or a ``mujoco.MjModel``; optional when
+        scene: An MJCF path, ``"menagerie:NAME"``, ``"task:NAME"`` (a registered task's
+            model from its initial state) or a ``mujoco.MjModel``; optional when
             ``task`` or a trajectory that names its task gives the model.
         ctrl_trajectory: A trajectory saved by :func:`mpcbox.sim.trajectory.save_trajectory`
             (``NAME.csv``/``NAME.json``) whose applied controls are replayed.
