@@ -1,17 +1,18 @@
 """The MuJoCo-to-MJWarp gates on given scenes; prints JSON and writes one file per scene.
 
 Runs :func:`mpcbox.gates.validate_scene` (the five gates of ``mpcbox validate``) on each
-``--scene`` (default: mujoco-warp's ALOHA pot scene, walking its grippers through the
-controls of its keyframes: grasping and lifting the pot, the contact-rich case) and writes
-``benchmarks/results/gates_<scene>.json`` with the device's name, the machine and the
-command. On a GPU (the numbers)::
+``--scene`` (default: mujoco-warp's ALOHA pot scene with ``--controls keyframes``: arms and
+grippers move linearly through the controls of its 11 keyframes, from the neutral pose to
+its pot-lift poses, up to 36 contacts at once in 4 s on the CPU) and writes
+``benchmarks/results/gates_<scene>[_<tag>].json`` with the device's name, the machine and
+the command. On a GPU (the numbers)::
 
     python benchmarks/gates.py --worlds 256,1024,2048,4096,8192 --duration 4
 
 and on warp's CPU device at small sizes (a check that it runs)::
 
-    python benchmarks/gates.py --device cpu --worlds 2,4 --duration 0.5 \\
-        --throughput-steps 20 --machine "2-core sandbox CPU, shared"
+    python benchmarks/gates.py --device cpu --worlds 2,4 --duration 0.5 --scaling-worlds 4 \\
+        --throughput-steps 20 --block-steps 10 --tag cpu
 """
 
 from __future__ import annotations
@@ -55,6 +56,7 @@ def main() -> None:
     parser.add_argument("--block-steps", type=int, default=50)
     parser.add_argument("--headroom", type=float, default=1.5)
     parser.add_argument("--machine", default=None, help="words on the machine for the JSON")
+    parser.add_argument("--tag", default="", help="file name suffix, e.g. cpu: gates_<scene>_cpu")
     parser.add_argument("--out", default=str(RESULTS))
     args = parser.parse_args()
 
@@ -81,6 +83,8 @@ def main() -> None:
         )
         print(format_report(report), file=sys.stderr)
         path = write_report(report, args.out)
+        if args.tag:
+            path = path.rename(path.with_name(f"{path.stem}_{args.tag}.json"))
         data = json.loads(path.read_text())
         gpu = report.device and report.device["is_cuda"]
         data["machine"] = args.machine or (
