@@ -225,3 +225,18 @@ def test_cli_validate_writes_the_json(tmp_path, warp_device, capsys) -> None:
     assert main(["validate", CONTACT_FREE, "--parity-tolerance", "-1"]) == 2
     assert "parity_tolerance" in capsys.readouterr().err
     assert main([*args, "--nconmax", "0", "--njmax", "1"]) == 1  # rows overflow: a failure
+
+
+def test_a_scene_mjwarp_cannot_run_still_reports_the_cpu_gate(monkeypatch, warp_device) -> None:
+    from mpcbox.errors import UnsupportedModelError
+    from mpcbox.gates import warp_worlds
+
+    def refuse(self, model, ctrls, device):
+        raise UnsupportedModelError("scene: MuJoCo Warp cannot run this model (test)")
+
+    monkeypatch.setattr(warp_worlds.WarpScene, "__init__", refuse)
+    report = validate_scene(CONTACTS, config=_config(warp_device, duration=0.02))
+    assert report.cpu.passed and report.parity is None and not report.passed
+    assert "cannot run this model" in report.error and "Traceback" in report.error_traceback
+    assert report.failed == ["parity", "capacity", "scaling", "throughput"]
+    assert "did not run" in format_report(report)

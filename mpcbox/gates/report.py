@@ -40,6 +40,7 @@ class GateReport(NamedTuple):
         scaling: Gate 4.
         throughput: Gate 5.
         error: Why the MJWarp gates did not run, or ``None``.
+        error_traceback: The full traceback behind ``error`` (kept in the JSON), or ``None``.
     """
 
     scene: str
@@ -54,6 +55,7 @@ class GateReport(NamedTuple):
     scaling: Scaling | None
     throughput: Throughput | None
     error: str | None = None
+    error_traceback: str | None = None
 
     @property
     def gates(self) -> dict[str, Any]:
@@ -91,6 +93,7 @@ class GateReport(NamedTuple):
                 "device": self.device,
                 "config": self.config,
                 "error": self.error,
+                "error_traceback": self.error_traceback,
                 "gates": {
                     name: None if gate is None else gate.summary()
                     for name, gate in self.gates.items()

@@ -154,7 +154,9 @@ def validate_scene(
         return _warp_gates(report, inputs, config, device)
     except Exception as exc:  # report what ran; the message says where MJWarp stopped
         detail = traceback.format_exception_only(type(exc), exc)[-1].strip()
-        return report._replace(error=f"MJWarp gates stopped: {detail}")
+        return report._replace(
+            error=f"MJWarp gates stopped: {detail}", error_traceback=traceback.format_exc()
+        )
 
 
 def _device(device: str | None) -> str | None:
