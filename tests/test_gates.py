@@ -86,6 +86,10 @@ def test_contact_scene_reports_when_parity_is_lost(contacts) -> None:
         assert beyond == pytest.approx(parity.time[first] - parity.time[0])
     else:
         assert np.all(parity.qpos_error <= parity.tolerance)
+    times = [parity.first_time_beyond(s) for s in (1.0, 10.0, 100.0)]
+    assert times[0] == beyond
+    known = [t for t in times if t is not None]
+    assert known == sorted(known) and times[: len(known)] == known  # larger errors come later
 
 
 def test_a_tiny_nconmax_is_an_overflow_failure(warp_device) -> None:

@@ -16,7 +16,6 @@ MJWarp generates some contacts differently), so the report gives the time at whi
 
 from __future__ import annotations
 
-import math
 import time as _time
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -32,6 +31,9 @@ if TYPE_CHECKING:
 
 #: Times an overflowing parity run is rerun with doubled capacities.
 MAX_RETRIES = 4
+
+#: Multiples of the tolerance whose first crossing times the JSON report lists.
+SCALES_REPORTED = (1.0, 10.0, 100.0)
 
 #: Points of the error curve kept in the JSON report.
 CURVE_POINTS = 50
@@ -71,20 +73,25 @@ class Parity(NamedTuple):
     reruns: int
     seconds: float
 
+    def first_time_beyond(self, scale: float) -> float | None:
+        """Seconds from the start to the first error above ``scale * tolerance``, or ``None``."""
+        beyond = np.nonzero(self.qpos_error > scale * self.tolerance)[0]
+        return float(self.time[beyond[0]] - self.time[0]) if beyond.size else None
+
     def summary(self) -> dict:
         """JSON-ready figures, with the error curve at up to :data:`CURVE_POINTS` times."""
         t = self.time - self.time[0]
         idx = np.unique(np.linspace(0, len(t) - 1, min(CURVE_POINTS, len(t))).astype(int))
-        finite = self.qpos_error[np.isfinite(self.qpos_error)]
         return {
             "passed": self.passed,
             "tolerance": self.tolerance,
             "window_seconds": self.window,
             "steps": len(t) - 1,
-            "max_qpos_error": float(finite.max(initial=0.0)) if finite.size else math.nan,
+            "max_qpos_error": float(self.qpos_error.max()),
             "final_qpos_error": float(self.qpos_error[-1]),
             "max_qvel_error": float(np.nanmax(self.qvel_error)),
             "time_beyond_tolerance": self.time_beyond_tolerance,
+            "time_beyond": {f"{s:g}": self.first_time_beyond(s) for s in SCALES_REPORTED},
             "diverged": self.diverged,
             "nconmax": self.nconmax,
             "njmax": self.njmax,
@@ -139,7 +146,7 @@ def run_parity(
     qpos_error = np.where(np.isfinite(qpos_error), qpos_error, np.inf)
     t = cpu.time - cpu.time[0]
     beyond = np.nonzero(qpos_error > config.parity_tolerance)[0]
-    time_beyond = float(t[beyond[0]]) if beyond.size else None
+    time_beyond = float(t[beyond[0]]) if beyond.size else None  # first_time_beyond(1)
     in_window = t <= config.parity_window + 1e-12
     within = bool(np.all(qpos_error[in_window] <= config.parity_tolerance))
     diverged = bool(counts.diverged[0])
@@ -160,4 +167,4 @@ def run_parity(
     )
 
 
-__all__ = ["CURVE_POINTS", "MAX_RETRIES", "Parity", "run_parity"]
+__all__ = ["CURVE_POINTS", "MAX_RETRIES", "SCALES_REPORTED", "Parity", "run_parity"]

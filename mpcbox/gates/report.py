@@ -172,6 +172,11 @@ def format_report(report: GateReport) -> str:
             f"final {_g(ps['final_qpos_error'])}; tolerance {p.tolerance:g} within the first "
             f"{p.window:g} s; "
             + ("never beyond it" if beyond is None else f"beyond it from t = {beyond:.4g} s")
+            + "".join(
+                f", {s}x from {t:.4g} s"
+                for s, t in ((10, p.first_time_beyond(10.0)), (100, p.first_time_beyond(100.0)))
+                if t is not None
+            )
             + (", DIVERGED" if p.diverged else "")
         )
         curve = ps["curve"]
