@@ -165,6 +165,8 @@ class WarpScene:
                     f"scene: MuJoCo Warp cannot run this model ({exc})"
                 ) from exc
             self.m.opt.warn_overflow = 0  # read back as bits instead of printed per kernel
+            # This module's kernels, compiled before any graph capture needs them.
+            wp.load_module(__name__, device=device)
             self.ctrls = wp.array(np.ascontiguousarray(ctrls, dtype=np.float32))
 
     def worlds(
