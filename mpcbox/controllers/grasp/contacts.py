@@ -106,4 +106,3 @@ def finger_contacts(
         slip[i] = np.linalg.norm(v - (v @ normal[i]) * normal[i])
     ft = np.linalg.norm(tangent, axis=1)
     return FingerContacts(touching, position, normal, fn, ft, slip, count)
-

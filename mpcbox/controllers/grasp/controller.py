@@ -94,7 +94,9 @@ class _Fingers:
         if any(int(model.jnt_type[j]) not in scalar for j in joints):
             raise InvalidArgumentError("fingers must drive slide or hinge joints")
         self.pads = [
-            np.array([object_id(model, "geom", g, "pads") for g in ([p] if isinstance(p, str) else p)])
+            np.array(
+                [object_id(model, "geom", g, "pads") for g in ([p] if isinstance(p, str) else p)]
+            )
             for p in pads
         ]
         self.body = object_id(model, "body", target, "target")
