@@ -11,19 +11,21 @@ contact stiffness. The object (body ``object``, free joint) rests on the table b
 open fingers.
 
 Contact stiffness :math:`K` (N/m) becomes MuJoCo's direct ``solref = (-k, -b)`` with a
-constant impedance :math:`d` (``solimp = (d, d, ...)``): MuJoCo holds a contact at
-:math:`a + d (b v + k' r) = (1 - d) a_0` with :math:`k' = k / d^2`, so an object of mass
-:math:`m` under a load :math:`m a_0` settles at :math:`r = (1-d) a_0 / (d k')`. Choosing
+constant impedance :math:`d` (``solimp = (d, d, ...)``). A body resting on such a contact
+under a load :math:`m a_0` settles at the penetration :math:`r = (1 - d)\, a_0 / k`
+(MuJoCo's soft-constraint law; ``tests/test_grasp.py`` measures it), so
 
-.. math:: k = K d (1 - d) / m, \qquad b = 2 \zeta \sqrt{k / d}
+.. math:: k = K (1 - d) / m, \qquad b = 2 \zeta \sqrt{k / d}
 
 makes that penetration :math:`m a_0 / K` (:func:`contact_solref`); for the pad contacts
 :math:`m` is the reduced mass of the object and one finger, so :math:`K` is the spring
-between them. Friction is a velocity constraint in MuJoCo, held at
-:math:`d\,b\,v = (1 - d)\,a_0`: a soft one creeps at :math:`v \approx (1-d) g / (d b)`
-under a steady load (2 mm/s for a 1e5 N/m contact, 2 cm/s at 1e3 N/m). The pads' friction
-therefore gets its own ``solreffriction`` with the largest damping rate that stays stable,
-:math:`b = 0.8 / h` for the step :math:`h` (a creep near 0.5 mm/s).
+between them. The scene uses elliptic friction cones, whose friction rows have their own
+reference (``solreffriction``). A soft friction constraint creeps at a speed near
+:math:`(1 - d)\, a_0 / b` under a steady load; with the contact's own damping that is
+2-3 mm/s for a 1e5 N/m contact and 2 cm/s at 1e3 N/m (with pyramidal cones, which have no
+separate friction reference, it made every grasp of a soft object slide out). The pads'
+friction therefore gets the largest damping rate that stays stable, :math:`b = 0.8 / h` for
+the step :math:`h` (a creep under 1 mm/s).
 """
 
 from __future__ import annotations
