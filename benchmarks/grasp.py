@@ -3,9 +3,10 @@
 For each friction level (low 0.3-0.6, medium 1.0-1.25, high 1.25-1.5 sliding friction;
 torsional 0.1-0.3 m and rolling 0.05-0.15 m everywhere) runs ``--trials`` randomized trials
 (:func:`mpcbox.tasks.grasp.run_trials`: a third hard, soft and irregular objects, mass
-0.1-1 kg, contact stiffness 1e3-1e6 N/m), each with both controllers on the same draw: close
-on the object, lift it 5 cm, push it with half its weight in a random direction, shake it
-(5 mm at 4 Hz). Success: the object stays within 1 cm of where it sat in the gripper when the
+0.1-1 kg, contact stiffness 1e3-1e6 N/m), each with both controllers on the same draw
+(and a second position grasp with weaker finger servos, ``--weak-kp``, whose squeeze is
+near the force grasp's median): close on the object, lift it 5 cm, push it with half its
+weight in a random direction, shake it (5 mm at 4 Hz). Success: the object stays within 1 cm of where it sat in the gripper when the
 lift began. Prints the per-level tables (success rate by object kind, largest and median
 finger force, slip, how often the force grasp raised its safety factor) as JSON and writes
 ``benchmarks/results/grasp.json``.
@@ -65,6 +66,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--trials", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--levels", nargs="*", default=list(FRICTION_LEVELS))
+    parser.add_argument(
+        "--weak-kp",
+        type=float,
+        default=150.0,
+        help="finger servo gain (N/m) of a second, weaker position grasp",
+    )
     parser.add_argument("--out", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
 
@@ -74,6 +81,15 @@ def main(argv: list[str] | None = None) -> int:
     for level in args.levels:
         t0 = time.perf_counter()
         records = run_trials(level, args.trials, seed=args.seed, gripper=gripper, trial=trial)
+        weak = run_trials(
+            level,
+            args.trials,
+            seed=args.seed,
+            controllers=("position",),
+            gripper=GripperConfig(finger_kp=args.weak_kp),
+            trial=trial,
+        )
+        records += [r._replace(controller=f"position kp={args.weak_kp:g}") for r in weak]
         wall = time.perf_counter() - t0
         table = success_table(records)
         levels[level] = {
@@ -99,7 +115,11 @@ def main(argv: list[str] | None = None) -> int:
         "gripper": vars(gripper),
         "trial": vars(trial),
         "force_grasp": {**vars(grasp), "friction": "middle of the level's range"},
-        "position_grasp": "both fingers commanded fully closed (set-point = opening)",
+        "position_grasp": (
+            "both fingers commanded fully closed (set-point = opening), finger servo gain "
+            f"{gripper.finger_kp:g} N/m ('position') and {args.weak_kp:g} N/m "
+            f"('position kp={args.weak_kp:g}'), on the same draws"
+        ),
         "levels": levels,
         "wall_s": round(time.perf_counter() - start, 1),
     }
