@@ -3,13 +3,13 @@
 For each friction level (low 0.3-0.6, medium 1.0-1.25, high 1.25-1.5 sliding friction;
 torsional 0.1-0.3 m and rolling 0.05-0.15 m everywhere) runs ``--trials`` randomized trials
 (:func:`mpcbox.tasks.grasp.run_trials`: a third hard, soft and irregular objects, mass
-0.1-1 kg, contact stiffness 1e3-1e6 N/m), each with both controllers on the same draw
-(and a second position grasp with weaker finger servos, ``--weak-kp``, whose squeeze is
-near the force grasp's median): close on the object, lift it 5 cm, push it with half its
-weight in a random direction, shake it (5 mm at 4 Hz). Success: the object stays within 1 cm of where it sat in the gripper when the
-lift began. Prints the per-level tables (success rate by object kind, largest and median
-finger force, slip, how often the force grasp raised its safety factor) as JSON and writes
-``benchmarks/results/grasp.json``.
+0.1-1 kg, contact stiffness 1e3-1e6 N/m), each with both controllers on the same draw, and
+a second position grasp with weaker finger servos (``--weak-kp``, a squeeze near the force
+grasp's median). A trial closes on the object, lifts it 5 cm, pushes it with half its weight
+in a random direction and shakes it (5 mm at 4 Hz). Success: the object stays within 1 cm
+of where it sat in the gripper when the lift began. Prints the per-level tables (success
+rate by object kind, largest and median finger force, slip, how often the force grasp raised
+its safety factor) as JSON and writes ``benchmarks/results/grasp.json``.
 
     python benchmarks/grasp.py [--trials 100] [--seed 0] [--levels low medium high]
 """
