@@ -217,3 +217,29 @@ def test_bad_input_is_named():
         GraspQP(2).solve(
             POINTS, NORMALS, np.zeros(3), np.zeros(3), np.zeros(3), friction=0.0, torsion=0.0
         )
+
+
+def test_measured_squeeze_tracks_the_commanded_force():
+    """Through the actuator model (set-points of 500 N/m servos), the fingers press on a
+    resting box with the normal force the QP asked for, within 5 %, and the two fingers'
+    forces balance each other."""
+    mass, mu = 0.8, 0.5
+    scene = build_scene(_box(mu, mass))
+    force = ForceGrasp(
+        scene.model, mass=mass, fingers=FINGERS, pads=PADS, target=OBJECT, friction=mu
+    )
+    model = scene.model
+    data = mujoco.MjData(model)
+    fingers = [model.actuator(f).id for f in FINGERS]
+    command = None
+    for step in range(800):  # 0.4 s: close, then hold the box on the table
+        if step % 4 == 0:
+            command = force(data)
+            data.ctrl[fingers] = command.ctrl
+        mujoco.mj_step(model, data)
+    assert command is not None and command.phase == "hold"
+    measured = force.last_contacts.normal_force
+    expected = (mass * G / 2 + force.config.disturbance * mass * G / 2) / (mu / force.safety)
+    np.testing.assert_allclose(command.normal_force, expected, rtol=1e-3)
+    np.testing.assert_allclose(measured, command.normal_force, rtol=0.05)
+    assert abs(measured[0] - measured[1]) < 0.02 * measured.mean()
