@@ -34,6 +34,7 @@ TASKS: dict[str, str] = {
     "humanoid_stand": "mpcbox.tasks.humanoid.stand:HumanoidStand",
     "humanoid_two_feet": "mpcbox.tasks.humanoid.two_feet:HumanoidTwoFeet",
     "quadruped_stand": "mpcbox.tasks.legged.quadruped:QuadrupedStand",
+    "arm_track": "mpcbox.tasks.arm.track:ArmTrack",
 }
 
 

@@ -7,6 +7,11 @@ release, retreat; mink IK, replanned from the measured cubes) on ``--trials`` ra
 layouts. Each line gives the outcome, the centre-to-centre errors and the reason of a miss.
 
     python problems/stack_cubes.py [--arm aloha|panda] [--trials 5] [--first-seed 0]
+        [--save runs/stack]
+
+``--save PATH`` writes the first trial as ``PATH.csv``/``PATH.json``
+(:func:`mpcbox.sim.trajectory.save_trajectory`: time, states, controls, the tool centre
+point's x, y, z), e.g. for ``mpcbox validate`` to replay its controls on the scene.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ import argparse
 import sys
 
 import mpcbox
+from mpcbox.sim.trajectory import save_trajectory, trajectory_from_result
 from mpcbox.tasks.manipulation.pick_place import PickPlaceTiming, stacking_controller
 from mpcbox.tasks.manipulation.stacking import StackCubes
 
@@ -25,6 +31,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--arm", default="aloha", choices=["aloha", "panda"])
     parser.add_argument("--trials", type=int, default=5)
     parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--save", default=None, help="save the first trial as PATH.csv/.json")
     args = parser.parse_args(argv)
     problem = StackCubes(args.arm, threads=1)
     controller = stacking_controller(problem)
@@ -36,6 +43,9 @@ def main(argv: list[str] | None = None) -> int:
         )
         check = problem.check(sim.states[-1])
         wins += sim.metrics.success
+        if args.save and seed == args.first_seed:
+            traj = trajectory_from_result(sim, problem, sites=["arm/tcp"])
+            print("saved", *save_trajectory(traj, args.save))
         print(
             f"seed {seed}: {sim.metrics.outcome:12s} xy_err {1000 * check.xy_err:5.1f} mm, "
             f"dz {1000 * check.dz:5.1f} mm" + (f"  ({sim.failure})" if sim.failure else "")

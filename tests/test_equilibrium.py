@@ -100,6 +100,29 @@ def test_motor_with_gear_ten_gives_a_tenth_of_the_torque():
     assert eq.act.shape == (0,)
 
 
+@pytest.mark.parametrize("jacobian", ["dense", "sparse"])
+def test_coupled_joints_share_the_load_through_the_equality(jacobian):
+    """The elbow follows the shoulder (joint equality, q_e = q_s) and only the shoulder has a
+    position servo. The coupling's force lambda (J = [-1, 1]) takes the elbow's load, so the
+    servo supplies g_s + g_e (set-point q_s + (g_s + g_e) / kp) and the arm holds still."""
+    xml = ARM.format(actuators='<position joint="shoulder" kp="100"/>').replace(
+        "</mujoco>",
+        '<equality><joint joint1="elbow" joint2="shoulder" polycoef="0 1 0 0 0"/></equality>'
+        "</mujoco>",
+    )
+    xml = xml.replace(
+        '<option timestep="0.002"/>', f'<option timestep="0.002" jacobian="{jacobian}"/>'
+    )
+    model = mujoco.MjModel.from_xml_string(xml)
+    posture = np.array([-0.4, -0.4])
+    g = holding_force(model, posture)
+    eq = mpcbox.find_equilibrium(model, posture)
+    np.testing.assert_allclose(eq.ctrl, [posture[0] + g.sum() / 100.0], rtol=1e-9)
+    np.testing.assert_allclose(eq.qfrc_equality, [-g[1], g[1]], atol=1e-9)
+    assert eq.shortfall < 1e-9
+    assert drift(model, eq) < 2e-3
+
+
 def test_filter_activation_rests_at_act_equal_ctrl_and_integrator_holds_its_state():
     model = arm(
         '<general joint="shoulder" dyntype="filter" dynprm="0.05" gainprm="20"/>'

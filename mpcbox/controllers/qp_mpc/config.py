@@ -97,13 +97,15 @@ class QPMPCConfig:
             a point that is lifted at the measured state (its normal force is bounded to 0):
             ``"drop"`` (default) leaves the law out, so the prediction keeps the linear
             contact model's force there, as LQR's linear model does; ``"cancel"`` keeps
-            the law and cancels that force with the penalized slack. Measured with
-            ``benchmarks/qp_robots.py`` and a forward push of 0.1 s: on Menagerie's Go1,
-            ``"cancel"`` left 87 of 150 solves at OSQP's iteration cap or "primal
-            infeasible" after 80 N and fell above 68 N; ``"drop"`` failed 18 and stood up to
-            210 N (LQR: 205 N). The humanoid presets keep ``"cancel"``, with which their
-            published push limits were measured (one leg, backward: 113.7 N against 104.3 N
-            with ``"drop"``).
+            the law and cancels that force with the penalized slack. Largest survived push
+            of 0.1 s (``benchmarks/qp_lifted_force_law.py``, results in
+            ``benchmarks/results/``): on Menagerie's Go1, ``"cancel"`` 75 N forward and
+            50 N backward, ``"drop"`` the whole 300 N search range forward and 57 N
+            backward (with ``"cancel"``, 87 of 150 solves after an 80 N push ended at
+            OSQP's iteration cap or "primal infeasible"; 18 with ``"drop"``). On the
+            humanoid presets the two are close (one leg backward 113.7 N cancel, 109.0 N
+            drop; two feet 102.0/91.4 N cancel, 105.5/92.6 N drop), and the presets keep
+            ``"cancel"``, with which their published push limits were measured.
         joint_limits: Add the joints' ranges as constraints.
         cost_gradient: Keep the cost gradient at the reference (default: regulate to the
             reference, dropping it, as LQR does).
