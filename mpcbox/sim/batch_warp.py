@@ -177,11 +177,17 @@ def simulate_batch_warp(
     with wp.ScopedDevice(device):
         m = mjw.put_model(model)
         m.opt.warn_overflow = 0  # read back per world as flags instead
-        d = mjw.make_data(model, nworld=n, nconmax=nconmax, njmax=njmax)
-        d.qpos.assign(states0[:, :nq].astype(np.float32))
-        d.qvel.assign(states0[:, nq : nq + nv].astype(np.float32))
-        if na:
-            d.act.assign(states0[:, nq + nv :].astype(np.float32))
+
+        def make() -> object:
+            data = mjw.make_data(model, nworld=n, nconmax=nconmax, njmax=njmax)
+            data.qpos.assign(states0[:, :nq].astype(np.float32))
+            data.qvel.assign(states0[:, nq : nq + nv].astype(np.float32))
+            data.ctrl.assign(np.tile(problem.ctrl_ref, (n, 1)).astype(np.float32))
+            if na:
+                data.act.assign(states0[:, nq + nv :].astype(np.float32))
+            return data
+
+        d = make()
 
         def chunk() -> None:
             for _ in range(every):
@@ -189,9 +195,10 @@ def simulate_batch_warp(
 
         graph = None
         if device.startswith("cuda"):
-            # Compile every kernel on a copy of the data, then capture the tick.
-            warm = mjw.make_data(model, nworld=n, nconmax=nconmax, njmax=njmax)
+            # Compile every kernel on a copy of the data at the same states, then capture.
+            warm = make()
             mjw.step(m, warm)
+            del warm
             with wp.ScopedCapture() as capture:
                 chunk()
             graph = capture.graph
