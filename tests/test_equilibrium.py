@@ -196,6 +196,23 @@ def test_muscle_on_a_spatial_tendon_holds_the_hinge(angle):
     assert drift(model, weaker) > 1e-2
 
 
+def test_joint_actuatorfrcrange_bounds_the_control_and_names_the_joint():
+    """A motor on the shoulder whose joint clamps actuator torque to +-1 N m, less than the
+    holding torque: the control is bounded by the joint's range, not by the motor's."""
+    xml = ARM.format(actuators='<motor joint="shoulder"/><motor joint="elbow"/>').replace(
+        '<joint name="shoulder" type="hinge" axis="0 1 0"/>',
+        '<joint name="shoulder" type="hinge" axis="0 1 0" actuatorfrcrange="-1 1"/>',
+    )
+    model = mujoco.MjModel.from_xml_string(xml)
+    g = holding_force(model, POSTURE)
+    assert abs(g[0]) > 1.0
+    with pytest.raises(InfeasibleEquilibriumError, match="actuatorfrcrange of joint 'shoulder'"):
+        mpcbox.find_equilibrium(model, POSTURE, on_infeasible="raise")
+    eq = mpcbox.find_equilibrium(model, POSTURE, on_infeasible="ignore")
+    assert eq.ctrl[0] == pytest.approx(np.sign(g[0]) * 1.0)
+    assert eq.shortfall == pytest.approx(abs(g[0]) - 1.0)
+
+
 def test_posture_beyond_the_actuator_limits_warns_or_raises_naming_the_actuator():
     model = arm(
         '<motor name="weak_shoulder" joint="shoulder" gear="1" ctrlrange="-1 1"/>'
