@@ -121,8 +121,9 @@ def main() -> None:
                 try:
                     rows.append(run(problem, name, ctrl_kw, seed, args.duration, args.backend))
                 except Exception as exc:
-                    rows.append({"seed": seed, "error": repr(exc), "outcome": "error",
-                                 "max_torso_m": 0.0, "kept_up": False, "tick_p99_ms": np.nan})  # fmt: skip
+                    failed = {"seed": seed, "error": repr(exc), "outcome": "error"}
+                    failed.update(max_torso_m=0.0, kept_up=False, tick_p99_ms=np.nan)
+                    rows.append(failed)
                 print(json.dumps({vname: {name: rows[-1]}}), flush=True)
             entry = {"task_options": task_kw, "controller_options": ctrl_kw, "runs": rows}
             entry["summary"] = summary(rows)

@@ -100,7 +100,7 @@ def costs(problem, dt, integrator, cap, state, knots, horizon) -> np.ndarray:
         opt.integrator = INTEGRATORS[integrator]
     if cap is not None:
         opt.iterations = cap
-    steps = int(round(horizon / dt))
+    steps = round(horizon / dt)
     spline = Spline(knots.shape[1], steps * dt, "cubic")
     weights = spline.weights(np.arange(steps) * dt)
     ctrls = p.clip_ctrl(np.einsum("tk,nkj->ntj", weights, knots))
@@ -169,7 +169,7 @@ def main() -> None:
             "horizon_s": horizon,
             "variants": {
                 name: {
-                    "steps": int(round(horizon / float(name.split("_")[0][2:]))),
+                    "steps": round(horizon / float(name.split("_")[0][2:])),
                     **{k: float(np.mean([r[k] for r in rs])) for k in rs[0]},
                     "min_spearman": float(min(r["spearman"] for r in rs)),
                 }
