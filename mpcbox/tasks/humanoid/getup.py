@@ -157,7 +157,7 @@ class HumanoidGetup(Problem):
         data.qpos[:3] = [0.0, 0.0, 0.3]
         half = -np.pi / 4  # -90 deg about y: the chest faces up, the head points to -x
         data.qpos[3:7] = [np.cos(half), 0.0, np.sin(half), 0.0]
-        for _ in range(int(round(self.settle / model.opt.timestep))):
+        for _ in range(round(self.settle / model.opt.timestep)):
             mujoco.mj_step(model, data)
         data.qvel[:] = 0.0
         return self.get_state(data)
