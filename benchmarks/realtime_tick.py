@@ -22,6 +22,7 @@ plus the number of planning steps and the setup time. Also writes
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import os
 import platform
@@ -85,7 +86,9 @@ def graph_ms(backend, reps: int = 50) -> float:
     return (time.perf_counter() - t0) / reps * 1e3
 
 
-def profile(problem, name: str, fields: dict, seconds: float, backend: str) -> dict:
+def profile(
+    problem, name: str, fields: dict, seconds: float, backend: str, no_gc: bool = False
+) -> dict:
     t0 = time.perf_counter()
     ctrl = mpcbox.make_controller(name, problem, backend=backend, **fields)
     state0 = problem.initial_state()
@@ -101,6 +104,9 @@ def profile(problem, name: str, fields: dict, seconds: float, backend: str) -> d
     ticks: list[float] = []
     period = ctrl.period or problem.dt
     t, start = 0.0, time.perf_counter()
+    if no_gc:
+        gc.collect()
+        gc.disable()
     while len(ticks) < 20 or (time.perf_counter() - start < seconds and len(ticks) < 2000):
         state = state0.copy()
         state[problem.nq :] += rng.normal(0, 0.05, problem.nv + problem.na)
@@ -108,6 +114,7 @@ def profile(problem, name: str, fields: dict, seconds: float, backend: str) -> d
         t1 = time.perf_counter()
         ctrl(state, t)
         ticks.append(time.perf_counter() - t1)
+    gc.enable()
     for k in list(acc):
         acc[k] = acc[k][-len(ticks) * ctrl.iterations :]
     ms = np.asarray(ticks) * 1e3
@@ -140,6 +147,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--backend", default="warp")
     parser.add_argument("--gpu", default=None, help="GPU name to record")
+    parser.add_argument("--no-gc", action="store_true", help="no garbage collection in ticks")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     problem = task_class(args.task)()
@@ -159,10 +167,11 @@ def main() -> None:
         for name in args.controllers.split(","):
             opts = {"num_samples": args.num_samples, **fields}
             try:
-                row = profile(problem, name, opts, args.seconds, args.backend)
+                row = profile(problem, name, opts, args.seconds, args.backend, args.no_gc)
             except Exception as exc:  # keep the other rows
                 row = {"controller": name, "fields": opts, "error": repr(exc)}
             row["variant"] = vname
+            row["no_gc"] = args.no_gc
             report["rows"].append(row)
             print(json.dumps(row), flush=True)
             if out is not None:

@@ -31,6 +31,7 @@ always joined before returning (also when the world raises).
 
 from __future__ import annotations
 
+import gc
 import math
 import sys
 import time as _time
@@ -186,6 +187,10 @@ def simulate_realtime(
     # Python's default 5 ms, so neither waits long for the other's Python code.
     switch = sys.getswitchinterval()
     sys.setswitchinterval(min(switch, GIL_SWITCH_INTERVAL_S))
+    # Objects alive now (models, buffers, compiled kernels) are never garbage: keep the
+    # collector from walking them in a full collection in the middle of a tick.
+    gc.collect()
+    gc.freeze()
     try:
         planner.start(state0, float(data.time))
         for k in range(steps + 1):
@@ -232,6 +237,7 @@ def simulate_realtime(
     finally:
         planner.stop()
         sys.setswitchinterval(switch)
+        gc.unfreeze()
     calls = planner.calls()
     if prime:
         calls["offline"].append(prime_s)
