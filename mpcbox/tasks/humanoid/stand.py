@@ -56,26 +56,27 @@ class HumanoidStand(HumanoidProblem):
     #: Tuned config of each controller that :func:`mpcbox.make_controller` builds.
     controller_configs: ClassVar[dict[str, Any]] = {
         # Sampling MPC (issues #5, #17), sized for the warp backend on one GPU in the real-time
-        # loop: 1024 candidates, a 0.4 s horizon on a 0.02 s planning model (20 steps), six
+        # loop: 1024 candidates, a 0.5 s horizon on a 0.02 s planning model (25 steps), six
         # knots, replanning at 50 Hz. The planning model integrates with Euler and caps the
         # constraint solver at two Newton iterations: it ranks candidates as well as the
         # earlier 0.01 s model capped at one iteration (Spearman 0.75 against the full model,
-        # benchmarks/planning_fidelity.py --backend warp) with 2.5x fewer steps, so the p99
-        # tick is about 15 ms against the 20 ms period on an H100 in the real-time loop
-        # (benchmarks/realtime.py, results/rt17_h100_run3_rt_stand_h04.json). Contact
-        # headroom 4 avoids mid-run reallocations (a graph recapture stalls a tick ~0.5 s).
+        # benchmarks/planning_fidelity.py --backend warp) with half the steps, so the p99
+        # tick is 18-20 ms against the 20 ms period on an H100 in the real-time loop
+        # (results/rt17_h100_run6_rt_stand_h05_gcfreeze.json). A 0.4 s horizon ticks in
+        # 15 ms but fails the 10 s noise-recipe test. Contact headroom 4 avoids mid-run
+        # reallocations (a graph recapture stalls a tick for ~0.5 s).
         "ps": PredictiveSamplingConfig(
-            num_samples=1024, horizon=0.4, num_knots=6, noise_scale=0.2,
+            num_samples=1024, horizon=0.5, num_knots=6, noise_scale=0.2,
             planning_timestep=0.02, period=0.02, planning_integrator="euler",
             solver_iterations=2, headroom=4.0,
         ),
         "mppi": MPPIConfig(
-            num_samples=1024, horizon=0.4, num_knots=6, noise_scale=0.2, temperature=0.1,
+            num_samples=1024, horizon=0.5, num_knots=6, noise_scale=0.2, temperature=0.1,
             planning_timestep=0.02, period=0.02, planning_integrator="euler",
             solver_iterations=2, headroom=4.0,
         ),
         "cem": CEMConfig(
-            num_samples=1024, horizon=0.4, num_knots=6, noise_scale=0.2, num_elites=64,
+            num_samples=1024, horizon=0.5, num_knots=6, noise_scale=0.2, num_elites=64,
             std_min=0.05, planning_timestep=0.02, period=0.02, planning_integrator="euler",
             solver_iterations=2, headroom=4.0,
         ),
