@@ -35,6 +35,7 @@ TASKS: dict[str, str] = {
     "humanoid_getup": "mpcbox.tasks.humanoid.getup:HumanoidGetup",
     "humanoid_two_feet": "mpcbox.tasks.humanoid.two_feet:HumanoidTwoFeet",
     "quadruped_stand": "mpcbox.tasks.legged.quadruped:QuadrupedStand",
+    "arm_track": "mpcbox.tasks.arm.track:ArmTrack",
 }
 
 
