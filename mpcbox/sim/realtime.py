@@ -182,7 +182,6 @@ def simulate_realtime(
     last = steps
     lag = 0.0
     sim0 = float(data.time)
-    wall0 = _time.perf_counter()
     # The world and the planner share the GIL: hand it over within 0.5 ms instead of
     # Python's default 5 ms, so neither waits long for the other's Python code.
     switch = sys.getswitchinterval()
@@ -191,6 +190,7 @@ def simulate_realtime(
     # collector from walking them in a full collection in the middle of a tick.
     gc.collect()
     gc.freeze()
+    wall0 = _time.perf_counter()
     try:
         planner.start(state0, float(data.time))
         for k in range(steps + 1):
