@@ -65,7 +65,7 @@ def main() -> None:
     wp.config.quiet = True
     wp.config.log_level = max(wp.config.log_level, wp.LOG_WARNING)
     worlds = tuple(int(w) for w in args.worlds.split(",")) if args.worlds else None
-    scenes = args.scene or ([None] if args.task else [aloha_scene()])
+    scenes = args.scene or ([None] if args.task or args.ctrl_trajectory else [aloha_scene()])
     config = GatesConfig(
         duration=args.duration,
         controls=args.controls,

@@ -156,8 +156,11 @@ def trajectory_controls(
     except InvalidArgumentError as exc:
         raise InvalidArgumentError(f"ctrl_trajectory: {exc}") from exc
     notes: list[str] = []
-    if scene is None:
-        task = traj.metadata.get("task")
+    named = isinstance(scene, str) and scene.startswith("task:")
+    if scene is None or named:
+        # The task named by the scene, else the one the trajectory ran (its task, or the
+        # Problem's name when that is a registered task).
+        task = scene[len("task:") :] if named else traj.metadata.get("task") or traj.problem
         if not task or task not in TASKS:
             raise InvalidArgumentError(
                 f"ctrl_trajectory {str(path)!r} names no registered task: give the scene it ran on"
