@@ -55,20 +55,22 @@ class HumanoidStand(HumanoidProblem):
     name = "humanoid_stand"
     #: Tuned config of each controller that :func:`mpcbox.make_controller` builds.
     controller_configs: ClassVar[dict[str, Any]] = {
-        # Sampling MPC (issues #5, #17), sized for the warp backend on one GPU in the real-time
-        # loop: 1024 candidates, a 0.5 s horizon on a 0.02 s planning model (25 steps), six
-        # knots, replanning at 50 Hz. The planning model integrates with Euler and caps the
-        # constraint solver at two Newton iterations: it ranks candidates as well as the
-        # earlier 0.01 s model capped at one iteration (Spearman 0.75 against the full model,
+        # Sampling MPC (issues #5, #17), sized for the warp backend on one GPU. MPPI and CEM
+        # are sized for the real-time loop: 1024 candidates, a 0.5 s horizon on a 0.02 s
+        # planning model (25 steps), six knots, replanning at 50 Hz, Euler with the
+        # constraint solver capped at two Newton iterations. That model ranks candidates as
+        # well as a 0.01 s one capped at one iteration (Spearman 0.75 against the full model,
         # benchmarks/planning_fidelity.py --backend warp) with half the steps, so the p99
-        # tick is 18-20 ms against the 20 ms period on an H100 in the real-time loop
-        # (results/rt17_h100_run6_rt_stand_h05_gcfreeze.json). A 0.4 s horizon ticks in
-        # 15 ms but fails the 10 s noise-recipe test. Contact headroom 4 avoids mid-run
-        # reallocations (a graph recapture stalls a tick for ~0.5 s).
+        # tick is 17-20 ms against the 20 ms period on an H100. Contact headroom 4 avoids
+        # mid-run reallocations (a graph recapture stalls a tick for ~0.5 s). Predictive
+        # sampling keeps the earlier 2048 candidates on a 0.01 s model (50 steps, ticks of
+        # 37-40 ms): on the coarse model it fell in 3 of 3 seeds of 10 s under the noise
+        # recipe (lock-step, H100), against 0 of 3 on the fine one; MPPI stood 2/3 coarse,
+        # 3/3 fine; CEM 3/3 coarse, 1/3 fine (results/humanoid_stand_defaults_h100.json).
         "ps": PredictiveSamplingConfig(
-            num_samples=1024, horizon=0.5, num_knots=6, noise_scale=0.2,
-            planning_timestep=0.02, period=0.02, planning_integrator="euler",
-            solver_iterations=2, headroom=4.0,
+            num_samples=2048, horizon=0.5, num_knots=6, noise_scale=0.2,
+            planning_timestep=0.01, period=0.02, planning_integrator="euler",
+            solver_iterations=2,
         ),
         "mppi": MPPIConfig(
             num_samples=1024, horizon=0.5, num_knots=6, noise_scale=0.2, temperature=0.1,
