@@ -141,10 +141,11 @@ def common_cost(problem: mpcbox.Problem, x0: np.ndarray, ctrls: np.ndarray) -> f
     return float(problem.rollout_cost(problem.rollout(x0, ctrls))[0])
 
 
-def run_mpcbox(case: dict[str, Any], shooting: str) -> dict[str, Any]:
+def run_mpcbox(case: dict[str, Any], shooting: str, **options: Any) -> dict[str, Any]:
+    """One mpcbox solve; ``options`` are further ILQRConfig fields."""
     p, horizon = case["problem"], case["horizon"]
     x0 = p.initial_state()
-    solver = ILQR(p, horizon=horizon, max_iterations=MAX_ITERATIONS, threads=1)
+    solver = ILQR(p, horizon=horizon, max_iterations=MAX_ITERATIONS, threads=1, **options)
     with Counter() as counter:
         t0 = time.perf_counter()
         if shooting == "single":
