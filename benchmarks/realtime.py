@@ -55,6 +55,12 @@ def main() -> None:
     parser.add_argument("--num-samples", type=int, default=None)
     parser.add_argument("--period", type=float, default=None)
     parser.add_argument("--speed", type=float, default=1.0)
+    parser.add_argument(
+        "--set",
+        default="",
+        help="config fields for every controller, e.g. planning_timestep=0.015,horizon=0.48",
+    )
+    parser.add_argument("--gpu", default=None, help="GPU name to record (default nvidia-smi)")
     parser.add_argument("--machine", default="2-core sandbox CPU, shared")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
@@ -63,7 +69,8 @@ def main() -> None:
     report: dict = {
         "task": args.task,
         "machine": args.machine,
-        "gpu": gpu_name() if args.backend == "warp" else None,
+        "gpu": args.gpu or (gpu_name() if args.backend == "warp" else None),
+        "set": args.set,
         "platform": platform.platform(),
         "backend": args.backend,
         "duration_s": args.duration,
@@ -78,6 +85,12 @@ def main() -> None:
             options["period"] = args.period
         if args.num_samples is not None:
             options["num_samples"] = args.num_samples
+        for pair in filter(None, args.set.split(",")):
+            key, _, value = pair.partition("=")
+            try:
+                options[key.strip()] = json.loads(value)
+            except json.JSONDecodeError:
+                options[key.strip()] = value.strip()
         ctrl = mpcbox.make_controller(name, problem, **options)
         entry: dict = {}
         entry["period_s"] = ctrl.period

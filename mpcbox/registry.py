@@ -33,8 +33,12 @@ TASKS: dict[str, str] = {
     "dm_cartpole_swingup": "mpcbox.tasks.swingup.dm_control:DmCartpoleSwingup",
     "dm_acrobot_swingup": "mpcbox.tasks.swingup.dm_control:DmAcrobotSwingup",
     "humanoid_stand": "mpcbox.tasks.humanoid.stand:HumanoidStand",
+    "humanoid_getup": "mpcbox.tasks.humanoid.getup:HumanoidGetup",
     "humanoid_two_feet": "mpcbox.tasks.humanoid.two_feet:HumanoidTwoFeet",
     "quadruped_stand": "mpcbox.tasks.legged.quadruped:QuadrupedStand",
+    "arm_track": "mpcbox.tasks.arm.track:ArmTrack",
+    "stack_cubes": "mpcbox.tasks.manipulation.stacking:StackCubes",
+    "pot_lift": "mpcbox.tasks.manipulation.pot_lift:PotLift",
 }
 
 

@@ -1,7 +1,7 @@
 """The package's layering: imports point down, never up, and form no circle.
 
 Layers, lowest first: the base modules (errors, validation, config, registry), ``core``,
-``controllers``, ``sim``, then ``comparison`` and ``tasks``, then ``cli``. Every import
+``controllers``, ``sim``, then ``comparison``, ``tasks`` and ``gates``, then ``cli``. Every import
 counts, including those inside functions (a lazy import is still a dependency).
 """
 
@@ -26,6 +26,7 @@ LAYERS: dict[str, int] = {
     "mpcbox.sim": 3,
     "mpcbox.comparison": 4,
     "mpcbox.tasks": 4,
+    "mpcbox.gates": 4,
     "mpcbox.cli": 5,
 }
 

@@ -100,6 +100,29 @@ def test_motor_with_gear_ten_gives_a_tenth_of_the_torque():
     assert eq.act.shape == (0,)
 
 
+@pytest.mark.parametrize("jacobian", ["dense", "sparse"])
+def test_coupled_joints_share_the_load_through_the_equality(jacobian):
+    """The elbow follows the shoulder (joint equality, q_e = q_s) and only the shoulder has a
+    position servo. The coupling's force lambda (J = [-1, 1]) takes the elbow's load, so the
+    servo supplies g_s + g_e (set-point q_s + (g_s + g_e) / kp) and the arm holds still."""
+    xml = ARM.format(actuators='<position joint="shoulder" kp="100"/>').replace(
+        "</mujoco>",
+        '<equality><joint joint1="elbow" joint2="shoulder" polycoef="0 1 0 0 0"/></equality>'
+        "</mujoco>",
+    )
+    xml = xml.replace(
+        '<option timestep="0.002"/>', f'<option timestep="0.002" jacobian="{jacobian}"/>'
+    )
+    model = mujoco.MjModel.from_xml_string(xml)
+    posture = np.array([-0.4, -0.4])
+    g = holding_force(model, posture)
+    eq = mpcbox.find_equilibrium(model, posture)
+    np.testing.assert_allclose(eq.ctrl, [posture[0] + g.sum() / 100.0], rtol=1e-9)
+    np.testing.assert_allclose(eq.qfrc_equality, [-g[1], g[1]], atol=1e-9)
+    assert eq.shortfall < 1e-9
+    assert drift(model, eq) < 2e-3
+
+
 def test_filter_activation_rests_at_act_equal_ctrl_and_integrator_holds_its_state():
     model = arm(
         '<general joint="shoulder" dyntype="filter" dynprm="0.05" gainprm="20"/>'
@@ -171,6 +194,23 @@ def test_muscle_on_a_spatial_tendon_holds_the_hinge(angle):
     # The muscle curves matter: 10 % less activation lets the link drop.
     weaker = eq._replace(ctrl=0.9 * eq.ctrl, act=0.9 * eq.act)
     assert drift(model, weaker) > 1e-2
+
+
+def test_joint_actuatorfrcrange_bounds_the_control_and_names_the_joint():
+    """A motor on the shoulder whose joint clamps actuator torque to +-1 N m, less than the
+    holding torque: the control is bounded by the joint's range, not by the motor's."""
+    xml = ARM.format(actuators='<motor joint="shoulder"/><motor joint="elbow"/>').replace(
+        '<joint name="shoulder" type="hinge" axis="0 1 0"/>',
+        '<joint name="shoulder" type="hinge" axis="0 1 0" actuatorfrcrange="-1 1"/>',
+    )
+    model = mujoco.MjModel.from_xml_string(xml)
+    g = holding_force(model, POSTURE)
+    assert abs(g[0]) > 1.0
+    with pytest.raises(InfeasibleEquilibriumError, match="actuatorfrcrange of joint 'shoulder'"):
+        mpcbox.find_equilibrium(model, POSTURE, on_infeasible="raise")
+    eq = mpcbox.find_equilibrium(model, POSTURE, on_infeasible="ignore")
+    assert eq.ctrl[0] == pytest.approx(np.sign(g[0]) * 1.0)
+    assert eq.shortfall == pytest.approx(abs(g[0]) - 1.0)
 
 
 def test_posture_beyond_the_actuator_limits_warns_or_raises_naming_the_actuator():

@@ -50,6 +50,17 @@ def test_sizes_and_contacts(qp, one_leg):
     assert qp.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
 
 
+def test_tuned_config_puts_the_contacts_on_the_stance_foot():
+    from mpcbox.registry import make_controller
+
+    for leg in ("left", "right"):
+        problem = HumanoidBalance(leg=leg, threads=1)
+        controller = make_controller("qp", problem)
+        assert set(controller.points.label) == {f"foot_{leg}"}
+        assert controller.points.count == 4
+        problem.close()
+
+
 def test_force_input_matrix_matches_the_actuator_columns(qp, one_leg):
     """``h M~^-1`` used for the forces reproduces the FD ``B`` of one substep ``h`` through the
     actuator moments, and the composed 0.02 s model matches 4 simulated substeps."""
@@ -379,3 +390,24 @@ def test_quadruped_forces_go_to_the_points_on_the_ground():
     gain = model.actuator_gainprm[:, 0] * model.actuator_gear[:, 0]
     res = simulate(problem, ctl, 1.0, noise=ActuatorNoise(std=1.0 / gain), seed=0)
     assert res.survived and ctl.stats["failed_solves"] == 0 and ctl.stats["fallbacks"] == 0
+
+
+def test_force_law_of_a_lifted_point_is_dropped_or_cancelled(one_leg):
+    """With the stance foot 3 cm above the floor every point is lifted (normal force bound 0).
+    ``"drop"`` leaves their linearized force law out (free rows), ``"cancel"`` keeps it (rows
+    equal to the law); a touching foot keeps its law either way."""
+    drop = QPMPC(one_leg, lifted_force_law="drop")
+    cancel = QPMPC(one_leg, lifted_force_law="cancel")
+    L = drop.formulation.layout
+    rows = slice(L.r_st, L.r_st + L.horizon * L.ns)
+    lifted = one_leg.reference_state()
+    lifted[2] += 0.03
+    for state, free in ((one_leg.reference_state(), False), (lifted, True)):
+        _, lo_d, hi_d = drop.formulation.vectors(drop.linearization, state)
+        _, lo_c, hi_c = cancel.formulation.vectors(cancel.linearization, state)
+        assert np.all(np.isfinite(lo_c[rows])) and np.array_equal(lo_c[rows], hi_c[rows])
+        assert np.all(np.isinf(lo_d[rows])) == free and np.all(np.isinf(hi_d[rows])) == free
+        if not free:
+            np.testing.assert_array_equal(lo_d[rows], lo_c[rows])
+    with pytest.raises(InvalidArgumentError, match="lifted_force_law"):
+        QPMPCConfig(lifted_force_law="never")

@@ -185,3 +185,14 @@ def test_actuator_noise_is_added_to_the_held_control(problem):
     expected = problem.clip_ctrl(problem.ctrl_ref + noise.sample(n, problem.nu, dt, 3))
     np.testing.assert_allclose(res.ctrls[:n], expected, atol=1e-12)
     assert np.std(res.ctrls[:n]) > 0.01
+
+
+def test_gil_switch_interval_and_gc_are_restored_after_a_run(problem):
+    import gc
+    import sys
+
+    before = sys.getswitchinterval()
+    frozen = gc.get_freeze_count()
+    simulate_realtime(problem, Sleeper(problem, 0.0, 0.05), 0.1)
+    assert sys.getswitchinterval() == before
+    assert gc.get_freeze_count() == frozen

@@ -14,7 +14,9 @@ from mpcbox.tasks import scene_path
 @pytest.mark.parametrize("task", sorted(TASKS))
 def test_task_configs_are_config_objects_of_their_controller(task: str) -> None:
     configs = task_class(task).controller_configs
-    assert configs, f"{task} tunes no controller"
+    # The manipulation tasks bring their own phase controller (stacking_controller,
+    # pot_lift_controller) and tune none of the registry's.
+    assert configs or task in ("stack_cubes", "pot_lift"), f"{task} tunes no controller"
     for name, config in configs.items():
         cls = controller_class(name)
         assert isinstance(config, cls.config_class), (task, name, type(config))

@@ -7,6 +7,7 @@ Commands::
     mpcbox simulate TASK --controller NAME [...]  one controller, one seed, its measures
     mpcbox options CONTROLLER                     a controller's options and their defaults
     mpcbox replay FILE [--video OUT.mp4|OUT.gif]  re-simulate or render a saved run
+    mpcbox validate [SCENE] [options]             MuJoCo-to-MJWarp gates on a scene
     mpcbox --version
 
 ``mpcbox simulate`` also takes ``--save-trajectory PATH`` and ``--video FILE``.
@@ -48,14 +49,15 @@ __all__ = [
     "run_task_script",
 ]
 
-COMMANDS = ("list", "compare", "simulate", "options", "replay")
-USAGE = """usage: mpcbox {list,compare,simulate,options,replay} ... | --version
+COMMANDS = ("list", "compare", "simulate", "options", "replay", "validate")
+USAGE = """usage: mpcbox {list,compare,simulate,options,replay,validate} ... | --version
 
   mpcbox list                                   tasks and controllers
   mpcbox compare TASK [options]                 compare controllers on a task (--help)
   mpcbox simulate TASK --controller NAME [...]  one run of one controller (--help)
   mpcbox options CONTROLLER                     a controller's options and defaults
   mpcbox replay FILE [--video OUT]              re-simulate or render a saved run (--help)
+  mpcbox validate [SCENE] [options]             MuJoCo-to-MJWarp gates on a scene (--help)
 """
 
 
@@ -177,6 +179,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             from mpcbox.cli.replay import run_replay
 
             return run_replay(rest)
+        if command == "validate":
+            from mpcbox.cli.validate import run_validate
+
+            return run_validate(rest)
         if command != "compare":
             raise UnknownNameError("command", command, COMMANDS)
         if not rest or rest[0].startswith("-"):

@@ -245,7 +245,7 @@ def actuation_map(model: mujoco.MjModel, data: mujoco.MjData) -> ActuationMap:
                 j = int(cols[0])
                 tighten(j, _interval(lo, hi, force_matrix[o, j], force_offset[o]), "forcerange")
     for jnt in range(model.njnt):
-        if not model.jnt_actfrclimited[jnt] or model.jnt_type[jnt] not in _SCALAR_JOINTS:
+        if not model.jnt_actfrclimited[jnt] or int(model.jnt_type[jnt]) not in _SCALAR_JOINTS:
             continue
         dof = int(model.jnt_dofadr[jnt])
         cols = np.flatnonzero(matrix[dof])

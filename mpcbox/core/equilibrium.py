@@ -18,6 +18,7 @@ from mpcbox.core.actuation import (
     control_owner,
     solve_actuation,
 )
+from mpcbox.core.equality_span import equality_span
 from mpcbox.core.model import check_mjmodel
 from mpcbox.errors import EquilibriumWarning, InfeasibleEquilibriumError, SolverError
 from mpcbox.validation import checked_keywords, finite_array, one_of, positive
@@ -43,12 +44,16 @@ class Equilibrium(NamedTuple):
         act: Activation ``(na,)`` to start from: equal to the control for filter and muscle
             dynamics, the holding value for an integrator (whose control is then 0).
         actuator_force: Actuator forces ``(nout,)`` at ``(qpos, ctrl, act)``.
-        residual: What the actuators do not supply ``(nv,)``: ``qfrc - qfrc_actuator``, with
-            MuJoCo's own clamps applied.
+        residual: What neither the actuators nor the equality constraints supply ``(nv,)``:
+            ``qfrc - qfrc_actuator - qfrc_equality``, with MuJoCo's own clamps applied.
         actuated: Dofs some actuator can push ``(nv,)`` (boolean): a nonzero row of the
             actuation map.
         shortfall: Largest ``|residual|`` on actuated dofs; above the tolerance the posture
             cannot be held (limits, or forces outside the span of the actuators).
+        qfrc_equality: Generalized force ``(nv,)`` left to the model's active equality
+            constraints, :math:`J_{eq}^T \\lambda` (a tendon or joint coupling, a weld): the
+            part of ``qfrc - qfrc_actuator`` in the span of their Jacobian rows (zeros
+            without equality constraints).
     """
 
     qpos: np.ndarray
@@ -62,6 +67,7 @@ class Equilibrium(NamedTuple):
     residual: np.ndarray
     actuated: np.ndarray
     shortfall: float
+    qfrc_equality: np.ndarray | None = None
 
 
 def _free_root(model: mujoco.MjModel) -> tuple[int, int] | None:
@@ -173,11 +179,19 @@ def find_equilibrium(
             vertical = f0
     qfrc = inverse(offset)
     amap = actuation_map(model, data)
-    x = solve_actuation(amap, qfrc)
+    # Active equality constraints (a tendon coupling of joints, a weld) carry load at any
+    # force along their Jacobian rows: only the part of the needed force outside that span
+    # is asked of the actuators.
+    free = equality_span(model, data)
+    x = solve_actuation(
+        amap._replace(matrix=free.project(amap.matrix), offset=free.project(amap.offset)),
+        free.project(qfrc),
+    )
     ctrl, act = actuator_state(model, x)
     data.ctrl[:], data.act[:] = ctrl, act
     mujoco.mj_fwdActuation(model, data)
-    residual = qfrc - data.qfrc_actuator
+    qfrc_equality = qfrc - data.qfrc_actuator - free.project(qfrc - data.qfrc_actuator)
+    residual = qfrc - data.qfrc_actuator - qfrc_equality
     actuated = np.any(amap.matrix != 0.0, axis=1)
     shortfall = float(np.max(np.abs(residual[actuated]), initial=0.0))
     if shortfall > feasibility_tolerance and on_infeasible != "ignore":
@@ -198,6 +212,7 @@ def find_equilibrium(
         residual=residual,
         actuated=actuated,
         shortfall=shortfall,
+        qfrc_equality=qfrc_equality,
     )
 
 

@@ -25,11 +25,13 @@ from mpcbox.validation import (
 StanceModelName = Literal["soft", "rigid"]
 Fallback = Literal["lqr", "plan"]
 LiftedPoints = Literal["drop", "keep"]
+LiftedForceLaw = Literal["drop", "cancel"]
 #: Names of the terminal costs (an ``(nx, nx)`` matrix is accepted too).
 TERMINALS: tuple[str, ...] = ("stance", "lqr", "cost")
 STANCE_MODELS: tuple[str, ...] = ("soft", "rigid")
 FALLBACKS: tuple[str, ...] = ("lqr", "plan")
 LIFTED_POINTS: tuple[str, ...] = ("drop", "keep")
+LIFTED_FORCE_LAWS: tuple[str, ...] = ("drop", "cancel")
 
 
 def _check_osqp_settings(settings: object) -> None:
@@ -91,6 +93,19 @@ class QPMPCConfig:
             its geoms that touch the ground (on Menagerie's A1 the four feet as bodies give 20
             points, 4 of them on the ground: the QP shrinks from 1680 to 720 variables);
             ``"keep"``: every point stays (a lifted one carries no force until it touches).
+        lifted_force_law: What the soft stance model does with the linearized force law of
+            a point that is lifted at the measured state (its normal force is bounded to 0):
+            ``"drop"`` (default) leaves the law out, so the prediction keeps the linear
+            contact model's force there, as LQR's linear model does; ``"cancel"`` keeps
+            the law and cancels that force with the penalized slack. Largest survived push
+            of 0.1 s (``benchmarks/qp_lifted_force_law.py``, results in
+            ``benchmarks/results/``): on Menagerie's Go1, ``"cancel"`` 75 N forward and
+            50 N backward, ``"drop"`` the whole 300 N search range forward and 57 N
+            backward (with ``"cancel"``, 87 of 150 solves after an 80 N push ended at
+            OSQP's iteration cap or "primal infeasible"; 18 with ``"drop"``). On the
+            humanoid presets the two are close (one leg backward 113.7 N cancel, 109.0 N
+            drop; two feet 102.0/91.4 N cancel, 105.5/92.6 N drop), and the presets keep
+            ``"cancel"``, with which their published push limits were measured.
         joint_limits: Add the joints' ranges as constraints.
         cost_gradient: Keep the cost gradient at the reference (default: regulate to the
             reference, dropping it, as LQR does).
@@ -131,6 +146,7 @@ class QPMPCConfig:
     stance_weight: float | None = 1e4
     contact_margin: float = 0.01
     lifted_points: LiftedPoints = "drop"
+    lifted_force_law: LiftedForceLaw = "drop"
     joint_limits: bool = False
     cost_gradient: bool = False
     warm_start: bool = True
@@ -195,6 +211,7 @@ class QPMPCConfig:
             put("export_dir", Path(self.export_dir))
         one_of("fallback", self.fallback, FALLBACKS)
         one_of("lifted_points", self.lifted_points, LIFTED_POINTS)
+        one_of("lifted_force_law", self.lifted_force_law, LIFTED_FORCE_LAWS)
         for name in ("relinearize", "joint_limits", "cost_gradient", "warm_start", "fd_centered"):
             put(name, boolean(name, getattr(self, name)))
         if self.osqp_settings is not None:

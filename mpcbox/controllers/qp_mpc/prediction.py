@@ -260,7 +260,11 @@ class SoftStance(PredictionModel):
     ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
         law = np.tile(lin.fbar, layout.horizon)
         law[: layout.ns] += lin.Fx @ x0
-        return None, law, law.copy()
+        lo, hi = law, law.copy()
+        if self.config.lifted_force_law == "drop":  # see QPMPCConfig.lifted_force_law
+            lifted = np.tile(np.repeat(~active, 3), layout.horizon)
+            lo[lifted], hi[lifted] = -np.inf, np.inf
+        return None, lo, hi
 
 
 #: Prediction model class by ``QPMPCConfig.stance_model``.

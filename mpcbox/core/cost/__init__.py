@@ -5,11 +5,13 @@ A cost term is a weighted least-squares residual,
 running and terminal terms. One file per concept: the protocol and the :class:`Cost`
 (:mod:`~mpcbox.core.cost.base`), the row vocabulary of the GPU kernels
 (:mod:`~mpcbox.core.cost.rows`), and the terms (state, control, frames, center of mass,
-quadratic value, wrapped angle).
+quadratic value, wrapped angle, clearance from a sphere, actuator effort).
 """
 
+from mpcbox.core.cost.actuator_force import ActuatorForce
 from mpcbox.core.cost.angle import WrappedAngle
 from mpcbox.core.cost.base import Cost, CostTerm, Features, Jacobian, SensorRequest
+from mpcbox.core.cost.clearance import SphereClearance
 from mpcbox.core.cost.com import ComOverSupport
 from mpcbox.core.cost.control import ControlCost
 from mpcbox.core.cost.frames import FrameHeight, FramePosition, Upright
@@ -17,6 +19,7 @@ from mpcbox.core.cost.state import StateCost
 from mpcbox.core.cost.value import QuadraticValue
 
 __all__ = [
+    "ActuatorForce",
     "ComOverSupport",
     "ControlCost",
     "Cost",
@@ -27,6 +30,7 @@ __all__ = [
     "Jacobian",
     "QuadraticValue",
     "SensorRequest",
+    "SphereClearance",
     "StateCost",
     "Upright",
     "WrappedAngle",

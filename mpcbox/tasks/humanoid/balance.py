@@ -51,9 +51,14 @@ class HumanoidBalance(HumanoidProblem):
     #: Tuned config of each controller that :func:`mpcbox.make_controller` builds.
     controller_configs: ClassVar[dict[str, Any]] = {
         "lqr": LQRConfig(),
-        # Contact-force QP-MPC (issue #4): 10 steps of 0.02 s, stance-foot capsule ends.
+        # Contact-force QP-MPC (issue #4): 10 steps of 0.02 s, on the stance foot's capsule
+        # ends (the Problem's ``contacts``: ``body:foot_<leg>``).
         "qp": QPMPCConfig(
-            horizon=10, dt=0.02, contacts=("body:foot_left",), stance_weight=1e5, terminal_scale=5.0
+            horizon=10,
+            dt=0.02,
+            stance_weight=1e5,
+            terminal_scale=5.0,
+            lifted_force_law="cancel",  # the published push limits (QPMPCConfig docs)
         ),
         # iLQR-MPC (issue #3): 0.35 s horizon on a 0.015 s planning model, 50 Hz replanning.
         "ilqr": ILQRConfig(

@@ -55,26 +55,30 @@ class HumanoidStand(HumanoidProblem):
     name = "humanoid_stand"
     #: Tuned config of each controller that :func:`mpcbox.make_controller` builds.
     controller_configs: ClassVar[dict[str, Any]] = {
-        # Sampling MPC (issue #5), sized for the warp backend on one GPU: a 0.5 s horizon on
-        # a 0.01 s planning model (50 steps), six knots, replanning at 50 Hz. The planning
-        # model integrates with Euler and caps the constraint solver (MPPI and CEM at one
-        # Newton iteration, predictive sampling at two), about 1.5x faster per tick than the
-        # full model (benchmarks/sampling_planning_model.py). Survives 10 s of the published
-        # actuator noise on an H200 (benchmarks/sampling.py, closed_loop).
+        # Sampling MPC (issues #5, #17), sized for the warp backend on one GPU in the real-time
+        # loop: 1024 candidates, a 0.5 s horizon on a 0.02 s planning model (25 steps), six
+        # knots, replanning at 50 Hz. The planning model integrates with Euler and caps the
+        # constraint solver at two Newton iterations: it ranks candidates as well as the
+        # earlier 0.01 s model capped at one iteration (Spearman 0.75 against the full model,
+        # benchmarks/planning_fidelity.py --backend warp) with half the steps, so the p99
+        # tick is 18-20 ms against the 20 ms period on an H100 in the real-time loop
+        # (results/rt17_h100_run6_rt_stand_h05_gcfreeze.json). A 0.4 s horizon ticks in
+        # 15 ms but fails the 10 s noise-recipe test. Contact headroom 4 avoids mid-run
+        # reallocations (a graph recapture stalls a tick for ~0.5 s).
         "ps": PredictiveSamplingConfig(
-            num_samples=2048, horizon=0.5, num_knots=6, noise_scale=0.2,
-            planning_timestep=0.01, period=0.02, planning_integrator="euler",
-            solver_iterations=2,
+            num_samples=1024, horizon=0.5, num_knots=6, noise_scale=0.2,
+            planning_timestep=0.02, period=0.02, planning_integrator="euler",
+            solver_iterations=2, headroom=4.0,
         ),
         "mppi": MPPIConfig(
-            num_samples=2048, horizon=0.5, num_knots=6, noise_scale=0.2, temperature=0.1,
-            planning_timestep=0.01, period=0.02, planning_integrator="euler",
-            solver_iterations=1,
+            num_samples=1024, horizon=0.5, num_knots=6, noise_scale=0.2, temperature=0.1,
+            planning_timestep=0.02, period=0.02, planning_integrator="euler",
+            solver_iterations=2, headroom=4.0,
         ),
         "cem": CEMConfig(
-            num_samples=2048, horizon=0.5, num_knots=6, noise_scale=0.2, num_elites=64,
-            std_min=0.05, planning_timestep=0.01, period=0.02, planning_integrator="euler",
-            solver_iterations=1,
+            num_samples=1024, horizon=0.5, num_knots=6, noise_scale=0.2, num_elites=64,
+            std_min=0.05, planning_timestep=0.02, period=0.02, planning_integrator="euler",
+            solver_iterations=2, headroom=4.0,
         ),
     }  # fmt: skip
 

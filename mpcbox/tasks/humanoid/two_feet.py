@@ -51,6 +51,7 @@ class HumanoidTwoFeet(HumanoidProblem):
             contacts=("body:foot_left", "body:foot_right"),
             period=0.02,
             stance_weight=1e5,
+            lifted_force_law="cancel",  # the published push limits (QPMPCConfig docs)
         ),
     }
     #: Contact bodies for contact-aware controllers.

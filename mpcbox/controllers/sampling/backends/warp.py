@@ -43,6 +43,7 @@ import mujoco
 import numpy as np
 
 from mpcbox.controllers.sampling.backends.interface import AsyncRolloutBackend, RolloutCosts
+from mpcbox.controllers.sampling.backends.warp_compile import precompile
 from mpcbox.core.problem import Problem
 from mpcbox.errors import BackendUnavailableError, InvalidArgumentError, UnsupportedModelError
 
@@ -204,6 +205,7 @@ class WarpBackend(AsyncRolloutBackend):
         self._graph = None
         self._num_candidates = 0
         self._pending: int | None = None
+        self._precompiled = False
         self._stats = {
             "resizes": 0,
             "graph_captures": 0,
@@ -212,6 +214,7 @@ class WarpBackend(AsyncRolloutBackend):
             "nconmax": 0,
             "njmax": 0,
             "contacts_disabled": 0,
+            "precompiled_modules": 0,
         }
         with wp.ScopedDevice(device):
             m = self._put_model()
@@ -313,6 +316,10 @@ class WarpBackend(AsyncRolloutBackend):
             self.cost = wp.zeros(self.nworld, dtype=wp.float32)
             self.flags = wp.zeros(self.nworld, dtype=wp.int32)
             self._graph = None
+            if not self._precompiled:
+                # Compile (or load from the kernel cache) the tick's modules in parallel.
+                self._stats["precompiled_modules"] = precompile(self._run, self.device)
+                self._precompiled = True
             if self.use_graph:
                 self._run()  # load every module before capturing
                 with wp.ScopedCapture() as capture:

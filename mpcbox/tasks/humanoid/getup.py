@@ -1,0 +1,204 @@
+r"""Humanoid get-up: from lying on its back on the floor to standing (the showcase of
+MJPC and hydrax), on the humanoid scene shipped with mpcbox."""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import mujoco
+import numpy as np
+
+from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, PredictiveSamplingConfig
+from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, FrameHeight, StateCost, Upright
+from mpcbox.core.model import ModelSource
+from mpcbox.core.problem import Problem
+from mpcbox.tasks import scene_path
+from mpcbox.validation import non_negative, positive
+
+#: Config shared by the get-up's sampling controllers, the best of a small screen on an
+#: H100 (benchmarks/humanoid_getup.py; results/rt17_h100_run2_getup_screen.json): 1024
+#: candidates, a 0.8 s horizon of 40 Euler steps of 0.02 s with two solver iterations,
+#: noise 0.4, replanning at 50 Hz. Shorter horizons (0.5 s) never got up; this one gets up
+#: in about 3 of 10 seeds within 5 s, with ticks of about 26 ms (it does not keep the
+#: 20 ms period).
+_COMMON: dict[str, Any] = dict(
+    num_samples=1024,
+    horizon=0.8,
+    num_knots=6,
+    noise_scale=0.4,
+    planning_timestep=0.02,
+    planning_integrator="euler",
+    solver_iterations=2,
+    period=0.02,
+    headroom=4.0,
+)
+
+
+class HumanoidGetup(Problem):
+    r"""Get the humanoid up from lying on its back to standing, and keep it standing.
+
+    The run starts from the humanoid lying supine on the floor (the ``stand`` keyframe's
+    joint angles, the torso rotated to face up, dropped and settled for ``settle`` seconds
+    without control). The reference posture is the ``stand`` keyframe. The running cost
+    (``terminal_scale`` times heavier at the end of the horizon) is
+
+    .. math::
+        \tfrac12 w_h (z_{torso} - z_{stand})^2 + \tfrac12 w_u \|e_{z,xy}\|^2
+        + \tfrac12 w_b \sum_f \|c_{xy} - p_{f,xy}\|^2
+        + \tfrac12 w_q \|q_j - q_{j,ref}\|^2 + \tfrac12 w_v \|v\|^2
+        + \tfrac12 w_c \|u\|^2 ,
+
+    with :math:`z_{stand}` the torso height of the keyframe, :math:`e_{z,xy}` the horizontal
+    part of the torso's z axis, :math:`c` the whole-body centre of mass and :math:`p_f` the
+    feet (pulling the feet under the body is the first move of getting up), :math:`q_j` the
+    joint angles only (not the root).
+
+    Success (:meth:`goal_failure`): the torso is at least ``stand_height`` high for the last
+    ``hold`` seconds of the run. :meth:`getup_time` gives when it got up for good.
+
+    Args:
+        model: MJCF of the humanoid (default ``mpcbox/tasks/scenes/humanoid.xml``).
+        height_cost: :math:`w_h`.
+        upright_cost: :math:`w_u`.
+        balance_cost: :math:`w_b`.
+        posture_cost: :math:`w_q`.
+        velocity_cost: :math:`w_v`.
+        ctrl_cost: :math:`w_c`.
+        terminal_scale: Multiplier of the terminal cost.
+        stand_height: Torso height that counts as standing (m).
+        hold: Seconds the torso must stay at ``stand_height`` at the end of a run.
+        settle: Seconds the lying body settles before the run starts.
+        **kwargs: Passed to :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
+    """
+
+    name = "humanoid_getup"
+    #: Tuned config of each controller that :func:`mpcbox.make_controller` builds.
+    controller_configs: ClassVar[dict[str, Any]] = {
+        "ps": PredictiveSamplingConfig(**_COMMON),
+        "mppi": MPPIConfig(temperature=0.1, **_COMMON),
+        "cem": CEMConfig(num_elites=64, std_min=0.05, **_COMMON),
+    }
+
+    def __init__(
+        self,
+        *,
+        model: ModelSource | None = None,
+        height_cost: float = 100.0,
+        upright_cost: float = 30.0,
+        balance_cost: float = 100.0,
+        posture_cost: float = 0.3,
+        velocity_cost: float = 0.01,
+        ctrl_cost: float = 0.1,
+        terminal_scale: float = 5.0,
+        stand_height: float = 1.1,
+        hold: float = 0.5,
+        settle: float = 1.0,
+        **kwargs: Any,
+    ) -> None:
+        self.getup_weights = dict(
+            height=non_negative("height_cost", height_cost),
+            upright=non_negative("upright_cost", upright_cost),
+            balance=non_negative("balance_cost", balance_cost),
+            posture=non_negative("posture_cost", posture_cost),
+            velocity=non_negative("velocity_cost", velocity_cost),
+            ctrl=non_negative("ctrl_cost", ctrl_cost),
+            terminal=non_negative("terminal_scale", terminal_scale),
+        )
+        self.stand_height = positive("stand_height", stand_height)
+        self.hold = non_negative("hold", hold)
+        self.settle = non_negative("settle", settle)
+        kwargs.setdefault("keyframe", "stand")
+        super().__init__(scene_path("humanoid.xml") if model is None else model, **kwargs)
+        self._lying = self._lying_state()
+
+    def prepare(self, model: mujoco.MjModel) -> None:
+        self.torso_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "torso")
+        data = mujoco.MjData(model)
+        data.qpos[:] = self.qpos_ref
+        mujoco.mj_kinematics(model, data)
+        self.torso_height = float(data.xpos[self.torso_id, 2])
+        self.ctrl_ref = np.zeros(model.nu)
+
+    def _terms(self, model: mujoco.MjModel, scale: float, suffix: str) -> list:
+        w = self.getup_weights
+        wq = np.full(model.nv, w["posture"])
+        for j in range(model.njnt):
+            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+                adr = model.jnt_dofadr[j]
+                wq[adr : adr + 6] = 0.0
+        return [
+            *(
+                ComOverSupport(
+                    f"foot_{side}",
+                    weight=scale * w["balance"],
+                    root="torso",
+                    name=f"com_{side}{suffix}",
+                )
+                for side in ("left", "right")
+            ),
+            FrameHeight(
+                "torso", self.torso_height, weight=scale * w["height"], name="height" + suffix
+            ),
+            Upright("torso", weight=scale * w["upright"], name="upright" + suffix),
+            StateCost(
+                self.qpos_ref,
+                weight_qpos=scale * wq,
+                weight_qvel=scale * w["velocity"],
+                name="posture" + suffix,
+            ),
+        ]
+
+    def build_cost(self, model: mujoco.MjModel) -> Cost:
+        control = ControlCost(self.ctrl_ref, weight=self.getup_weights["ctrl"])
+        running = [*self._terms(model, 1.0, ""), control]
+        return Cost(running, self._terms(model, self.getup_weights["terminal"], "_terminal"))
+
+    def _lying_state(self) -> np.ndarray:
+        """The keyframe's joints, torso facing up just above the floor, settled passively."""
+        model = self.model
+        data = mujoco.MjData(model)
+        data.qpos[:] = self.qpos_ref
+        data.qpos[:3] = [0.0, 0.0, 0.3]
+        half = -np.pi / 4  # -90 deg about y: the chest faces up, the head points to -x
+        data.qpos[3:7] = [np.cos(half), 0.0, np.sin(half), 0.0]
+        for _ in range(round(self.settle / model.opt.timestep)):
+            mujoco.mj_step(model, data)
+        data.qvel[:] = 0.0
+        return self.get_state(data)
+
+    def initial_state(self) -> np.ndarray:
+        """Lying on the back, at rest, ``(nstate,)``."""
+        return self._lying.copy()
+
+    def torso_heights(self, states: np.ndarray) -> np.ndarray:
+        """Torso height ``(T,)`` of states ``(T, nstate)`` (m)."""
+        data = mujoco.MjData(self.model)
+        out = np.empty(len(states))
+        for i, state in enumerate(np.asarray(states)):
+            data.qpos[:] = state[: self.nq]
+            mujoco.mj_kinematics(self.model, data)
+            out[i] = data.xpos[self.torso_id, 2]
+        return out
+
+    def getup_time(self, time: np.ndarray, states: np.ndarray) -> float:
+        """Start of the final interval with the torso at ``stand_height`` (s; NaN if the run
+        ends below it)."""
+        up = self.torso_heights(states) >= self.stand_height
+        if not up.size or not up[-1]:
+            return float("nan")
+        down = np.flatnonzero(~up)
+        first = 0 if down.size == 0 else int(down[-1]) + 1
+        return float(np.asarray(time)[first])
+
+    def goal_failure(self, time: np.ndarray, states: np.ndarray) -> str | None:
+        time = np.asarray(time)
+        if time.size == 0:
+            return "no states recorded"
+        since = self.getup_time(time, states)
+        if np.isnan(since) or time[-1] - since < self.hold - 1e-9:
+            z = self.torso_heights(states[-1:])[0]
+            return (
+                f"not standing for the last {self.hold:g} s (torso {z:.2f} m at the end, "
+                f"standing is >= {self.stand_height:g} m)"
+            )
+        return None
