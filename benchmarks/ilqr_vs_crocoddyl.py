@@ -1,8 +1,13 @@
 """mpcbox's iLQR (single and multiple shooting) against Crocoddyl's box-FDDP, one process.
 
 Problems: pendulum swing-up (150 x 0.02 s), cart-pole swing-up (150 x 0.02 s) and a 7-DoF
-torque-controlled Panda reach (40 x 0.01 s; Menagerie's ``panda_nohand.xml`` with its servos
-replaced by joint motors limited to the Franka torque limits). Crocoddyl runs the same MuJoCo
+torque-controlled Panda reach (40 x 0.01 s): ``arm`` is the Panda of the ``panda.urdf`` that
+Crocoddyl's wheel ships (example-robot-data: its masses and inertias, joint damping 0.003, no
+armature, the fingers fixed), with joint motors limited to the Franka torque limits, reaching
+0.3 m along each axis (x, y and -z) from the ``home`` posture, guess ``ctrl_ref`` (the torques
+that hold the goal posture); ``arm_menagerie`` is the easier reach of earlier runs
+(Menagerie's ``panda_nohand.xml``, armature 0.1, motors instead of its servos, 0.15 / 0.1 /
+-0.15 m). Crocoddyl runs the same MuJoCo
 dynamics through a Python action model: ``calc`` is one ``mj_step`` of mpcbox's planning model
 (:meth:`mpcbox.Problem.step`) plus the running cost, ``calcDiff`` is ``mjd_transitionFD``
 (:meth:`mpcbox.Problem.linearize`) plus the Gauss-Newton cost model
@@ -47,6 +52,8 @@ from mpcbox.tasks.reach import ArmReach
 from mpcbox.tasks.swingup import CartpoleSwingup, PendulumSwingup
 
 RESULTS = Path(__file__).parent / "results" / "ilqr_vs_crocoddyl.json"
+#: The Franka ``home`` posture (rad).
+PANDA_HOME = np.array([0.0, 0.0, 0.0, -1.57079, 0.0, 1.57079, -0.7853])
 #: Franka Emika Panda joint torque limits (N m).
 PANDA_TORQUE = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])
 MAX_ITERATIONS = 300
@@ -62,6 +69,34 @@ def torque_panda() -> mujoco.MjSpec:
         spec.add_actuator(
             name=f"torque{j}",
             target=f"joint{j}",
+            trntype=mujoco.mjtTrn.mjTRN_JOINT,
+            ctrllimited=True,
+            ctrlrange=[-limit, limit],
+        )
+    return spec
+
+
+def urdf_panda() -> mujoco.MjSpec:
+    """Crocoddyl's (example-robot-data's) ``panda.urdf`` without meshes, with joint motors."""
+    import re
+
+    import example_robot_data
+
+    urdf = Path(example_robot_data.getModelPath("panda_description/urdf/panda.urdf"))
+    urdf = urdf / "panda_description" / "urdf" / "panda.urdf"
+    text = urdf.read_text()
+    for tag in ("visual", "collision"):
+        text = re.sub(rf"<{tag}>.*?</{tag}>", "", text, flags=re.S)
+    text = re.sub(r'(<joint name="panda_finger_joint\d" type=")prismatic', r"\1fixed", text)
+    compiler = '<mujoco><compiler fusestatic="false" discardvisual="true"/></mujoco>'
+    text = re.sub(r"(<robot[^>]*>)", r"\1" + compiler, text, count=1)
+    spec = mujoco.MjSpec.from_string(text)
+    spec.option.timestep = 0.01
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    for j, limit in enumerate(PANDA_TORQUE, start=1):
+        spec.add_actuator(
+            name=f"torque{j}",
+            target=f"panda_joint{j}",
             trntype=mujoco.mjtTrn.mjTRN_JOINT,
             ctrllimited=True,
             ctrlrange=[-limit, limit],
@@ -90,6 +125,23 @@ def build(name: str) -> dict[str, Any]:
             "states": straight_line_states(p, x0, p.reference_state(), 150, arrival=105),
         }
     if name == "arm":
+        p = ArmReach(
+            urdf_panda(),
+            frame="panda_hand_tcp",
+            target=np.array([0.3, 0.3, -0.3]),
+            relative=True,
+            start_qpos=PANDA_HOME,
+            planning_timestep=0.01,
+            threads=1,
+        )
+        x0 = p.initial_state()
+        return {
+            "problem": p,
+            "horizon": 40,
+            "ctrls": np.tile(p.ctrl_ref, (40, 1)),
+            "states": np.tile(x0, (41, 1)),
+        }
+    if name == "arm_menagerie":
         p = ArmReach(
             torque_panda(),
             frame="attachment",
@@ -141,10 +193,11 @@ def common_cost(problem: mpcbox.Problem, x0: np.ndarray, ctrls: np.ndarray) -> f
     return float(problem.rollout_cost(problem.rollout(x0, ctrls))[0])
 
 
-def run_mpcbox(case: dict[str, Any], shooting: str) -> dict[str, Any]:
+def run_mpcbox(case: dict[str, Any], shooting: str, **options: Any) -> dict[str, Any]:
+    """One mpcbox solve; ``options`` are further ILQRConfig fields."""
     p, horizon = case["problem"], case["horizon"]
     x0 = p.initial_state()
-    solver = ILQR(p, horizon=horizon, max_iterations=MAX_ITERATIONS, threads=1)
+    solver = ILQR(p, horizon=horizon, max_iterations=MAX_ITERATIONS, threads=1, **options)
     with Counter() as counter:
         t0 = time.perf_counter()
         if shooting == "single":

@@ -29,6 +29,7 @@ TASKS: dict[str, str] = {
     "humanoid_balance": "mpcbox.tasks.humanoid.balance:HumanoidBalance",
     "pendulum_swingup": "mpcbox.tasks.swingup:PendulumSwingup",
     "cartpole_swingup": "mpcbox.tasks.swingup:CartpoleSwingup",
+    "acrobot_swingup": "mpcbox.tasks.swingup:AcrobotSwingup",
     "dm_cartpole_swingup": "mpcbox.tasks.swingup.dm_control:DmCartpoleSwingup",
     "dm_acrobot_swingup": "mpcbox.tasks.swingup.dm_control:DmAcrobotSwingup",
     "humanoid_stand": "mpcbox.tasks.humanoid.stand:HumanoidStand",

@@ -119,26 +119,3 @@ def test_bad_state_guesses_raise_named_errors():
         straight_line_states(problem, x0, goal, 10, arrival=11)
     with pytest.raises(ShapeError, match="states_init"):
         ILQR(problem, horizon=10, states_init=np.zeros((3, problem.nstate)))
-
-
-def test_single_control_box_step_equals_the_general_box_qp():
-    from mpcbox.controllers.ilqr.backward_pass import _scalar_box_step
-    from mpcbox.controllers.ilqr.boxqp import solve_box_qp
-    from mpcbox.errors import SolverError
-
-    rng = np.random.default_rng(1)
-    kinds = {True: 0, False: 0}
-    for _ in range(200):
-        h = np.array([[rng.uniform(1e-3, 10.0)]])
-        qu, qux = rng.normal(size=1) * 5, rng.normal(size=(1, 3))
-        low = -rng.uniform(0.0, 2.0, size=1)
-        high = rng.uniform(0.0, 2.0, size=1)
-        k, K, free = _scalar_box_step(h, qu, qux, low, high, 0)
-        ref = solve_box_qp(h, qu, low, high, rng.uniform(low, high), check=False)
-        ref_K = np.zeros_like(qux) if ref.factor is None else -np.linalg.solve(h, qux)
-        assert free == bool(ref.free[0]) and np.array_equal(k, ref.x) and np.array_equal(K, ref_K)
-        kinds[free] += 1
-    assert min(kinds.values()) > 20  # both free and clamped controls were met
-    for bad in (0.0, -1.0, np.nan, np.inf):
-        with pytest.raises(SolverError, match="knot 4"):
-            _scalar_box_step(np.array([[bad]]), qu, qux, low, high, 4)

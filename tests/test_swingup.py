@@ -189,3 +189,21 @@ def test_dm_control_cartpole_swings_up_by_ilqr_within_3s_and_holds() -> None:
     # Without control the pole stays down: the outcome is the controller's.
     idle = np.tile(problem.initial_state(), (3, 1))
     assert "not upright" in problem.goal_failure(np.array([0.0, 3.0, 6.0]), idle)
+
+
+def test_acrobot_offline_ilqr_reaches_upright_and_stays_within_tolerance() -> None:
+    from mpcbox.tasks.swingup import AcrobotSwingup
+
+    problem = AcrobotSwingup(threads=1)
+    x0 = problem.initial_state()
+    assert problem.upright_error(x0) == pytest.approx(np.pi)  # starts hanging, at rest
+    assert problem.ctrl_high[0] * problem.model.actuator_gear[0, 0] == pytest.approx(6.0)
+    solver = ILQR(problem, problem.controller_configs["ilqr"])
+    result = solver.solve(x0)
+    errors = problem.upright_errors(result.states)
+    assert np.max(errors[-6:]) < problem.goal.tolerance  # over the last 0.1 s of the plan
+    assert np.max(np.abs(result.states[-1, 2:])) < 1.0  # and arriving slowly (rad/s)
+    assert np.max(np.abs(result.ctrls)) <= 1.0 + 1e-12  # within the 6 N m limit
+    # The plan is a rollout of its controls on the simulated model (same timestep).
+    replay = problem.rollout(x0, result.ctrls).states[0]
+    assert np.max(np.abs(replay - result.states)) < 1e-9

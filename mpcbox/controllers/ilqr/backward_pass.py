@@ -20,13 +20,19 @@ the free controls only (zero rows on clamped ones), as in control-limited DDP (T
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
+from scipy.linalg import get_lapack_funcs
 
 from mpcbox.controllers.ilqr.boxqp import solve_box_qp
 from mpcbox.core.problem import Linearization, Quadratization
 from mpcbox.errors import SolverError
+
+#: LAPACK's Cholesky factorization and solve (``dpotrf``, ``dpotrs``), called directly: the
+#: knots' systems are tiny, so the per-call overhead of ``numpy.linalg`` would dominate.
+_POTRF, _POTRS = get_lapack_funcs(("potrf", "potrs"), dtype=np.float64)
 
 
 class BackwardPass(NamedTuple):
@@ -70,45 +76,74 @@ def interpolate_linearization(
     return Linearization((1 - w) * A[seg] + w * A[seg + 1], (1 - w) * B[seg] + w * B[seg + 1])
 
 
-def _scalar_box_step(
-    quu_reg: np.ndarray,
-    qu: np.ndarray,
-    qux: np.ndarray,
-    low: np.ndarray,
-    high: np.ndarray,
-    t: int,
-) -> tuple[np.ndarray, np.ndarray, bool]:
-    r"""Feed-forward, gain and freedom of one control (``nu = 1``) under box limits.
-
-    The one-dimensional box QP :math:`\min_{dk} \tfrac12 h\,dk^2 + q_u dk` over
-    :math:`[lo, hi]` has the solution :math:`\mathrm{clip}(-q_u / h, lo, hi)`; the control is
-    free (gain :math:`-Q_{ux} / h`) when the unconstrained minimizer is inside, clamped (gain
-    0) otherwise. This is what :func:`~mpcbox.controllers.ilqr.boxqp.solve_box_qp` returns
-    for ``n = 1``, computed with the same ``numpy.linalg.solve`` calls (so the same bits)
-    but without its general machinery, which dominated the backward pass of single-input
-    problems (about 100 us per knot).
-
-    Args:
-        quu_reg: Regularized :math:`Q_{uu}` ``(1, 1)``.
-        qu: :math:`Q_u` ``(1,)``.
-        qux: :math:`Q_{ux}` ``(1, nx)``.
-        low: Lower bound of the control change ``(1,)``.
-        high: Upper bound ``(1,)``.
-        t: Knot index, for the error message.
+def _stack(
+    A: np.ndarray, B: np.ndarray, quad: Quadratization, horizon: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    r"""Batched per-knot blocks of the recursion, built once per pass.
 
     Returns:
-        ``k`` ``(1,)``, ``K`` ``(1, nx)`` and whether the control is free.
+        ``FA = blockdiag(1, [A_t B_t])`` ``(T, 1 + nx, 1 + n)`` (so that
+        ``[V_x | V_xx] @ FA[t] = [V_x | V_xx F_t]``), the transpose of ``F_t = [A_t B_t]``
+        ``(T, n, nx)`` (contiguous) and the
+        cost model ``[\ell_t | \ell_{zz,t}]`` ``(T, n, 1 + n)`` over :math:`z = (x, u)`,
+        ``n = nx + nu``: the gradient in column 0, the Hessian
+        :math:`\begin{pmatrix} \ell_{xx} & \ell_{ux}^T \\ \ell_{ux} & \ell_{uu}
+        \end{pmatrix}` in the rest.
+    """
+    nx, nu = B.shape[1], B.shape[2]
+    F = np.concatenate([A, B], axis=2)
+    FT = np.ascontiguousarray(F.transpose(0, 2, 1))
+    FA = np.zeros((horizon, 1 + nx, 1 + nx + nu))
+    FA[:, 0, 0] = 1.0
+    FA[:, 1:, 1:] = F
+    LQ = np.empty((horizon, nx + nu, 1 + nx + nu))
+    LQ[:, :nx, 0] = quad.lx[:horizon]
+    LQ[:, nx:, 0] = quad.lu[:horizon]
+    LQ[:, :nx, 1 : 1 + nx] = quad.lxx[:horizon]
+    LQ[:, :nx, 1 + nx :] = quad.lux[:horizon].transpose(0, 2, 1)
+    LQ[:, nx:, 1 : 1 + nx] = quad.lux[:horizon]
+    LQ[:, nx:, 1 + nx :] = quad.luu[:horizon]
+    return FA, FT, LQ
+
+
+def _clamped_gain(
+    gain: np.ndarray,
+    quu_reg: np.ndarray,
+    qu_qux: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
+    k_init: np.ndarray | None,
+    t: int,
+) -> np.ndarray:
+    r"""Overwrite ``gain = [k | K]`` when the unconstrained step leaves the box.
+
+    With one control the box QP's solution is the clipped step and the control is clamped
+    (gain 0). With several, :func:`~mpcbox.controllers.ilqr.boxqp.solve_box_qp` (warm-started
+    at ``k_init[t]``) gives ``k`` and the free set, and ``K = -(Q_{uu}+\mu I)_{ff}^{-1}
+    Q_{ux,f}`` on the free rows, zero on the clamped ones.
+
+    Returns:
+        The mask ``(nu,)`` of free controls.
 
     Raises:
-        SolverError: If :math:`Q_{uu} + \mu` is not positive (or not finite).
+        SolverError: If the box QP meets a non-definite Hessian.
     """
-    h = quu_reg[0, 0]
-    if not (np.isfinite(h) and h > 0.0):
+    nu = gain.shape[0]
+    if nu == 1:
+        gain[0, 0] = min(max(gain[0, 0], low[0]), high[0])
+        gain[0, 1:] = 0.0
+        return np.zeros(1, dtype=bool)
+    res = solve_box_qp(
+        quu_reg, qu_qux[:, 0], low, high, None if k_init is None else k_init[t], check=False
+    )
+    if not res.ok:
         raise SolverError(f"Q_uu is not positive definite at knot {t}")
-    k = -np.linalg.solve(quu_reg, qu)
-    if low[0] <= k[0] <= high[0]:
-        return k, -np.linalg.solve(quu_reg, qux), True
-    return np.clip(k, low, high), np.zeros_like(qux), False
+    gain[:, 0] = res.x
+    gain[:, 1:] = 0.0
+    if res.factor is not None:
+        f = res.free
+        gain[f, 1:] = -np.linalg.solve(quu_reg[np.ix_(f, f)], qu_qux[f, 1:])
+    return res.free
 
 
 def backward_pass(
@@ -147,61 +182,51 @@ def backward_pass(
     A, B = lin
     horizon, nx, nu = B.shape
     limited = bool(np.any(np.isfinite(ctrl_low)) or np.any(np.isfinite(ctrl_high)))
+    FA, FT, LQ = _stack(A, B, quad, horizon)
+    low, high = ctrl_low - ctrls, ctrl_high - ctrls
     k = np.zeros((horizon, nu))
     K = np.zeros((horizon, nu, nx))
     free = np.ones((horizon, nu), dtype=bool)
-    vx = quad.lx[horizon].copy()
-    vxx = quad.lxx[horizon].copy()
+    reg = regularization * np.eye(nu)
+    # Work arrays reused at every knot: the value [V_x | V_xx] (nx, 1 + nx), [V_x | V_xx F_t]
+    # (nx, 1 + n), the Q-function [q | Q] (n, 1 + n) and the gains [k_t | K_t] (nu, 1 + nx).
+    value = np.empty((nx, 1 + nx))
+    value[:, 0] = quad.lx[horizon]
+    value[:, 1:] = quad.lxx[horizon]
+    vq = np.empty((nx, 1 + nx + nu))
+    qq = np.empty((nx + nu, 1 + nx + nu))
+    gain = np.empty((nu, 1 + nx))
     dv1 = dv2 = 0.0
-    eye = regularization * np.eye(nu)
     for t in range(horizon - 1, -1, -1):
-        At, Bt = A[t], B[t]
         if gaps is not None:
-            vx = vx + vxx @ gaps[t]
-        vxx_b = vxx @ Bt
-        qx = quad.lx[t] + At.T @ vx
-        qu = quad.lu[t] + Bt.T @ vx
-        qxx = quad.lxx[t] + At.T @ vxx @ At
-        quu = quad.luu[t] + Bt.T @ vxx_b
-        qux = quad.lux[t] + vxx_b.T @ At
+            value[:, 0] += value[:, 1:] @ gaps[t]
+        np.matmul(value, FA[t], out=vq)
+        np.matmul(FT[t], vq, out=qq)
+        qq += LQ[t]
+        qu_qux = qq[nx:, : 1 + nx]  # [Q_u | Q_ux]
+        quu = qq[nx:, 1 + nx :]
         quu = 0.5 * (quu + quu.T)
-        quu_reg = quu + eye
-        if limited and nu == 1:
-            kt, Kt, free[t] = _scalar_box_step(
-                quu_reg, qu, qux, ctrl_low - ctrls[t], ctrl_high - ctrls[t], t
-            )
-        elif limited:
-            res = solve_box_qp(
-                quu_reg,
-                qu,
-                ctrl_low - ctrls[t],
-                ctrl_high - ctrls[t],
-                None if k_init is None else k_init[t],
-                check=False,
-            )
-            if not res.ok:
-                raise SolverError(f"Q_uu is not positive definite at knot {t}")
-            kt = res.x
-            Kt = np.zeros((nu, nx))
-            if res.factor is not None:
-                f = res.free
-                Kt[f] = -np.linalg.solve(quu_reg[np.ix_(f, f)], qux[f])
-            free[t] = res.free
-        else:
-            try:
-                np.linalg.cholesky(quu_reg)  # positive-definiteness check
-            except np.linalg.LinAlgError:
-                raise SolverError(f"Q_uu is not positive definite at knot {t}") from None
-            sol = -np.linalg.solve(quu_reg, np.column_stack([qu, qux]))
-            kt, Kt = sol[:, 0], sol[:, 1:]
+        quu_reg = quu + reg
+        factor, info = _POTRF(quu_reg, lower=1, clean=1)
+        if info != 0:
+            raise SolverError(f"Q_uu is not positive definite at knot {t}")
+        sol, info = _POTRS(factor, qu_qux, lower=1)
+        np.negative(sol, out=gain)
+        kt, Kt = gain[:, 0], gain[:, 1:]
+        if limited and ((kt < low[t]).any() or (kt > high[t]).any()):
+            free[t] = _clamped_gain(gain, quu_reg, qu_qux, low[t], high[t], k_init, t)
         k[t], K[t] = kt, Kt
-        dv1 += float(kt @ qu)
-        dv2 += 0.5 * float(kt @ quu @ kt)
-        Kquu = Kt.T @ quu
-        vx = qx + Kquu @ kt + Kt.T @ qu + qux.T @ kt
-        vxx = qxx + Kquu @ Kt + Kt.T @ qux + qux.T @ Kt
-        vxx = 0.5 * (vxx + vxx.T)
-        if not (np.all(np.isfinite(vxx)) and np.all(np.isfinite(vx))):
+        w = quu @ gain  # [Q_uu k | Q_uu K]
+        dv1 += float(kt @ qu_qux[:, 0])
+        dv2 += 0.5 * float(kt @ w[:, 0])
+        w += qu_qux
+        # [V_x | V_xx] = [q_x | Q_xx] + K^T [Q_uu k + Q_u | Q_uu K + Q_ux] + Q_ux^T [k | K]
+        np.matmul(Kt.T, w, out=value)
+        value += qq[:nx, : 1 + nx]
+        value += qu_qux[:, 1:].T @ gain
+        vxx = value[:, 1:]
+        vxx[...] = 0.5 * (vxx + vxx.T)
+        if not math.isfinite(float(value.sum())):
             raise SolverError(f"non-finite value function at knot {t}")
     return BackwardPass(k, K, (dv1, dv2), free)
 

@@ -231,6 +231,7 @@ def optimize_multiple_shooting(
     k = np.zeros((solver.horizon, p.nu))
     K = np.zeros((solver.horizon, p.nu, p.nx))
     iteration = divergences = 0
+    mu = solver._schedule(reg)
     reason, status = StopReason.ITERATION_LIMIT, "iteration limit (defects open)"
     while defect > cfg.defect_tolerance and iteration < iters and np.isfinite(cost):
         t0 = _time.perf_counter()
@@ -242,7 +243,7 @@ def optimize_multiple_shooting(
             t0 = _time.perf_counter()
             try:
                 bp = backward_pass(
-                    lin, quad, ctrls, solver.ctrl_low, solver.ctrl_high, reg, k, gaps
+                    lin, quad, ctrls, solver.ctrl_low, solver.ctrl_high, mu.value, k, gaps
                 )
             except SolverError:
                 bp = None
@@ -258,10 +259,10 @@ def optimize_multiple_shooting(
                     divergences += 1
                 t_roll += _time.perf_counter() - t0
             if candidate is None:
-                reg = solver._increase(reg)
+                mu.increase()
                 retries += 1
-                if reg > cfg.regularization_max or retries > cfg.max_retries:
-                    reason = solver._stall_reason(reg, diverged=bp is not None)
+                if mu.value > cfg.regularization_max or retries > cfg.max_retries:
+                    reason = solver._stall_reason(mu.value, diverged=bp is not None)
                     status = f"{reason.value} (defects open)"
                     break
         if candidate is None:
@@ -270,8 +271,7 @@ def optimize_multiple_shooting(
         costs.append(cost)
         gaps = (1.0 - alpha) * gaps if alpha < 1.0 else np.zeros_like(gaps)
         defect = float(np.max(np.abs(gaps))) if gaps.size else 0.0
-        if alpha >= 0.5:
-            reg = solver._decrease(reg)
+        mu.accepted(alpha, feasible=False)
     elapsed = Timing(t_der, t_back, t_roll, _time.perf_counter() - t_start)
     if defect > cfg.defect_tolerance or not np.isfinite(cost):
         return ILQRResult(
@@ -283,7 +283,7 @@ def optimize_multiple_shooting(
             costs=np.asarray(costs),
             iterations=iteration,
             converged=False,
-            regularization=float(reg),
+            regularization=float(mu.value),
             divergences=divergences,
             timing=elapsed,
             status=f"{status}: largest defect {defect:.3g} > {cfg.defect_tolerance:g}",
@@ -291,7 +291,7 @@ def optimize_multiple_shooting(
             defect=defect,
         )
     # Feasible: its controls roll out to its states; continue as single shooting.
-    rest = solver._optimize(x0, ctrls, iters - iteration, reg, k)
+    rest = solver._optimize(x0, ctrls, iters - iteration, mu, k)
     timing = Timing(*(a + b for a, b in zip(elapsed, rest.timing)))
     return rest._replace(
         costs=np.r_[costs[:-1], rest.costs] if iteration else rest.costs,

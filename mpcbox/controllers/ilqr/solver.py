@@ -4,8 +4,9 @@ Each iteration linearizes the planning model and quadratizes the cost along the 
 trajectory, runs the :mod:`~mpcbox.controllers.ilqr.backward_pass` and then the line search of
 the :mod:`~mpcbox.controllers.ilqr.forward_pass`. The Levenberg-Marquardt term :math:`\mu` (the
 ``regularization``) grows when the backward pass meets a non-definite :math:`Q_{uu}` or no
-step size works, and shrinks after each accepted full step; the result says why the
-iterations stopped (:class:`~mpcbox.controllers.ilqr.result.StopReason`).
+step size works, and moves after accepted steps as the config's schedule says
+(:mod:`~mpcbox.controllers.ilqr.regularization`); the result says why the iterations
+stopped (:class:`~mpcbox.controllers.ilqr.result.StopReason`).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from mpcbox.controllers.ilqr.backward_pass import backward_pass, interpolate_lin
 from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.ilqr.forward_pass import Candidate, ClosedLoopRollout, line_search
 from mpcbox.controllers.ilqr.multiple_shooting import optimize_multiple_shooting
+from mpcbox.controllers.ilqr.regularization import Regularization
 from mpcbox.controllers.ilqr.result import ILQRResult, StopReason, Timing
 from mpcbox.core.divergence import check_planning_step
 from mpcbox.core.problem import Linearization, Problem, Quadratization
@@ -144,9 +146,12 @@ class ILQRSolver:
         cfg = self.config
         return max(cfg.regularization_min, regularization * cfg.regularization_factor)
 
-    def _decrease(self, regularization: float) -> float:
-        regularization /= self.config.regularization_factor
-        return regularization if regularization >= self.config.regularization_min else 0.0
+    def _schedule(self, value: float) -> Regularization:
+        """The regularization of one solve, starting at ``value``, on the config's schedule."""
+        cfg = self.config
+        return Regularization(
+            value, cfg.regularization_schedule, cfg.regularization_factor, cfg.regularization_min
+        )
 
     # ------------------------------------------------------------------ offline solve
     def solve(
@@ -197,9 +202,15 @@ class ILQRSolver:
         return optimize_multiple_shooting(self, x0, states, ctrls, iters, reg)
 
     def _optimize(
-        self, x0: np.ndarray, ctrls: np.ndarray, iters: int, reg: float, k_warm: np.ndarray | None
+        self,
+        x0: np.ndarray,
+        ctrls: np.ndarray,
+        iters: int,
+        reg: float | Regularization,
+        k_warm: np.ndarray | None,
     ) -> ILQRResult:
         p, cfg = self.problem, self.config
+        mu = reg if isinstance(reg, Regularization) else self._schedule(reg)
         t_start = _time.perf_counter()
         t_der = t_back = t_roll = 0.0
         divergences = 0
@@ -238,13 +249,13 @@ class ILQRSolver:
                 iteration += 1
             t0 = _time.perf_counter()
             try:
-                bp = backward_pass(lin, quad, ctrls, self.ctrl_low, self.ctrl_high, reg, k)
+                bp = backward_pass(lin, quad, ctrls, self.ctrl_low, self.ctrl_high, mu.value, k)
             except SolverError:
                 t_back += _time.perf_counter() - t0
-                reg = self._increase(reg)
+                mu.increase()
                 retries += 1
-                if reg > cfg.regularization_max or retries > cfg.max_retries:
-                    reason = self._stall_reason(reg, diverged=False)
+                if mu.value > cfg.regularization_max or retries > cfg.max_retries:
+                    reason = self._stall_reason(mu.value, diverged=False)
                     status = f"{reason.value} (backward pass)"
                     break
                 continue
@@ -277,10 +288,10 @@ class ILQRSolver:
             t_roll += _time.perf_counter() - t0
             divergences += ls.divergences
             if ls.candidate is None:
-                reg = self._increase(reg)
+                mu.increase()
                 retries += 1
-                if reg > cfg.regularization_max or retries > cfg.max_retries:
-                    reason = self._stall_reason(reg, diverged=ls.all_diverged)
+                if mu.value > cfg.regularization_max or retries > cfg.max_retries:
+                    reason = self._stall_reason(mu.value, diverged=ls.all_diverged)
                     status = f"{reason.value} (line search)"
                     break
                 continue
@@ -289,11 +300,7 @@ class ILQRSolver:
             states, ctrls, cost = new_states, new_ctrls, new_cost
             costs.append(cost)
             need_derivatives = True
-            # Trust the quadratic model more after full steps and less after short ones.
-            if ls.alpha >= 0.5:
-                reg = self._decrease(reg)
-            elif ls.alpha < 0.2:
-                reg = self._increase(reg)
+            mu.accepted(ls.alpha)  # the schedule (regularization module)
             if decrease < cfg.tolerance * max(abs(cost), 1e-12):
                 if ls.alpha >= full_step:
                     reason, status = StopReason.COST_CHANGE, "converged (relative decrease)"
@@ -311,7 +318,7 @@ class ILQRSolver:
             costs=np.asarray(costs),
             iterations=iteration,
             converged=reason.converged,
-            regularization=float(reg),
+            regularization=float(mu.value),
             divergences=divergences,
             timing=Timing(t_der, t_back, t_roll, total),
             status=status,

@@ -105,8 +105,14 @@ class DmAcrobotSwingup(Swingup):
     or sinusoidal control guesses, the tip ends 1.2-2.7 m away. An energy-pumping feedback
     rollout (``u = clip(a sign(v1) cos(q2) + b v2 + c q2)``, whose tip comes within 0.68 m of
     the target after 5.8 s) as state and control guess over 6-7 s ends 0.6-2.1 m away after
-    iLQR stops on short steps. Within this cost the swing-up still needs a better guess or
-    another method.
+    iLQR stops on short steps. The closest so far: the time reverse of an energy-draining
+    fall from upright (``u = -clip(c v_elbow)`` on an undamped copy) as the state guess of
+    multiple shooting, with running tip weight 1 and terminal weights 1000 (tip) and 100
+    (velocity): the tip ends 0.05 m from the target after 7.5 s, but passing through, not
+    held (``benchmarks/acrobot_swingup.py``); iLQR-MPC over that whole plan, one iteration
+    per 0.02 s replan, in the RK4 simulation ended 2.6 m away after 10.5 s. mpcbox's
+    acrobot with a 6 N m elbow, :class:`~mpcbox.tasks.swingup.presets.AcrobotSwingup`, is
+    swung up and held.
 
     Args:
         **kwargs: Passed to :class:`~mpcbox.tasks.swingup.task.Swingup`.
