@@ -97,22 +97,24 @@ class DmAcrobotSwingup(Swingup):
 
     Not yet solved: the tuned iLQR-MPC and MPPI pump energy but settle into a local minimum
     of this cost, one link up and the other down, and do not reach the target within 5 s
-    (``benchmarks/swingup_dm_control.py``). A state guess does not help either: offline iLQR
-    by multiple shooting (``states_init``, FDDP style) from a straight line hanging -> upright
-    over 4 s converges to cost 42409 with the tip 1.96 m from the target, the same optimum
-    that IPOPT finds from the same guess (42409, 1.96 m); over 3, 5 and 8 s, with arrival at
-    60-100 % of the horizon, with an LQR terminal value, or from a growing-swing state guess
-    or sinusoidal control guesses, the tip ends 1.2-2.7 m away. An energy-pumping feedback
-    rollout (``u = clip(a sign(v1) cos(q2) + b v2 + c q2)``, whose tip comes within 0.68 m of
-    the target after 5.8 s) as state and control guess over 6-7 s ends 0.6-2.1 m away after
-    iLQR stops on short steps. The closest so far: the time reverse of an energy-draining
-    fall from upright (``u = -clip(c v_elbow)`` on an undamped copy) as the state guess of
-    multiple shooting, with running tip weight 1 and terminal weights 1000 (tip) and 100
-    (velocity): the tip ends 0.05 m from the target after 7.5 s, but passing through, not
-    held (``benchmarks/acrobot_swingup.py``); iLQR-MPC over that whole plan, one iteration
-    per 0.02 s replan, in the RK4 simulation ended 2.6 m away after 10.5 s. mpcbox's
-    acrobot with a 6 N m elbow, :class:`~mpcbox.tasks.swingup.presets.AcrobotSwingup`, is
-    swung up and held.
+    (``benchmarks/swingup_dm_control.py``). Why 5 s is out of reach: the elbow gives at most
+    2 N m and the swing-up must add 39.2 J of potential energy, 19.6 rad of elbow travel at
+    full torque, against a slow hanging mode of period 2.36 s; offline iLQR with a
+    terminal-only cost (tip weight 1000, from six ``cos(w t + phi)`` restarts,
+    ``benchmarks/dm_acrobot_reachability.py``) ends at best 1.13 m from the target after
+    4.8 s (0.73 m when the tip may pass through), but 0.004 m, at rest, after 6.5 s.
+    That plan is bang-bang (78 % of its knots at the limit), and box-DDP's feedback gains
+    are zero at clamped knots, so its own feedback law cannot track it in the RK4
+    simulation (in an unbenchmarked prototype, time-varying LQR gains without the box on a
+    plan limited to 0.9 of the torque at a 0.01 s step tracked it closely). Earlier
+    attempts: a straight-line state guess over 4 s (iLQR and IPOPT both stop 1.96 m away),
+    an energy-pumping feedback rollout as guess (0.6-2.1 m), and the time reverse of an
+    energy-draining fall from upright (``benchmarks/acrobot_swingup.py``; 0.05 m after 7.5
+    s, passing through). MPPI
+    with a prototype energy term (total energy against the upright's; not in mpcbox) pumps
+    the chain to the upright energy in about 4 s but does not catch it.
+    mpcbox's acrobot with a 6 N m elbow,
+    :class:`~mpcbox.tasks.swingup.presets.AcrobotSwingup`, is swung up and held.
 
     Args:
         **kwargs: Passed to :class:`~mpcbox.tasks.swingup.task.Swingup`.
