@@ -115,7 +115,7 @@ def test_no_display_is_a_named_error_before_any_window(problem, tmp_path, monkey
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     monkeypatch.setattr(sys, "platform", "linux")
     assert "DISPLAY" in display_missing()
-    with pytest.raises(BackendUnavailableError, match="DISPLAY.*offscreen"):
+    with pytest.raises(BackendUnavailableError, match=r"DISPLAY.*offscreen"):
         make_viewer(mode="live")
     with pytest.raises(BackendUnavailableError, match="needs a display"):
         simulate(problem, make_controller("ps", problem, **SMALL), 0.05, viewer=LiveViewer())
@@ -129,16 +129,19 @@ def test_no_display_is_a_named_error_before_any_window(problem, tmp_path, monkey
 
 VIDEO = """
 import sys
+import mujoco
 import numpy as np
 from mpcbox.registry import make_controller, task_class
 from mpcbox.sim.offscreen_viewer import OffscreenViewer
 from mpcbox.sim.simulation import simulate
 problem = task_class("cartpole_swingup")()
 swinging = np.array([0.0, 1.0, 0.0, 4.0])  # the pole at 1 rad, swinging up: long traces
-for traces, path in ((8, sys.argv[1]), (0, sys.argv[2])):
+for traces, style, path in zip((8, 8, 0), ("line", "capsule", "line"), sys.argv[1:]):
     ctrl = make_controller("ps", problem, num_samples=16, horizon=0.6)
+    cam = mujoco.MjvCamera()  # close, from the side
+    cam.lookat[:], cam.distance, cam.azimuth, cam.elevation = (0.3, 0, 0.8), 2.0, 90, -5
     view = OffscreenViewer(
-        path, fps=10, width=160, height=120, camera="front", traces=traces, radius=0.03
+        path, fps=10, width=160, height=120, camera=cam, traces=traces, style=style, radius=0.02
     )
     simulate(problem, ctrl, 0.3, viewer=view, initial_state=swinging)
 """
@@ -167,27 +170,28 @@ def _green(frame: np.ndarray) -> np.ndarray:
 def test_offscreen_video_draws_the_traces(tmp_path) -> None:
     from PIL import Image
 
-    traced, plain = tmp_path / "traced.gif", tmp_path / "plain.gif"
+    paths = [tmp_path / f"{name}.gif" for name in ("lines", "capsules", "plain")]
     reasons = []
     for gl in ("egl", "osmesa"):
-        proc = _python(VIDEO, str(traced), str(plain), gl=gl)
+        proc = _python(VIDEO, *map(str, paths), gl=gl)
         if proc.returncode == 0:
             break
         reasons.append(f"MUJOCO_GL={gl}: {proc.stderr.strip().splitlines()[-1]}")
     else:
         pytest.skip("no offscreen GL backend here: " + "; ".join(reasons))
-    with_traces, without = Image.open(traced), Image.open(plain)
-    assert with_traces.n_frames == without.n_frames == 3  # t = 0, 0.1, 0.2
-    for i in range(3):
-        with_traces.seek(i)
-        without.seek(i)
-        a = np.asarray(with_traces.convert("RGB")).astype(int)
-        b = np.asarray(without.convert("RGB")).astype(int)
-        assert a.shape == b.shape == (120, 160, 3)
-        scene = slice(20, None)  # below the caption
-        assert _green(a[scene]).sum() > 10, i
-        assert _green(b[scene]).sum() == 0, i
-        assert np.abs(a[scene] - b[scene]).max() > 100
+    *traced, plain = (Image.open(p) for p in paths)
+    for gif in traced:
+        assert gif.n_frames == plain.n_frames == 3  # t = 0, 0.1, 0.2
+        for i in range(3):
+            gif.seek(i)
+            plain.seek(i)
+            a = np.asarray(gif.convert("RGB")).astype(int)
+            b = np.asarray(plain.convert("RGB")).astype(int)
+            assert a.shape == b.shape == (120, 160, 3)
+            scene = slice(20, None)  # below the caption
+            assert _green(a[scene]).sum() > 30, (gif.filename, i)
+            assert _green(b[scene]).sum() == 0, i
+            assert np.abs(a[scene] - b[scene]).max() > 100
 
 
 def test_neither_window_nor_context_is_one_named_error(tmp_path) -> None:

@@ -1,5 +1,5 @@
 """A live window on a running simulation: :func:`mujoco.viewer.launch_passive` with the
-planner's traces drawn as capsules in the window's ``user_scn``.
+planner's traces drawn as lines or capsules in the window's ``user_scn``.
 
 The window needs a display. On Linux MuJoCo's viewer (GLFW) ends the whole process when it
 finds none, so :class:`LiveViewer` checks ``DISPLAY`` / ``WAYLAND_DISPLAY`` first and
@@ -51,7 +51,8 @@ class LiveViewer(Viewer):
         traces: Best candidates traced per tick (0: the world only).
         site: The site to trace, by name.
         body: The body (frame origin) to trace instead.
-        radius: Capsule radius of the best trace (m).
+        style: ``"line"`` or ``"capsule"`` (:mod:`mpcbox.sim.trace_geoms`).
+        radius: Capsule radius of the best trace (m), for ``style="capsule"``.
         realtime: Hold the loop to wall-clock time (sleep when the simulation runs ahead), so
             that a fast lock-step run is seen at its own speed. The real-time loop keeps its
             own clock; leave this off with its ``speed`` above 1.
@@ -69,11 +70,12 @@ class LiveViewer(Viewer):
         traces: int = 8,
         site: str | None = None,
         body: str | None = None,
+        style: str = "line",
         radius: float | None = None,
         realtime: bool = True,
         show_ui: bool = False,
     ) -> None:
-        super().__init__(fps=fps, traces=traces, site=site, body=body, radius=radius)
+        super().__init__(fps=fps, traces=traces, site=site, body=body, style=style, radius=radius)
         self.realtime = boolean("realtime", realtime)
         self.show_ui = boolean("show_ui", show_ui)
         self.handle: Any = None
@@ -117,7 +119,7 @@ class LiveViewer(Viewer):
             scene = handle.user_scn
             scene.ngeom = 0
             if trace is not None:
-                add_trace_geoms(scene, trace, self.radius)
+                add_trace_geoms(scene, trace, style=self.style, radius=self.radius)
         handle.sync()
 
     def close(self) -> None:

@@ -2,10 +2,10 @@
 
 Where no window can open (a server, CI), :class:`OffscreenViewer` renders each frame with an
 offscreen :class:`mujoco.Renderer` (``MUJOCO_GL=egl`` or ``MUJOCO_GL=osmesa`` on a headless
-machine, set before MuJoCo is imported), adds the traces to the renderer's scene as capsules
-(:func:`~mpcbox.sim.trace_geoms.add_trace_geoms`, after ``update_scene``) and writes the
-frames to a GIF or MP4 (:class:`~mpcbox.sim.video_writer.FrameWriter`). The caption gives
-the controller, the simulated time and the best trace's cost.
+machine, set before MuJoCo is imported), adds the traces to the renderer's scene as lines
+or capsules (:func:`~mpcbox.sim.trace_geoms.add_trace_geoms`, after ``update_scene``) and
+writes the frames to a GIF or MP4 (:class:`~mpcbox.sim.video_writer.FrameWriter`). The
+caption gives the controller, the simulated time and the best trace's cost.
 
 Rendering is done in the loop's thread: each frame costs the renderer's time (tens of ms
 with software OpenGL), which a real-time run sees as world lag.
@@ -38,12 +38,14 @@ class OffscreenViewer(Viewer):
         fps: Frames per simulated second.
         width: Frame width (pixels; MP4 wants a multiple of 16).
         height: Frame height (pixels).
-        camera: A camera of the model, by name (default: a free camera that follows a
-            floating base horizontally).
+        camera: A camera of the model, by name, or a :class:`mujoco.MjvCamera` (a free
+            camera: ``lookat``, ``distance``, ``azimuth``, ``elevation``); default: MuJoCo's
+            free camera of the model, following a floating base horizontally.
         traces: Best candidates traced per tick (0: the world only).
         site: The site to trace, by name.
         body: The body (frame origin) to trace instead.
-        radius: Capsule radius of the best trace (m).
+        style: ``"line"`` or ``"capsule"`` (:mod:`mpcbox.sim.trace_geoms`).
+        radius: Capsule radius of the best trace (m), for ``style="capsule"``.
         note: Text put before the message of a rendering error (the automatic choice says
             why no window was tried).
 
@@ -63,14 +65,15 @@ class OffscreenViewer(Viewer):
         fps: float = 30.0,
         width: int = 640,
         height: int = 480,
-        camera: str | None = None,
+        camera: str | mujoco.MjvCamera | None = None,
         traces: int = 8,
         site: str | None = None,
         body: str | None = None,
+        style: str = "line",
         radius: float | None = None,
         note: str = "",
     ) -> None:
-        super().__init__(fps=fps, traces=traces, site=site, body=body, radius=radius)
+        super().__init__(fps=fps, traces=traces, site=site, body=body, style=style, radius=radius)
         check_video_path(path)
         self.path = Path(path)
         self.width, self.height = positive_int("width", width), positive_int("height", height)
@@ -87,7 +90,9 @@ class OffscreenViewer(Viewer):
         model = copy.copy(self.model)
         model.vis.global_.offwidth = max(self.width, model.vis.global_.offwidth)
         model.vis.global_.offheight = max(self.height, model.vis.global_.offheight)
-        if self.camera is not None:
+        if isinstance(self.camera, mujoco.MjvCamera):
+            self._cam = self.camera
+        elif self.camera is not None:
             self._cam = object_id(model, "camera", self.camera, "camera")
         else:
             self._cam = free_camera(model)
@@ -115,7 +120,7 @@ class OffscreenViewer(Viewer):
         self.renderer.update_scene(data, camera=self._cam)
         line = f"{self._name}  t = {data.time:5.2f} s"
         if trace is not None:
-            add_trace_geoms(self.renderer.scene, trace, self.radius)
+            add_trace_geoms(self.renderer.scene, trace, style=self.style, radius=self.radius)
             line += f"  best J = {trace.costs[0]:.4g}"
         self.writer.write(caption(self.renderer.render().copy(), [line], False))
 

@@ -2,8 +2,9 @@
 
 Shared by :func:`~mpcbox.sim.video.render_video` (a saved run) and the offscreen viewer
 (:class:`~mpcbox.sim.offscreen_viewer.OffscreenViewer`, a running one). An MP4 streams each
-frame to ffmpeg; a GIF keeps each frame reduced to a 256-colour palette (``width x height``
-bytes a frame) until :meth:`FrameWriter.close` writes the file.
+frame to ffmpeg; a GIF keeps each frame reduced to its own 256-colour palette (octree
+quantization; ``width x height`` bytes a frame) until :meth:`FrameWriter.close` writes the
+file.
 """
 
 from __future__ import annotations
@@ -99,7 +100,9 @@ class FrameWriter:
             from PIL import Image
 
             image = Image.fromarray(frame.astype(np.uint8, copy=False))
-            self._images.append(image.convert("P", palette=Image.Palette.ADAPTIVE))
+            # Octree keeps small patches of a vivid colour (thin trace lines) that median cut
+            # merges into their surroundings.
+            self._images.append(image.quantize(256, method=Image.Quantize.FASTOCTREE))
         self.frames += 1
 
     def close(self) -> Path | None:

@@ -32,7 +32,8 @@ import numpy as np
 from mpcbox.controllers.base import Controller
 from mpcbox.controllers.sampling.traces import PlannerTrace
 from mpcbox.core.problem import Problem
-from mpcbox.validation import integer, positive
+from mpcbox.sim.trace_geoms import STYLES
+from mpcbox.validation import integer, one_of, positive
 
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
@@ -46,6 +47,8 @@ class Viewer(abc.ABC):
         site: The site to trace, by name (default: see
             :meth:`~mpcbox.controllers.sampling.SamplingController.record_traces`).
         body: The body (frame origin) to trace instead of a site.
+        style: Draw the traces as ``"line"`` (a few pixels wide, cheap) or ``"capsule"``
+            (shaded; several times dearer to render with software OpenGL).
         radius: Capsule radius of the best trace (m); default 0.4 % of the model's extent.
 
     Attributes:
@@ -61,9 +64,11 @@ class Viewer(abc.ABC):
         traces: int = 8,
         site: str | None = None,
         body: str | None = None,
+        style: str = "line",
         radius: float | None = None,
     ) -> None:
         self.fps = positive("fps", fps)
+        self.style = one_of("style", style, STYLES)
         self.traces = integer("traces", traces, 0)
         self.site, self.body = site, body
         self.radius = None if radius is None else positive("radius", radius)

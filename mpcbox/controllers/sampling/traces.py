@@ -15,8 +15,9 @@ places the target (a site, or a body's frame origin) in the world:
 with :math:`p^{(i)}_0` the target's position in the tick's state.
 
 Cost per tick: ``k`` rollouts of ``T`` planning steps on the CPU plus ``k (T + 1)``
-kinematics passes (about 1 to 3 ms for ``k = 8``, ``T = 50`` on the cart-pole; the
-rollouts dominate on larger models). Nothing runs while no recorder is set.
+kinematics passes (2.9 ms for ``k = 8``, ``T = 50`` on the cart-pole on a shared 2-core CPU,
+``benchmarks/viewer_traces.py``; the rollouts dominate on larger models). Nothing runs while
+no recorder is set.
 """
 
 from __future__ import annotations
