@@ -124,3 +124,21 @@ def test_trace_arguments_are_checked(problem) -> None:
     assert ctrl.trace_recorder is None
     ctrl.record_traces(2)  # default target: the model's last site
     assert ctrl.trace_recorder.target == "site:tip"
+
+
+def test_warp_traces_re_roll_the_candidates_warp_scored(problem, warp_device) -> None:
+    """The warp backend keeps no states: the traces re-roll on the CPU the candidates it
+    scored, so the CPU cost of the kept plan (predictive sampling keeps its best) matches
+    the warp cost of the best trace up to float32 rounding."""
+    ctrl = make_controller("ps", problem, **SMALL, backend="warp", device=warp_device)
+    ctrl.record_traces(4, site="tip")
+    x = _state(problem)
+    ctrl(x, 0.0)
+    trace = ctrl.traces
+    assert trace.positions.shape == (4, ctrl.horizon_steps + 1, 3)
+    np.testing.assert_allclose(trace.positions[:, 0], np.tile(_tip(problem, x), (4, 1)), atol=1e-9)
+    assert np.all(np.diff(trace.costs) >= 0.0)
+    ctrls = (ctrl.weights @ ctrl.knots)[None]
+    cpu_cost = ctrl.problem.rollout_cost(ctrl.problem.rollout(x, ctrls))[0]
+    assert trace.costs[0] == pytest.approx(cpu_cost, rel=1e-4)
+    ctrl.close()
