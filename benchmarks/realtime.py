@@ -10,6 +10,16 @@ control period and whether the planner kept up::
     python benchmarks/realtime.py --backend warp --seeds 5 --json OUT.json
     python benchmarks/realtime.py --task humanoid_stand --backend warp --loops realtime
 
+Robustness beyond the tuned scenario (issue #17), with every setting fixed on the command
+line before the runs: ``--noise-scale`` scales the task's noise recipe
+(``problem.noise(scale)``), ``--push F,START,DURATION`` pushes the task's root body with a
+force of ``F`` newtons whose direction turns by 90 degrees from seed to seed (+x, +y, -x,
+-y), and ``--mass-scale`` makes the simulated plant heavier than the planning model
+(:class:`~mpcbox.sim.disturbances.ModelMismatch`)::
+
+    python benchmarks/realtime.py --task humanoid_stand --backend warp --loops realtime \
+        --seeds 10 --first-seed 100 --noise-scale 1.5 --push 40,2.0,0.1 --mass-scale 1.1
+
 ``--task`` takes any registered task (default the cart-pole swing-up); ``--period`` defaults
 to each controller's tuned period.
 """
@@ -26,6 +36,7 @@ import numpy as np
 
 import mpcbox
 from mpcbox.registry import task_class
+from mpcbox.sim.disturbances import ModelMismatch, Push
 from mpcbox.sim.realtime import simulate_realtime
 
 
@@ -60,12 +71,25 @@ def main() -> None:
         default="",
         help="config fields for every controller, e.g. planning_timestep=0.015,horizon=0.48",
     )
+    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--noise-scale", type=float, default=None)
+    parser.add_argument("--push", default=None, help="FORCE,START,DURATION on the root body")
+    parser.add_argument("--mass-scale", type=float, default=None)
+    parser.add_argument(
+        "--start-perturbation",
+        type=float,
+        default=0.05,
+        help="std of the Gaussian added to qpos at the start of every seed but 0",
+    )
     parser.add_argument("--gpu", default=None, help="GPU name to record (default nvidia-smi)")
     parser.add_argument("--machine", default="2-core sandbox CPU, shared")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
 
     problem = task_class(args.task)()
+    noise = problem.noise(args.noise_scale) if args.noise_scale is not None else None
+    mismatch = ModelMismatch(mass_scale=args.mass_scale) if args.mass_scale else None
+    push_spec = [float(v) for v in args.push.split(",")] if args.push else None
     report: dict = {
         "task": args.task,
         "machine": args.machine,
@@ -77,6 +101,11 @@ def main() -> None:
         "seeds": args.seeds,
         "period_s": args.period,
         "speed": args.speed,
+        "first_seed": args.first_seed,
+        "noise_scale": args.noise_scale,
+        "push": dict(zip(("force_n", "start_s", "duration_s"), push_spec)) if push_spec else None,
+        "mass_scale": args.mass_scale,
+        "start_perturbation": args.start_perturbation,
         "results": {},
     }
     for name in args.controllers.split(","):
@@ -97,22 +126,42 @@ def main() -> None:
         entry["num_samples"] = ctrl.config.num_samples
         for loop in args.loops.split(","):
             rows = []
-            for seed in range(args.seeds):
+            for seed in range(args.first_seed, args.first_seed + args.seeds):
+                disturb = dict(noise=noise, mismatch=mismatch, seed=seed, pushes=())
+                if push_spec:
+                    force, start, length = push_spec
+                    angle = 0.5 * np.pi * (seed % 4)
+                    direction = (np.cos(angle), np.sin(angle), 0.0)
+                    disturb["pushes"] = [
+                        Push(
+                            force=force * np.round(direction, 12),
+                            start=start,
+                            duration=length,
+                            body=problem.root,
+                        )
+                    ]
                 init = problem.initial_state()
-                if seed:
+                if seed and args.start_perturbation:
                     rng = np.random.default_rng(seed)
-                    init = init + np.concatenate(
-                        [rng.normal(0, 0.05, problem.nq), np.zeros(problem.nv + problem.na)]
-                    )
+                    jitter = rng.normal(0, args.start_perturbation, problem.nq)
+                    init = init + np.concatenate([jitter, np.zeros(problem.nv + problem.na)])
                 if loop == "lockstep":
-                    res = mpcbox.simulate(problem, ctrl, args.duration, initial_state=init)
+                    res = mpcbox.simulate(
+                        problem, ctrl, args.duration, initial_state=init, **disturb
+                    )
                 else:
                     res = simulate_realtime(
-                        problem, ctrl, args.duration, initial_state=init, speed=args.speed
+                        problem,
+                        ctrl,
+                        args.duration,
+                        initial_state=init,
+                        speed=args.speed,
+                        **disturb,
                     )
                 row = {
                     "seed": seed,
                     "outcome": res.metrics.outcome,
+                    "time_to_fall_s": res.metrics.time_to_fall,
                     "tick_p50_ms": res.metrics.compute_p50_ms,
                     "tick_p99_ms": res.metrics.compute_p99_ms,
                 }
