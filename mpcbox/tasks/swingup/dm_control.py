@@ -106,12 +106,13 @@ class DmAcrobotSwingup(Swingup):
     local optimizer: evidence, not proof).
     That plan is bang-bang (78 % of its knots at the limit) and box-DDP's feedback gains
     are zero at clamped knots, so its own feedback law cannot track it in the RK4
-    simulation. In unbenchmarked prototypes, a plan limited to 0.94 of the torque at a 0.01
-    s planning step (0.002 m from the target after 6.7 s) tracked by time-varying LQR gains
-    without the box drifts from 0.04 to 0.5 (largest state error) over 5.5 s under the
-    mismatch between the implicitfast plan and the RK4 simulation, and loses the catch at
-    6-6.5 s; replanning that plan by a few iLQR iterations falls back into the local
-    minimum. Earlier attempts: a straight-line state guess over 4 s (iLQR and IPOPT both
+    simulation. In unbenchmarked prototypes, a plan limited to 0.94 of the torque (0.002 m
+    from the target after 6.7 s) tracked by time-varying LQR gains without the box drifts
+    under the mismatch between the implicitfast plan and the RK4 simulation (largest state
+    error 0.5 after 5.5 s at a 0.01 s planning step, after 6.5 s at 0.005 s) and loses the
+    catch: at 6.5 s the tip is 0.41 m from the target where the plan has 0.11 m, and LQR at
+    upright does not recover it; replanning by a few iLQR iterations falls back into the
+    local minimum. Earlier attempts: a straight-line state guess over 4 s (iLQR and IPOPT both
     stop 1.96 m away), an energy-pumping feedback rollout as guess (0.6-2.1 m), and the
     time reverse of an energy-draining fall from upright (``benchmarks/acrobot_swingup.py``;
     0.05 m after 7.5 s, passing through). MPPI with a prototype energy term (total energy
