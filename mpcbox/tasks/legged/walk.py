@@ -169,9 +169,10 @@ class QuadrupedWalk(QuadrupedStand):
             )
         turn = np.arctan2(to_target[1], to_target[0]) - np.arctan2(forward[1], forward[0])
         self.goal_qpos = self.qpos_ref.copy()
-        self._root_qpos = self._free_root_qpos(model)
-        if self._root_qpos is not None:
-            adr = self._root_qpos
+        #: ``qpos`` address of the root's free joint (``None`` when the root has none).
+        self.root_qpos = self._free_root_qpos(model)
+        if self.root_qpos is not None:
+            adr = self.root_qpos
             self.goal_qpos[adr + 3 : adr + 7] = _quat_multiply(
                 _yaw_quaternion(float(turn)), self.qpos_ref[adr + 3 : adr + 7]
             )
@@ -220,8 +221,8 @@ class QuadrupedWalk(QuadrupedStand):
     def root_positions(self, states: np.ndarray) -> np.ndarray:
         """The root's position ``(T, 3)`` in states ``(T, nstate)`` (m)."""
         states = np.atleast_2d(np.asarray(states, dtype=float))
-        if self._root_qpos is not None:
-            return states[:, self._root_qpos : self._root_qpos + 3].copy()
+        if self.root_qpos is not None:
+            return states[:, self.root_qpos : self.root_qpos + 3].copy()
         data = mujoco.MjData(self.model)
         out = np.empty((len(states), 3))
         for i, state in enumerate(states):
