@@ -32,7 +32,7 @@ def test_builds_dm_control_quadruped_with_target_ahead(walk) -> None:
     assert task_class("quadruped_walk") is QuadrupedWalk
     assert walk.root == "torso" and walk.root_qpos == 0
     assert walk.nu == 12 and walk.na == 12  # filter-dynamics actuators
-    np.testing.assert_allclose(walk.target, walk.start[:2] + [1.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(walk.target, walk.start[:2] + np.array([1.0, 0.0]), atol=1e-12)
     assert set(walk.controller_configs) == {"ps", "mppi", "cem"}
     # Every cost term has the GPU row form, so the warp backend plans with the same cost.
     for term in walk.cost.terms:
@@ -118,7 +118,7 @@ def test_predictive_sampling_walks_toward_the_target(walk) -> None:
 def test_go1_preset_finds_its_feet_and_target() -> None:
     go1 = QuadrupedWalk("menagerie:unitree_go1", distance=1.2, threads=1)
     assert go1.root == "trunk" and len(go1.feet) == 4
-    np.testing.assert_allclose(go1.target, go1.start[:2] + [1.2, 0.0], atol=1e-9)
+    np.testing.assert_allclose(go1.target, go1.start[:2] + np.array([1.2, 0.0]), atol=1e-9)
     assert 0.2 < go1.root_height < 0.4
     near = go1.reference_state()
     near[:2] = go1.target
