@@ -110,7 +110,7 @@ def test_predictive_sampling_walks_toward_the_target(walk) -> None:
     assert res.survived, res.failure
     distances = walk.target_distances(res.states)
     assert distances[0] == pytest.approx(1.0, abs=1e-6)
-    assert distances[-1] < 0.8, distances[-1]  # 0.2-0.7 m over seeds 1-5 with 32 samples
+    assert distances[-1] < 0.5, distances[-1]  # 0.02-0.16 m on seeds 1-6
     assert "target_distance_final_m" in res.metrics.measures
 
 
