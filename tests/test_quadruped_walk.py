@@ -114,6 +114,21 @@ def test_predictive_sampling_walks_toward_the_target(walk) -> None:
     assert "target_distance_final_m" in res.metrics.measures
 
 
+def test_warp_backend_scores_candidates_like_the_cpu_backend(walk, warp_device) -> None:
+    from mpcbox.controllers.sampling import PredictiveSampling
+
+    opts = dict(num_samples=8, horizon=0.2, num_knots=3, planning_timestep=0.02)
+    cpu = PredictiveSampling(walk, **opts)
+    warp = PredictiveSampling(walk, backend="warp", device=warp_device, **opts)
+    rng = np.random.default_rng(0)
+    cand = walk.clip_ctrl(walk.ctrl_ref + rng.normal(0, 0.3, (8, 3, walk.nu)))
+    state = walk.initial_state()
+    a, b = cpu.backend.evaluate(state, cand), warp.backend.evaluate(state, cand)
+    assert not b.overflow.any() and not b.nonfinite.any()
+    np.testing.assert_allclose(b.costs, a.costs, rtol=1e-4)
+    assert np.ptp(a.costs) > 1e-3 * np.abs(a.costs).max()  # candidates differ
+
+
 @pytest.mark.menagerie
 def test_go1_preset_finds_its_feet_and_target() -> None:
     go1 = QuadrupedWalk("menagerie:unitree_go1", distance=1.2, threads=1)
