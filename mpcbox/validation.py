@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import inspect
 import numbers
+import re
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, TypeVar
 
@@ -108,6 +109,19 @@ def non_negative(name: str, value: object) -> float:
     if not np.isfinite(val) or val < 0:
         raise InvalidArgumentError(f"{name} must be a finite number >= 0, got {value!r}")
     return val
+
+
+def non_negative_weights(**weights: object) -> dict[str, float]:
+    """Check every weight with :func:`non_negative`, named by its keyword.
+
+    Returns:
+        The weights as floats, keyed by the keyword without a ``_cost`` or ``_scale``
+        suffix (``height_cost=1`` gives ``{"height": 1.0}``).
+    """
+    return {
+        re.sub(r"_(cost|scale)$", "", name): non_negative(name, value)
+        for name, value in weights.items()
+    }
 
 
 def in_range(

@@ -335,3 +335,33 @@ def test_config_object_defaults_and_option_errors():
         ILQRConfig(armijo=1.0)
     with pytest.raises(InvalidArgumentError, match="regularization_max"):
         ILQRConfig(regularization_min=1.0, regularization_max=0.5)
+
+
+@pytest.mark.parametrize("first_step", ["short", "underdelivering full"])
+def test_small_decrease_is_no_stop_while_the_model_predicts_a_large_one(first_step):
+    """A step that lowers the cost by less than ``tolerance`` ends the solve only if the
+    backward pass also predicts less: here the first line search is spoiled (the full step
+    is refused, or it moves only 1 % of the way, as a poor model would make it) while the
+    predicted decrease is about the whole gap to the optimum, so the solver must go on to
+    the linear-quadratic optimum instead of stopping after a 2 % decrease."""
+    problem = point_mass()
+
+    class SpoiledFirstSearch(ILQR):
+        full_steps = 0
+
+        def _forward(self, x0, states, ctrls, k, K, alpha):
+            if alpha == 1.0:
+                self.full_steps += 1
+                if self.full_steps == 1 and first_step == "short":
+                    return states, ctrls, np.inf
+                if self.full_steps == 1:
+                    alpha = 0.01
+            return super()._forward(x0, states, ctrls, k, K, alpha)
+
+    optimum = ILQR(problem, horizon=T, regularization=0.0).solve(X0)
+    res = SpoiledFirstSearch(problem, horizon=T, tolerance=0.05, step_sizes=(1.0, 0.01)).solve(X0)
+    first_decrease = (res.costs[0] - res.costs[1]) / res.costs[1]
+    assert 0.0 < first_decrease < 0.05  # the old rule stopped here
+    assert res.converged and res.stop_reason is not StopReason.SHORT_STEP, res.status
+    assert res.cost == pytest.approx(optimum.cost, rel=1e-6)
+    assert res.cost < 0.5 * res.costs[1]

@@ -17,6 +17,7 @@ from mpcbox.sim.trajectory import (
     save_trajectory,
     trajectory_from_result,
 )
+from mpcbox.sim.viewer import Viewer
 
 
 @pytest.fixture(scope="module")
@@ -80,6 +81,37 @@ def test_replay_reaches_the_saved_final_state(pendulum_run, tmp_path) -> None:
     # Without the push or the mismatch, the same controls end elsewhere: the replay uses them.
     assert replay(back._replace(pushes=()), problem).final_error > 1e-3
     assert replay(back._replace(mismatch=None), problem).final_error > 1e-3
+
+
+class _Frames(Viewer):
+    """Keeps the time and the pendulum angle of every frame drawn."""
+
+    def open(self, problem, controller) -> None:
+        self.seen: list[tuple[float, float]] = []
+        self.closed = False
+
+    def draw(self, trace) -> None:
+        assert trace is None  # a replay has no planner
+        self.seen.append((float(self.data.time), float(self.data.qpos[0])))
+
+    def close(self) -> None:
+        self.closed = True
+
+
+def test_replay_feeds_a_viewer_the_saved_run(pendulum_run) -> None:
+    problem, result = pendulum_run
+    traj = trajectory_from_result(result, problem)
+    view = _Frames(fps=25.0)
+    out = replay(traj, problem, viewer=view)
+    assert out.final_error == 0.0 and view.closed  # watching changes nothing
+    times = np.array([t for t, _ in view.seen])
+    np.testing.assert_allclose(times, np.arange(len(times)) * 0.04, atol=1e-9)
+    assert times[-1] > traj.time[-1] - 0.04
+    for t, angle in view.seen:  # each frame shows the saved state of its time
+        k = int(np.argmin(np.abs(traj.time - t)))
+        assert angle == pytest.approx(traj.states[k, 0], abs=1e-12)
+    with pytest.raises(InvalidArgumentError, match="viewer must be"):
+        replay(traj, problem, viewer="video.avi")
 
 
 def test_humanoid_replay_with_task_noise_push_and_mismatch(tmp_path) -> None:

@@ -10,7 +10,8 @@ Commands::
     mpcbox validate [SCENE] [options]             MuJoCo-to-MJWarp gates on a scene
     mpcbox --version
 
-``mpcbox simulate`` also takes ``--save-trajectory PATH`` and ``--video FILE``.
+``mpcbox simulate`` also takes ``--save-trajectory PATH``, ``--video FILE`` and
+``--viewer [FILE|live]`` (watch the run as it goes, :mod:`mpcbox.cli.watch`).
 
 ``mpcbox compare TASK --help`` lists every option, the task's own ones included (for example
 ``--leg`` of ``humanoid_balance``). A user error (a bad name, value or folder) prints one line
@@ -95,6 +96,7 @@ def _simulate(rest: Sequence[str], command: Sequence[str]) -> int:
     import argparse
 
     from mpcbox.cli.outputs import add_single_run_flags
+    from mpcbox.cli.watch import add_viewer_flags, run_watched
     from mpcbox.registry import TASKS
 
     pre = argparse.ArgumentParser(prog="mpcbox simulate", add_help=False)
@@ -108,20 +110,27 @@ def _simulate(rest: Sequence[str], command: Sequence[str]) -> int:
         raise UnknownNameError("task", known.task, TASKS)
     parser = build_parser(known.task, prog=f"mpcbox simulate {known.task}", seeds=1)
     add_single_run_flags(parser)
+    add_viewer_flags(parser)
     args = parser.parse_args(remaining)
     args.controllers = known.controller
+    if args.viewer is not None:
+        return run_watched(
+            known.task, args, controller_defaults=quick_sampling_options(), stream=sys.stdout
+        )
     return run_comparison(
         known.task, args, controller_defaults=quick_sampling_options(), command=command
     )
 
 
 def _prepare_gl(argv: Sequence[str]) -> None:
-    """Default ``MUJOCO_GL=egl`` for a video on a Linux machine without a display.
+    """Default ``MUJOCO_GL=egl`` for a video (``--video``, or ``--viewer`` that then writes
+    one) on a Linux machine without a display.
 
     MuJoCo reads ``MUJOCO_GL`` once, on import; this runs before that import.
     """
+    flags = ("--video", "--viewer")
     if (
-        any(a == "--video" or a.startswith("--video=") for a in argv)
+        any(a in flags or a.startswith(tuple(f + "=" for f in flags)) for a in argv)
         and sys.platform.startswith("linux")
         and "MUJOCO_GL" not in os.environ
         and not os.environ.get("DISPLAY")

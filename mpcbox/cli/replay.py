@@ -1,9 +1,12 @@
-"""``mpcbox replay FILE [--video OUT]``: re-simulate a saved run, or render it.
+"""``mpcbox replay FILE [--video OUT] [--viewer live|OUT]``: re-simulate a saved run, or
+render it.
 
 Without ``--video`` the saved controls are applied open loop on the task's simulation model
 (:func:`mpcbox.sim.trajectory.replay`) and the largest difference between the replayed and
 the saved final state is printed; the exit status is 1 when it exceeds ``--tolerance``.
-With ``--video`` the saved states are rendered to an MP4 or GIF.
+With ``--video`` the saved states are rendered to an MP4 or GIF. With ``--viewer live`` the
+re-simulation is shown in a MuJoCo window held to wall-clock time (the run replayed in real
+time); ``--viewer FILE`` writes it through the offscreen viewer instead.
 """
 
 from __future__ import annotations
@@ -25,6 +28,13 @@ def build_replay_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("file", help="NAME.csv, NAME.json or NAME of a saved trajectory")
     parser.add_argument("--video", default=None, metavar="FILE", help="render to FILE (.mp4/.gif)")
+    parser.add_argument(
+        "--viewer",
+        default=None,
+        metavar="live|FILE",
+        help="show the re-simulation as it runs: 'live' (a window, in real time) or a "
+        ".gif/.mp4 file",
+    )
     parser.add_argument("--fps", type=float, default=30.0, help="video frames per second")
     parser.add_argument("--width", type=int, default=640, help="video width (pixels)")
     parser.add_argument("--height", type=int, default=480, help="video height (pixels)")
@@ -93,7 +103,7 @@ def run_replay(argv: Sequence[str], stream=None) -> int:
         )
         print(f"wrote {path}", file=stream)
         return 0
-    result = replay(traj, problem)
+    result = replay(traj, problem, viewer=args.viewer)
     same = result.final_error <= args.tolerance
     print(
         f"replayed open loop: final-state error {result.final_error:.3g} (max abs over "

@@ -83,61 +83,44 @@ def build_validate_parser() -> argparse.ArgumentParser:
         default=None,
         help="world counts of the throughput gate (default: 256..8192 on cuda, 2,4 on cpu)",
     )
-    g.add_argument(
-        "--scaling-worlds",
-        type=int,
-        default=None,
-        help="worlds of the N-world gate (default: the largest of --worlds)",
-    )
-    g.add_argument(
-        "--parity-tolerance",
-        type=float,
-        default=defaults.parity_tolerance,
-        help="parity tolerance on max |qpos difference| (rad or m)",
-    )
-    g.add_argument(
-        "--parity-window",
-        type=float,
-        default=defaults.parity_window,
-        help="seconds from the start that must stay within the tolerance",
-    )
-    g.add_argument(
-        "--headroom",
-        type=float,
-        default=defaults.headroom,
-        help="suggested capacity = ceil(headroom x most seen)",
-    )
-    g.add_argument(
-        "--nconmax",
-        type=int,
-        default=None,
-        help="contacts per world for the N-world runs (default: suggested)",
-    )
-    g.add_argument(
-        "--njmax",
-        type=int,
-        default=None,
-        help="constraint rows per world for the N-world runs (default: suggested)",
-    )
-    g.add_argument(
-        "--perturbation",
-        type=float,
-        default=defaults.perturbation,
-        help="noise on the start states of worlds 1..N-1",
-    )
-    g.add_argument("--seed", type=int, default=defaults.seed, help="seed of that noise")
-    g.add_argument(
-        "--throughput-steps",
-        type=int,
-        default=defaults.throughput_steps,
-        help="steps timed per world count",
-    )
-    g.add_argument(
-        "--block-steps",
-        type=int,
-        default=defaults.block_steps,
-        help="steps per launch block (per CUDA graph)",
-    )
+    for flag, kind, default, text in (
+        (
+            "--scaling-worlds",
+            int,
+            None,
+            "worlds of the N-world gate (default: the largest of --worlds)",
+        ),
+        (
+            "--parity-tolerance",
+            float,
+            defaults.parity_tolerance,
+            "parity tolerance on max |qpos difference| (rad or m)",
+        ),
+        (
+            "--parity-window",
+            float,
+            defaults.parity_window,
+            "seconds from the start that must stay within the tolerance",
+        ),
+        ("--headroom", float, defaults.headroom, "suggested capacity = ceil(headroom x most seen)"),
+        ("--nconmax", int, None, "contacts per world for the N-world runs (default: suggested)"),
+        (
+            "--njmax",
+            int,
+            None,
+            "constraint rows per world for the N-world runs (default: suggested)",
+        ),
+        (
+            "--perturbation",
+            float,
+            defaults.perturbation,
+            "noise on the start states of worlds 1..N-1",
+        ),
+        ("--seed", int, defaults.seed, "seed of that noise"),
+        ("--throughput-steps", int, defaults.throughput_steps, "steps timed per world count"),
+        ("--block-steps", int, defaults.block_steps, "steps per launch block (per CUDA graph)"),
+    ):
+        g.add_argument(flag, type=kind, default=default, help=text)
     p.add_argument("--out", default=None, metavar="DIR", help="write DIR/gates_<scene>.json")
     return p
 

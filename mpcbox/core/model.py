@@ -48,6 +48,7 @@ _OBJ_KINDS = {
     "keyframe": mujoco.mjtObj.mjOBJ_KEY,
     "geom": mujoco.mjtObj.mjOBJ_GEOM,
     "sensor": mujoco.mjtObj.mjOBJ_SENSOR,
+    "camera": mujoco.mjtObj.mjOBJ_CAMERA,
 }
 _COUNTS = {
     "body": "nbody",
@@ -57,6 +58,7 @@ _COUNTS = {
     "keyframe": "nkey",
     "geom": "ngeom",
     "sensor": "nsensor",
+    "camera": "ncam",
 }
 
 

@@ -31,6 +31,9 @@ import warp as wp
 
 from mpcbox.errors import UnsupportedModelError
 
+# Nothing here is differentiated, so no adjoint (backward) code is generated.
+wp.set_module_options({"enable_backward": False})
+
 #: MuJoCo's divergence limit (``mjMAXVAL``) on positions, velocities and accelerations.
 MAX_VALUE = 1e10
 

@@ -37,6 +37,7 @@ import sys
 import time as _time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import NamedTuple
 
 import mujoco
@@ -49,6 +50,8 @@ from mpcbox.sim.divergence import DivergenceMonitor
 from mpcbox.sim.planner_thread import PlannerThread
 from mpcbox.sim.run_start import start_run
 from mpcbox.sim.simulation import SimulationResult, finish_run
+from mpcbox.sim.viewer import Viewer
+from mpcbox.sim.viewer_choice import as_viewer
 from mpcbox.validation import boolean, checked_keywords, positive
 
 #: Python's thread switch interval during a real-time run (s).
@@ -121,6 +124,7 @@ def simulate_realtime(
     degraded_limit: float = 0.5,
     speed: float = 1.0,
     prime: bool = True,
+    viewer: Viewer | str | Path | None = None,
 ) -> RealtimeResult:
     """Simulate ``problem.model`` in real time with ``controller`` planning concurrently.
 
@@ -144,12 +148,16 @@ def simulate_realtime(
         prime: Solve one tick from the initial state before the clock starts (a robot
             waits for its first plan; compile time is not latency). Without it the world
             applies ``problem.ctrl_ref`` until the first plan arrives.
+        viewer: Show the run while it goes, as for :func:`~mpcbox.sim.simulation.simulate`;
+            the world thread draws (a frame's rendering time is world time, seen as
+            ``world_lag_s`` when it falls behind), reading the planner's latest traces.
 
     Returns:
         A :class:`RealtimeResult`; ``metrics.kept_up`` repeats ``realtime.kept_up``.
     """
     speed = positive("speed", speed)
     prime = boolean("prime", prime)
+    view = as_viewer(viewer)
     run = start_run(
         problem,
         controller,
@@ -178,6 +186,8 @@ def simulate_realtime(
     fail_time = duration
     monitor = DivergenceMonitor(data)
     planner = PlannerThread(problem, controller, period=period, max_ticks=steps + 2)
+    if view is not None:
+        view.start(problem, controller, model, data)
     prime_s = planner.prime(state0, float(data.time)) if prime else 0.0
     last = steps
     lag = 0.0
@@ -221,6 +231,8 @@ def simulate_realtime(
                 break
             if k == steps:
                 break
+            if view is not None:
+                view.step(data)
             data.ctrl[:] = problem.clip_ctrl(planner.control(now) + noise_seq[k])
             ctrls[k] = data.ctrl
             data.xfrc_applied[:] = 0.0
@@ -238,6 +250,8 @@ def simulate_realtime(
         planner.stop()
         sys.setswitchinterval(switch)
         gc.unfreeze()
+        if view is not None:
+            view.finish()
     calls = planner.calls()
     if prime:
         calls["offline"].append(prime_s)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import time as _time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import NamedTuple
 
 import mujoco
@@ -22,6 +23,8 @@ from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.divergence import DivergenceMonitor
 from mpcbox.sim.measures import Measure
 from mpcbox.sim.run_start import controller_fallbacks, start_run
+from mpcbox.sim.viewer import Viewer
+from mpcbox.sim.viewer_choice import as_viewer
 from mpcbox.validation import (
     checked_keywords,
     positive,
@@ -148,6 +151,7 @@ def simulate(
     initial_state: np.ndarray | None = None,
     stop_on_failure: bool = True,
     degraded_limit: float = 0.5,
+    viewer: Viewer | str | Path | None = None,
 ) -> SimulationResult:
     """Simulate ``problem.model`` in closed loop with ``controller``.
 
@@ -187,10 +191,15 @@ def simulate(
             errors always stop the run).
         degraded_limit: Largest share of fallbacks among the controller's calls, in
             ``[0, 1]``, for a run to count as a success.
+        viewer: Show the run while it goes (:mod:`mpcbox.sim.viewer`): a
+            :class:`~mpcbox.sim.viewer.Viewer`, ``"live"`` (a window), ``"auto"`` or a
+            ``.gif`` / ``.mp4`` path (:func:`~mpcbox.sim.viewer_choice.as_viewer`). It draws
+            the state before each step, with a sampling controller's best traces.
 
     Returns:
         A :class:`SimulationResult`.
     """
+    view = as_viewer(viewer)
     run = start_run(
         problem,
         controller,
@@ -220,60 +229,68 @@ def simulate(
     fail_time = duration
     ctrl = problem.ctrl_ref.copy()
     monitor = DivergenceMonitor(data)
+    if view is not None:
+        view.start(problem, controller, model, data)
     wall0 = _time.perf_counter()
     last = steps
-    for k in range(steps + 1):
-        times[k] = data.time
-        states[k] = problem.get_state(data)
-        for i, measure in enumerate(measures):
-            samples[i, k] = measure.sample(model, data)
-        if failure is None:
-            reason = problem.failure(model, data)
-            if reason is not None:
-                failure, fail_time, outcome = reason, float(data.time), "failed"
-                if reason.startswith("non-finite"):
-                    outcome = "diverged"
-                if stop_on_failure or outcome == "diverged":
-                    last = k
+    try:
+        for k in range(steps + 1):
+            times[k] = data.time
+            states[k] = problem.get_state(data)
+            for i, measure in enumerate(measures):
+                samples[i, k] = measure.sample(model, data)
+            if failure is None:
+                reason = problem.failure(model, data)
+                if reason is not None:
+                    failure, fail_time, outcome = reason, float(data.time), "failed"
+                    if reason.startswith("non-finite"):
+                        outcome = "diverged"
+                    if stop_on_failure or outcome == "diverged":
+                        last = k
+                        break
+            if k == steps:
+                break
+            if k % every == 0:
+                t0 = _time.perf_counter()
+                try:
+                    out = controller(states[k].copy(), float(data.time))
+                except Exception as exc:  # any controller error ends the run, recorded
+                    failure, fail_time, last = _error_text(exc), float(data.time), k
+                    outcome = "controller error"
                     break
-        if k == steps:
-            break
-        if k % every == 0:
-            t0 = _time.perf_counter()
-            try:
-                out = controller(states[k].copy(), float(data.time))
-            except Exception as exc:  # any controller error ends the run, recorded
-                failure, fail_time, last = _error_text(exc), float(data.time), k
-                outcome = "controller error"
+                kind = getattr(controller, "last_call", "solve")
+                calls[kind if kind in calls else "solve"].append(_time.perf_counter() - t0)
+                out = np.asarray(out, dtype=np.float64)
+                if out.shape != (problem.nu,) or not np.all(np.isfinite(out)):
+                    failure, fail_time, last = (
+                        f"controller returned an invalid control (shape {out.shape}, finite="
+                        f"{bool(np.all(np.isfinite(out)))})",
+                        float(data.time),
+                        k,
+                    )
+                    outcome = "controller error"
+                    break
+                ctrl = out
+            if view is not None:
+                view.step(data)
+            data.ctrl[:] = problem.clip_ctrl(ctrl + noise_seq[k])
+            ctrls[k] = data.ctrl
+            data.xfrc_applied[:] = 0.0
+            for push, bid in zip(pushes, push_ids):
+                if push.active(float(data.time)):
+                    data.xfrc_applied[bid] += push.wrench()
+            monitor.before_step()
+            mujoco.mj_step(model, data)
+            reason = monitor.after_step()
+            if reason is not None:
+                # Keep the step that diverged in the record: what MuJoCo left (often a reset).
+                failure, fail_time, outcome = reason, float(times[k]), "diverged"
+                last = k
                 break
-            kind = getattr(controller, "last_call", "solve")
-            calls[kind if kind in calls else "solve"].append(_time.perf_counter() - t0)
-            out = np.asarray(out, dtype=np.float64)
-            if out.shape != (problem.nu,) or not np.all(np.isfinite(out)):
-                failure, fail_time, last = (
-                    f"controller returned an invalid control (shape {out.shape}, finite="
-                    f"{bool(np.all(np.isfinite(out)))})",
-                    float(data.time),
-                    k,
-                )
-                outcome = "controller error"
-                break
-            ctrl = out
-        data.ctrl[:] = problem.clip_ctrl(ctrl + noise_seq[k])
-        ctrls[k] = data.ctrl
-        data.xfrc_applied[:] = 0.0
-        for push, bid in zip(pushes, push_ids):
-            if push.active(float(data.time)):
-                data.xfrc_applied[bid] += push.wrench()
-        monitor.before_step()
-        mujoco.mj_step(model, data)
-        reason = monitor.after_step()
-        if reason is not None:
-            # Keep the step that diverged in the record: what MuJoCo left (often a reset).
-            failure, fail_time, outcome = reason, float(times[k]), "diverged"
-            last = k
-            break
-    wall = _time.perf_counter() - wall0
+    finally:
+        wall = _time.perf_counter() - wall0
+        if view is not None:
+            view.finish()
     return finish_run(
         problem,
         controller,

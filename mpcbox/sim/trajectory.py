@@ -36,6 +36,7 @@ from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError, MpcboxError
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.simulation import SimulationResult
+from mpcbox.sim.viewer_choice import as_viewer
 from mpcbox.validation import as_array, checked_keywords, instance
 
 #: ``format`` entry of the JSON sidecar.
@@ -430,7 +431,7 @@ def load_trajectory(path: str | Path) -> Trajectory:
 
 
 @checked_keywords
-def replay(traj: Trajectory, problem: Problem) -> Replay:
+def replay(traj: Trajectory, problem: Problem, *, viewer: Any = None) -> Replay:
     """Re-simulate ``traj`` open loop on ``problem``'s simulation model.
 
     From ``traj.initial_state``, step ``k`` applies ``traj.ctrls[k]`` and the saved pushes
@@ -440,6 +441,9 @@ def replay(traj: Trajectory, problem: Problem) -> Replay:
     Args:
         traj: A saved run.
         problem: The Problem it ran on (same sizes and timestep).
+        viewer: Shows the replay as it runs: a :class:`~mpcbox.sim.viewer.Viewer`,
+            ``"live"`` (a window held to wall-clock time, so the run is seen in real time)
+            or a ``.gif`` / ``.mp4`` path (:func:`~mpcbox.sim.viewer_choice.as_viewer`).
 
     Returns:
         A :class:`Replay` with the re-simulated states and the final-state error.
@@ -468,20 +472,29 @@ def replay(traj: Trajectory, problem: Problem) -> Replay:
     problem.set_state(data, traj.initial_state)
     mujoco.mj_forward(model, data)
     push_ids = [object_id(model, "body", p.body) for p in traj.pushes]
+    view = as_viewer(viewer)
+    if view is not None:
+        view.start(problem, None, model, data)  # type: ignore[arg-type]  # no planner
     steps = len(traj.time)
     times = np.empty(steps)
     states = np.empty((steps, problem.nstate))
-    for k in range(steps):
-        times[k] = data.time
-        states[k] = problem.get_state(data)
-        if k == steps - 1:
-            break
-        data.ctrl[:] = traj.ctrls[k]
-        data.xfrc_applied[:] = 0.0
-        for push, bid in zip(traj.pushes, push_ids):
-            if push.active(float(data.time)):
-                data.xfrc_applied[bid] += push.wrench()
-        mujoco.mj_step(model, data)
+    try:
+        for k in range(steps):
+            times[k] = data.time
+            states[k] = problem.get_state(data)
+            if view is not None:
+                view.step(data)
+            if k == steps - 1:
+                break
+            data.ctrl[:] = traj.ctrls[k]
+            data.xfrc_applied[:] = 0.0
+            for push, bid in zip(traj.pushes, push_ids):
+                if push.active(float(data.time)):
+                    data.xfrc_applied[bid] += push.wrench()
+            mujoco.mj_step(model, data)
+    finally:
+        if view is not None:
+            view.finish()
     diff = np.abs(states[-1] - traj.states[-1])
     error = float(np.max(diff)) if np.all(np.isfinite(diff)) else math.nan
     return Replay(times, states, error)

@@ -17,7 +17,6 @@ Writers: GIF with Pillow (installed with matplotlib); MP4 with ``imageio-ffmpeg`
 from __future__ import annotations
 
 import copy
-import os
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -26,66 +25,10 @@ import numpy as np
 
 from mpcbox.core.model import object_id
 from mpcbox.core.problem import Problem
-from mpcbox.errors import BackendUnavailableError, InvalidArgumentError
+from mpcbox.sim.rendering import PUSH_COLOUR, caption, free_camera, make_renderer, tracked_body
 from mpcbox.sim.trajectory import Trajectory
+from mpcbox.sim.video_writer import FORMATS, FrameWriter, check_video_path
 from mpcbox.validation import positive, positive_int
-
-#: Video formats by file suffix.
-FORMATS = (".mp4", ".gif")
-#: Colour of the frame border while a push acts (RGB).
-PUSH_COLOUR = (220, 30, 30)
-_BORDER = 6
-
-
-def check_video_path(path: str | Path) -> str:
-    """The format (``".mp4"`` or ``".gif"``) of a video path, checked before rendering.
-
-    Raises:
-        InvalidArgumentError: For another suffix.
-        BackendUnavailableError: For an MP4 without imageio-ffmpeg.
-    """
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in FORMATS:
-        raise InvalidArgumentError(
-            f"video path {str(path)!r} must end in {' or '.join(FORMATS)}, got {suffix or '(none)'}"
-        )
-    if suffix == ".mp4":
-        try:
-            import imageio_ffmpeg  # noqa: F401
-        except ImportError as exc:
-            raise BackendUnavailableError(
-                "writing an MP4 needs imageio-ffmpeg (pip install 'mpcbox[video]'); "
-                "a .gif needs nothing more"
-            ) from exc
-    return suffix
-
-
-def make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
-    """An offscreen :class:`mujoco.Renderer` of ``width x height`` pixels.
-
-    Raises:
-        BackendUnavailableError: If no OpenGL context can be made; the message names the
-            ``MUJOCO_GL`` in force and the values to try.
-    """
-    try:
-        return mujoco.Renderer(model, height=height, width=width)
-    except Exception as exc:  # MuJoCo, PyOpenGL and GLFW raise many types here
-        gl = os.environ.get("MUJOCO_GL")
-        shown = f"MUJOCO_GL={gl!r}" if gl is not None else "MUJOCO_GL unset (GLFW, needs a display)"
-        raise BackendUnavailableError(
-            f"cannot make an OpenGL context for offscreen rendering ({shown}): "
-            f"{type(exc).__name__}: {exc}. Set MUJOCO_GL=egl (GPU or Mesa EGL) or "
-            "MUJOCO_GL=osmesa (software, needs libOSMesa) before starting Python"
-        ) from exc
-
-
-def _tracked_body(model: mujoco.MjModel) -> int:
-    """The root body of a floating base (its free joint), or 0 for a fixed base."""
-    for j in range(model.njnt):
-        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
-            return int(model.jnt_bodyid[j])
-    return 0
 
 
 def _arrow(scene: mujoco.MjvScene, tip: np.ndarray, force: np.ndarray, extent: float) -> None:
@@ -105,20 +48,6 @@ def _arrow(scene: mujoco.MjvScene, tip: np.ndarray, force: np.ndarray, extent: f
     )
     mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_ARROW, 0.03 * extent, tail, tip)
     scene.ngeom += 1
-
-
-def _caption(frame: np.ndarray, lines: list[str], border: bool) -> np.ndarray:
-    from PIL import Image, ImageDraw
-
-    if border:
-        frame[:_BORDER], frame[-_BORDER:] = PUSH_COLOUR, PUSH_COLOUR
-        frame[:, :_BORDER], frame[:, -_BORDER:] = PUSH_COLOUR, PUSH_COLOUR
-    image = Image.fromarray(frame)
-    draw = ImageDraw.Draw(image)
-    for i, line in enumerate(lines):
-        colour = PUSH_COLOUR if i else (255, 255, 255)
-        draw.text((_BORDER + 6, _BORDER + 4 + 14 * i), line, fill=colour)
-    return np.asarray(image)
 
 
 def render_frames(
@@ -155,12 +84,11 @@ def render_frames(
     if camera is not None:
         cam = object_id(model, "camera", camera)
     else:
-        cam = mujoco.MjvCamera()
-        mujoco.mjv_defaultFreeCamera(model, cam)
+        cam = free_camera(model)
         if traj.pushes:  # look across the first push, so that its arrow is seen side-on
             force = np.asarray(traj.pushes[0].force, dtype=float)
             cam.azimuth = float(np.degrees(np.arctan2(force[1], force[0]))) + 90.0
-    track = _tracked_body(model)
+    track = tracked_body(model)
     push_ids = [object_id(model, "body", p.body) for p in traj.pushes]
     extent = float(model.stat.extent)
     renderer = make_renderer(model, width, height)
@@ -185,7 +113,7 @@ def render_frames(
                 force = np.asarray(push.force, dtype=float)
                 _arrow(renderer.scene, data.xipos[bid].copy(), force, extent)
                 lines.append(f"push {np.linalg.norm(force):.0f} N on {push.body}")
-            yield _caption(renderer.render().copy(), lines, bool(active))
+            yield caption(renderer.render().copy(), lines, bool(active))
     finally:
         renderer.close()
 
@@ -220,32 +148,25 @@ def render_video(
         BackendUnavailableError: If no OpenGL context can be made (names ``MUJOCO_GL``), or
             an MP4 is asked for without imageio-ffmpeg.
     """
-    path = Path(path)
-    suffix = check_video_path(path)
+    writer = FrameWriter(path, fps=fps, width=width, height=height)
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InvalidArgumentError(f"cannot create the folder of {str(path)!r}: {exc}") from exc
-    frames = render_frames(traj, problem, fps=fps, width=width, height=height, camera=camera)
-    if suffix == ".gif":
-        from PIL import Image
-
-        images = [Image.fromarray(f).convert("P", palette=Image.Palette.ADAPTIVE) for f in frames]
-        images[0].save(
-            path,
-            save_all=True,
-            append_images=images[1:],
-            duration=max(20, round(1000 / fps)),
-            loop=0,
-        )
-        return path
-    import imageio_ffmpeg
-
-    writer = imageio_ffmpeg.write_frames(str(path), (width, height), fps=fps, macro_block_size=1)
-    writer.send(None)
-    try:
-        for frame in frames:
-            writer.send(np.ascontiguousarray(frame))
+        for frame in render_frames(
+            traj, problem, fps=fps, width=width, height=height, camera=camera
+        ):
+            writer.write(frame)
     finally:
-        writer.close()
-    return path
+        out = writer.close()
+    return out or Path(path)
+
+
+__all__ = [
+    "FORMATS",
+    "PUSH_COLOUR",
+    "caption",
+    "check_video_path",
+    "free_camera",
+    "make_renderer",
+    "render_frames",
+    "render_video",
+    "tracked_body",
+]

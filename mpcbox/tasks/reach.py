@@ -15,7 +15,7 @@ knots, 0.2 s on the Panda) whose end is priced by the LQR value function at the 
 (``terminal_value="lqr"``). The initial guess is the control that holds the IK goal
 posture, which on a servo arm already drives the arm toward the goal. Offline iLQR over a
 long horizon meets the servos' torque limits (their derivatives vanish once saturated) and
-typically ends on a short step; its ``stop_reason`` says so.
+typically stalls (short steps, then the regularization limit); its ``stop_reason`` says so.
 """
 
 from __future__ import annotations

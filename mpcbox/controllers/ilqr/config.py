@@ -49,7 +49,10 @@ class ILQRConfig:
             ``dt`` the planning timestep. The default, 50 knots, gives any Problem a working
             iLQR; tasks tune it in their ``controller_configs``.
         max_iterations: Iteration cap of :meth:`~mpcbox.controllers.ilqr.solver.ILQRSolver.solve`.
-        tolerance: Converged when a full step lowers the cost by less than this fraction.
+        tolerance: Converged when a full step lowers the cost by less than this fraction of
+            it and the backward pass predicts less than that too; a small decrease while the
+            predicted one is larger (a poor quadratic model, e.g. near a kink of the
+            dynamics) does not stop the iterations.
         mpc_iterations: Iterations per replan in receding-horizon mode.
         first_iterations: Iterations of the first replan after ``reset`` (no warm start
             yet); default ``mpc_iterations``.

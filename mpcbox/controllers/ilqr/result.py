@@ -16,14 +16,17 @@ class StopReason(enum.Enum):
 
     Attributes:
         COST_CHANGE: Converged: a full step (the largest step size) lowered the cost by less
-            than ``tolerance`` times the cost.
+            than ``tolerance`` times the cost, and the backward pass predicted a full-step
+            decrease :math:`-(\\Delta V_1 + \\Delta V_2)` below that as well.
         NO_PREDICTED_DECREASE: Converged: the backward pass predicts no decrease of the cost
             (:math:`-(\\Delta V_1 + \\Delta V_2) \\le 10^{-12} \\max(1, |J|)`): a stationary
             point of the control-limited problem.
         SHORT_STEP: Not converged: the cost changed by less than ``tolerance`` times the cost,
-            but only along a shortened step (``alpha`` below the largest step size), so the
-            small change says that the quadratic model is poor, not that the solution is
-            optimal.
+            and so did the predicted full-step decrease, but only along a shortened step
+            (``alpha`` below the largest step size), so the small change says that the
+            quadratic model is poor, not that the solution is optimal. A small change while
+            the predicted decrease is still larger (after a short step or a full one) stops
+            nothing: the iterations go on.
         SADDLE: Not converged: the backward pass predicts no decrease, but a small random
             change of the controls lowers the cost: a saddle or maximum of the cost that the
             (convex) Gauss-Newton model cannot see, such as a swing-up's pendulum at rest

@@ -301,7 +301,10 @@ class ILQRSolver:
             costs.append(cost)
             need_derivatives = True
             mu.accepted(ls.alpha)  # the schedule (regularization module)
-            if decrease < cfg.tolerance * max(abs(cost), 1e-12):
+            # Stop on a small decrease only if the model predicts a small one too: a small
+            # decrease under a large prediction is a poor model (a kink, a short step).
+            small = cfg.tolerance * max(abs(cost), 1e-12)
+            if decrease < small and -(dv1 + dv2) < small:
                 if ls.alpha >= full_step:
                     reason, status = StopReason.COST_CHANGE, "converged (relative decrease)"
                 else:

@@ -27,6 +27,7 @@ from mpcbox.controllers.sampling.config import (
 from mpcbox.controllers.sampling.mppi import MPPI, mppi_weights
 from mpcbox.controllers.sampling.predictive_sampling import PredictiveSampling
 from mpcbox.controllers.sampling.splines import Spline
+from mpcbox.controllers.sampling.traces import PlannerTrace, TraceRecorder
 
 __all__ = [
     "CEM",
@@ -34,6 +35,7 @@ __all__ = [
     "AsyncRolloutBackend",
     "CEMConfig",
     "MPPIConfig",
+    "PlannerTrace",
     "PredictiveSampling",
     "PredictiveSamplingConfig",
     "Randomization",
@@ -43,6 +45,7 @@ __all__ = [
     "SamplingController",
     "Spline",
     "TickInfo",
+    "TraceRecorder",
     "aggregate_risk",
     "make_backend",
     "mppi_weights",

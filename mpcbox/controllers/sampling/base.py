@@ -16,7 +16,10 @@ Every control tick, from the measured state :math:`x`:
    the nominal knots (:meth:`update`);
 3. the control returned is the nominal spline at the start of the horizon. With
    ``replan_period`` (and the controller called every simulation step, ``period=None``),
-   calls between replans return the nominal spline at the elapsed time instead.
+   calls between replans return the nominal spline at the elapsed time instead;
+4. only after :meth:`SamplingController.record_traces`: the ``k`` best candidates of the
+   last iteration are re-rolled on the CPU into :attr:`SamplingController.traces`
+   (:mod:`mpcbox.controllers.sampling.traces`, for viewers).
 
 The backend may compute asynchronously (``submit``/``collect``, the warp backend): the
 noise of the next iteration is then drawn while the device works.
@@ -38,6 +41,7 @@ from mpcbox.controllers.sampling.backends import RolloutBackend, make_backend
 from mpcbox.controllers.sampling.config import RISKS, SamplingConfig
 from mpcbox.controllers.sampling.planning import planning_models, planning_problem
 from mpcbox.controllers.sampling.splines import Spline
+from mpcbox.controllers.sampling.traces import PlannerTrace, TraceRecorder
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError
 
@@ -100,6 +104,10 @@ class SamplingController(Controller):
         knots: Nominal knots ``(K, nu)`` (``None`` before the first tick).
         horizon_steps: Planning steps ``T`` per rollout.
         last: :class:`TickInfo` of the last tick.
+        traces: :class:`~mpcbox.controllers.sampling.traces.PlannerTrace` of the last tick
+            while :meth:`record_traces` is on, else ``None``.
+        trace_recorder: The :class:`~mpcbox.controllers.sampling.traces.TraceRecorder`, or
+            ``None`` (the default: no trace work at all).
     """
 
     name = "sampling"
@@ -140,6 +148,7 @@ class SamplingController(Controller):
             headroom=config.headroom,
             use_graph=config.use_graph,
         )
+        self.trace_recorder: TraceRecorder | None = None
         self.reset()
 
     # ------------------------------------------------------------------ hooks
@@ -207,6 +216,7 @@ class SamplingController(Controller):
         self.knots: np.ndarray | None = None
         self._plan_time: float | None = None
         self.last: TickInfo | None = None
+        self.traces: PlannerTrace | None = None
         self._stats = {
             "ticks": 0,
             "rollouts": 0,
@@ -267,6 +277,7 @@ class SamplingController(Controller):
             self.shift(time - self._plan_time)
         self._plan_time = float(time)
         best, nominal, valid = np.nan, np.nan, 0
+        scored: tuple[np.ndarray, np.ndarray] | None = None
         for it in range(self.iterations):
             cand = self.problem.clip_ctrl(self.sample())
             costs = self.evaluate(state, cand, prefetch=True)
@@ -278,6 +289,7 @@ class SamplingController(Controller):
                 self._stats["failed_iterations"] += 1
                 continue
             best = float(costs[finite].min())
+            scored = (cand, costs)
             self.update(cand, costs)
             self.knots = self.problem.clip_ctrl(self.knots)
         seconds = _time.perf_counter() - start
@@ -286,7 +298,41 @@ class SamplingController(Controller):
         s["tick_seconds_total"] += seconds
         s["tick_seconds_max"] = max(s["tick_seconds_max"], seconds)
         self.last = TickInfo(float(time), best, nominal, valid, seconds)
+        if self.trace_recorder is not None and scored is not None:
+            self.traces = self.trace_recorder.record(time, state, *scored, self.weights)
         return self.knots
+
+    def record_traces(
+        self,
+        count: int | None,
+        *,
+        site: str | int | None = None,
+        body: str | int | None = None,
+    ) -> None:
+        """Keep the paths of the ``count`` best candidates of every tick in :attr:`traces`.
+
+        Each tick then re-rolls its ``count`` lowest-cost candidates of the last iteration
+        on the CPU (:class:`~mpcbox.controllers.sampling.traces.TraceRecorder`: ``count``
+        rollouts of ``T`` steps and ``count (T + 1)`` kinematics passes). That work comes
+        after the tick's timing (:attr:`TickInfo.seconds`) but inside the controller call,
+        so a closed loop's compute times include it. It draws no random numbers: the plans
+        are the same with traces on or off.
+
+        Args:
+            count: How many candidates to trace; ``None`` or 0 turns recording off.
+            site: The site to trace, by name or id.
+            body: The body (frame origin) to trace instead. Without either, the planning
+                model's last site, or else its last body.
+
+        Raises:
+            InvalidArgumentError: For a negative count, or both ``site`` and ``body``.
+            UnknownNameError: For a site or body the model does not have.
+        """
+        self.traces = None
+        if count is None or (type(count) is int and count == 0):
+            self.trace_recorder = None
+            return
+        self.trace_recorder = TraceRecorder(self.problem, count, site=site, body=body)
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
         replan = self.replan_period

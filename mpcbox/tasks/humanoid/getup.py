@@ -13,7 +13,7 @@ from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, FrameHeight, Sta
 from mpcbox.core.model import ModelSource
 from mpcbox.core.problem import Problem
 from mpcbox.tasks import scene_path
-from mpcbox.validation import non_negative, positive
+from mpcbox.validation import non_negative, non_negative_weights, positive
 
 #: Config shared by the get-up's sampling controllers, the best of a small screen on an
 #: H100 (benchmarks/humanoid_getup.py; results/rt17_h100_run2_getup_screen.json): 1024
@@ -95,14 +95,14 @@ class HumanoidGetup(Problem):
         settle: float = 1.0,
         **kwargs: Any,
     ) -> None:
-        self.getup_weights = dict(
-            height=non_negative("height_cost", height_cost),
-            upright=non_negative("upright_cost", upright_cost),
-            balance=non_negative("balance_cost", balance_cost),
-            posture=non_negative("posture_cost", posture_cost),
-            velocity=non_negative("velocity_cost", velocity_cost),
-            ctrl=non_negative("ctrl_cost", ctrl_cost),
-            terminal=non_negative("terminal_scale", terminal_scale),
+        self.getup_weights = non_negative_weights(
+            height_cost=height_cost,
+            upright_cost=upright_cost,
+            balance_cost=balance_cost,
+            posture_cost=posture_cost,
+            velocity_cost=velocity_cost,
+            ctrl_cost=ctrl_cost,
+            terminal_scale=terminal_scale,
         )
         self.stand_height = positive("stand_height", stand_height)
         self.hold = non_negative("hold", hold)

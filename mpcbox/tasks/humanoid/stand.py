@@ -12,7 +12,7 @@ from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, FrameHeight, Sta
 from mpcbox.core.model import ModelSource
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.base import HumanoidProblem
-from mpcbox.validation import finite, non_negative
+from mpcbox.validation import finite, non_negative_weights
 
 
 class HumanoidStand(HumanoidProblem):
@@ -99,15 +99,15 @@ class HumanoidStand(HumanoidProblem):
         fall_height: float = 0.9,
         **kwargs: Any,
     ) -> None:
-        self.stand_weights = dict(
-            height=non_negative("height_cost", height_cost),
-            upright=non_negative("upright_cost", upright_cost),
-            posture=non_negative("posture_cost", posture_cost),
-            root=non_negative("root_cost", root_cost),
-            velocity=non_negative("velocity_cost", velocity_cost),
-            ctrl=non_negative("ctrl_cost", ctrl_cost),
-            balance=non_negative("balance_cost", balance_cost),
-            terminal=non_negative("terminal_scale", terminal_scale),
+        self.stand_weights = non_negative_weights(
+            height_cost=height_cost,
+            upright_cost=upright_cost,
+            posture_cost=posture_cost,
+            root_cost=root_cost,
+            velocity_cost=velocity_cost,
+            ctrl_cost=ctrl_cost,
+            balance_cost=balance_cost,
+            terminal_scale=terminal_scale,
         )
         kwargs.setdefault("keyframe", "stand")
         super().__init__(

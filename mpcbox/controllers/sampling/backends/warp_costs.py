@@ -30,6 +30,9 @@ import warp as wp
 from mpcbox.core.cost import CostTerm
 from mpcbox.core.cost.rows import ROW_KINDS
 
+# Nothing here is differentiated, so no adjoint (backward) code is generated.
+wp.set_module_options({"enable_backward": False})
+
 
 class RowTables(NamedTuple):
     """Host-side row tables of one set of cost terms (see the module docstring).
