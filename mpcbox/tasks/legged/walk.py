@@ -15,7 +15,7 @@ from mpcbox.errors import InvalidArgumentError
 from mpcbox.sim.measures import Measure
 from mpcbox.tasks.legged.measures import TargetDistance, Tilt
 from mpcbox.tasks.legged.quadruped import DM_CONTROL_FEET, QuadrupedStand, dm_control_quadruped
-from mpcbox.validation import finite_array, non_negative, positive
+from mpcbox.validation import finite_array, non_negative_weights, positive
 
 #: Config shared by the walk's sampling controllers, sized for the CPU backend: 128
 #: candidates, a 0.5 s horizon of 50 planning steps of 0.01 s and four cubic knots, noise
@@ -139,13 +139,13 @@ class QuadrupedWalk(QuadrupedStand):
         self.distance = positive("distance", distance)
         self.radius = positive("radius", radius)
         self.time_limit = None if time_limit is None else positive("time_limit", time_limit)
-        self.walk_weights = dict(
-            distance=non_negative("distance_cost", distance_cost),
-            height=non_negative("height_cost", height_cost),
-            orientation=non_negative("orientation_cost", orientation_cost),
-            posture=non_negative("posture_cost", posture_cost),
-            velocity=non_negative("velocity_cost", velocity_cost),
-            terminal=non_negative("terminal_scale", terminal_scale),
+        self.walk_weights = non_negative_weights(
+            distance_cost=distance_cost,
+            height_cost=height_cost,
+            orientation_cost=orientation_cost,
+            posture_cost=posture_cost,
+            velocity_cost=velocity_cost,
+            terminal_scale=terminal_scale,
         )
         kwargs.setdefault("recovery_tilt", None)
         super().__init__(model, feet=feet, ctrl_cost=ctrl_cost, **kwargs)
