@@ -52,8 +52,8 @@ def _quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 class QuadrupedWalk(QuadrupedStand):
     r"""Walk a quadruped's root to a point on the ground and stand there.
 
-    By default dm_control's quadruped (:func:`~mpcbox.tasks.legged.quadruped.dm_control_quadruped`;
-    its RK4 is planned on an implicitfast copy); ``"menagerie:unitree_go1"`` and the other
+    By default dm_control's quadruped (:func:`~mpcbox.tasks.legged.quadruped.dm_control_quadruped`:
+    Euler at 0.005 s, 12 filtered actuators on tendons); ``"menagerie:unitree_go1"`` and the other
     robots of :data:`~mpcbox.tasks.legged.quadruped.MENAGERIE_FEET` need no feet named, any
     other quadruped names its ``feet`` (and ``root`` when it is not the free body). The robot
     starts standing in its reference posture (:class:`~mpcbox.tasks.legged.balance.LeggedBalance`:
