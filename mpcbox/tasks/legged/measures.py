@@ -1,4 +1,5 @@
-"""Balance measures of legged robots: the center of mass over the support, and the root's tilt."""
+"""Measures of legged robots: the center of mass over the support, the root's tilt, and its
+distance from a target."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from mpcbox.errors import InvalidArgumentError
 from mpcbox.sim.measures import Measure
 
 
-def _check_body(measure: ComDeviation | Tilt) -> None:
+def _check_body(measure: ComDeviation | Tilt | TargetDistance) -> None:
     if not isinstance(measure.body, str) or not measure.body:
         raise InvalidArgumentError(
             f"measure {measure.name!r}: body must name a body (the robot's root), "
@@ -77,6 +78,38 @@ class Tilt(Measure):
     def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> float:
         zaxis = data.xmat[object_id(model, "body", self.body)].reshape(3, 3)[:, 2]
         return float(np.degrees(np.arccos(np.clip(zaxis[2], -1.0, 1.0))))
+
+
+@dataclass(frozen=True, kw_only=True)
+class TargetDistance(Measure):
+    r"""Horizontal distance of a body from a target point (m).
+
+    .. math:: y = \lVert p_{xy} - g \rVert .
+
+    Summarized by its final value and, with a ``tolerance`` (the target's radius), the time
+    after which it stays within it.
+
+    Attributes:
+        body: The body (the robot's root).
+        target: The target ``(x, y)`` in world coordinates (m).
+    """
+
+    name: str = "target_distance"
+    unit: str = "m"
+    label: str = "target dist"
+    summaries: tuple[str, ...] = ("final", "settle_time")
+    body: str = ""
+    target: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_body(self)
+        if len(self.target) != 2 or not np.all(np.isfinite(self.target)):
+            raise InvalidArgumentError(f"target must be finite (x, y), got {self.target!r}")
+
+    def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> float:
+        position = data.xpos[object_id(model, "body", self.body)][:2]
+        return float(np.linalg.norm(position - np.asarray(self.target)))
 
 
 def balance_measures(

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import importlib.util
 from collections.abc import Sequence
+from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+import mujoco
+
 from mpcbox.core.model import ModelSource
-from mpcbox.errors import InvalidArgumentError
+from mpcbox.errors import InvalidArgumentError, ModelNotFoundError
 from mpcbox.tasks.legged.balance import LeggedBalance
 
 #: The four feet of Menagerie quadrupeds, by robot name (``"menagerie:NAME"``). The Go1 has
@@ -27,6 +31,38 @@ MENAGERIE_FEET: MappingProxyType[str, tuple[str, ...]] = MappingProxyType(
         ),
     }
 )
+
+
+#: The toes of dm_control's quadruped (sites at the centers of its foot spheres).
+DM_CONTROL_FEET: tuple[str, ...] = (
+    "toe_front_left",
+    "toe_front_right",
+    "toe_back_right",
+    "toe_back_left",
+)
+
+
+def dm_control_quadruped() -> mujoco.MjSpec:
+    """dm_control's quadruped (``suite/quadruped.xml``) on a flat floor.
+
+    Left out: the ball that drops on it from 3 m, the (flat) height field under the floor,
+    which only costs collision tests, and the suite's sensors (20 range finders cast rays
+    at every step; a Problem adds the sensors its cost needs).
+
+    Raises:
+        ModelNotFoundError: If dm_control is not installed.
+    """
+    found = importlib.util.find_spec("dm_control")
+    if found is None or found.origin is None:
+        raise ModelNotFoundError(
+            "model: dm_control's quadruped needs dm_control (pip install dm_control)"
+        )
+    spec = mujoco.MjSpec.from_file(str(Path(found.origin).parent / "suite" / "quadruped.xml"))
+    spec.delete(spec.body("ball"))
+    spec.delete(spec.geom("terrain"))
+    for sensor in list(spec.sensors):
+        spec.delete(sensor)
+    return spec
 
 
 def menagerie_feet(model: ModelSource) -> tuple[str, ...] | None:
