@@ -29,44 +29,18 @@ import dataclasses
 import json
 import os
 import platform
-import subprocess
 import time
 from pathlib import Path
 
 import numpy as np
 
 import mpcbox
+from mpcbox.comparison.records import cpu_name, gpu_names
 from mpcbox.sim.realtime import simulate_realtime
 from mpcbox.tasks.legged.walk import QuadrupedWalk
 
 #: Candidates per tick on the GPU unless ``--num-samples`` says otherwise.
 WARP_SAMPLES = 1024
-
-
-def gpu_name() -> str | None:
-    """The first GPU's name from ``nvidia-smi``, or ``None``."""
-    try:
-        out = subprocess.run(
-            ["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"],
-            capture_output=True,
-            text=True,
-            timeout=10,
-            check=True,
-        )
-        return out.stdout.strip().splitlines()[0]
-    except Exception:
-        return None
-
-
-def cpu_name() -> str:
-    """The CPU model from ``/proc/cpuinfo`` (else ``platform.processor()``)."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor()
 
 
 def parse_set(text: str) -> dict:
@@ -182,7 +156,7 @@ def main() -> None:
         "benchmark": "quadruped_walk",
         "model": args.model,
         "machine": args.machine or f"{cpu_name()}, {os.cpu_count()} cores visible",
-        "gpu": gpu_name() if args.backend == "warp" else None,
+        "gpu": next(iter(gpu_names()), None) if args.backend == "warp" else None,
         "platform": platform.platform(),
         "backend": args.backend,
         "target": problem.target.tolist(),

@@ -29,30 +29,15 @@ from __future__ import annotations
 import argparse
 import json
 import platform
-import subprocess
 from pathlib import Path
 
 import numpy as np
 
 import mpcbox
+from mpcbox.comparison.records import gpu_names
 from mpcbox.registry import task_class
 from mpcbox.sim.disturbances import ModelMismatch, Push
 from mpcbox.sim.realtime import simulate_realtime
-
-
-def gpu_name() -> str | None:
-    """The first GPU's name from ``nvidia-smi``, or ``None``."""
-    try:
-        out = subprocess.run(
-            ["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"],
-            capture_output=True,
-            text=True,
-            timeout=10,
-            check=True,
-        )
-        return out.stdout.strip().splitlines()[0]
-    except Exception:
-        return None
 
 
 def main() -> None:
@@ -93,7 +78,7 @@ def main() -> None:
     report: dict = {
         "task": args.task,
         "machine": args.machine,
-        "gpu": args.gpu or (gpu_name() if args.backend == "warp" else None),
+        "gpu": args.gpu or (next(iter(gpu_names()), None) if args.backend == "warp" else None),
         "set": args.set,
         "platform": platform.platform(),
         "backend": args.backend,

@@ -172,7 +172,8 @@ def controller_settings(
     return out
 
 
-def _cpu() -> str:
+def cpu_name() -> str:
+    """The CPU model from ``/proc/cpuinfo`` (else what :mod:`platform` says)."""
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
             if line.startswith("model name"):
@@ -182,7 +183,8 @@ def _cpu() -> str:
     return platform.processor() or platform.machine()
 
 
-def _gpus() -> list[str]:
+def gpu_names() -> list[str]:
+    """``"name, memory"`` of each GPU that ``nvidia-smi`` lists (empty without it)."""
     if shutil.which("nvidia-smi") is None:
         return []
     try:
@@ -211,9 +213,9 @@ def environment() -> dict[str, Any]:
         "python": platform.python_version(),
         "machine": {
             "platform": platform.platform(),
-            "cpu": _cpu(),
+            "cpu": cpu_name(),
             "cpu_count": os.cpu_count(),
-            "gpus": _gpus(),
+            "gpus": gpu_names(),
         },
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }
