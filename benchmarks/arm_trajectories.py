@@ -43,6 +43,7 @@ from mpcbox.core.actuator_scales import actuator_scales
 from mpcbox.core.menagerie import MissingMeshWarning
 from mpcbox.errors import EquilibriumWarning
 from mpcbox.registry import make_controller
+from mpcbox.sim.trajectory import jsonable
 from mpcbox.tasks.arm import (
     ArmTrack,
     Sphere,
@@ -205,17 +206,6 @@ def summary(values: list[float]) -> dict:
     }
 
 
-def _finite(value: object) -> object:
-    """``value`` with NaN and infinite floats as ``None`` (JSON has neither)."""
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_finite(v) for v in value]
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
-    return value
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=8)
@@ -303,7 +293,7 @@ def main() -> None:
         "fast_moves": fast,
         "runs": rows,
     }
-    text = json.dumps(_finite(out), indent=2, default=float)
+    text = json.dumps(jsonable(out), indent=2, default=float)
     print(text)
     Path(args.out).write_text(text + "\n")
 

@@ -134,29 +134,18 @@ def build(name: str) -> dict[str, Any]:
             "ctrls": np.full((150, 1), 0.1),
             "states": straight_line_states(p, x0, p.reference_state(), 150, arrival=105),
         }
-    if name == "arm":
+    if name in ("arm", "arm_menagerie"):
+        # (model, reaching frame, target offset, start posture: None keeps the keyframe's)
+        spec, frame, offset, start = {
+            "arm": (urdf_panda, "panda_hand_tcp", [0.3, 0.3, -0.3], PANDA_HOME),
+            "arm_menagerie": (torque_panda, "attachment", [0.15, 0.1, -0.15], None),
+        }[name]
         p = ArmReach(
-            urdf_panda(),
-            frame="panda_hand_tcp",
-            target=np.array([0.3, 0.3, -0.3]),
+            spec(),
+            frame=frame,
+            target=np.array(offset),
             relative=True,
-            start_qpos=PANDA_HOME,
-            planning_timestep=0.01,
-            threads=1,
-        )
-        x0 = p.initial_state()
-        return {
-            "problem": p,
-            "horizon": 40,
-            "ctrls": np.tile(p.ctrl_ref, (40, 1)),
-            "states": np.tile(x0, (41, 1)),
-        }
-    if name == "arm_menagerie":
-        p = ArmReach(
-            torque_panda(),
-            frame="attachment",
-            target=np.array([0.15, 0.1, -0.15]),
-            relative=True,
+            start_qpos=start,
             planning_timestep=0.01,
             threads=1,
         )

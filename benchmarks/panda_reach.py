@@ -27,6 +27,7 @@ from mpcbox.config import config_options
 from mpcbox.controllers.ilqr.controller import ILQR
 from mpcbox.core.menagerie import MissingMeshWarning
 from mpcbox.registry import make_controller
+from mpcbox.sim.trajectory import jsonable
 from mpcbox.tasks.reach import ArmReach
 from mpcbox.tasks.reach_measures import arrival
 
@@ -97,17 +98,6 @@ def offline(problem: ArmReach, horizon_s: float, iterations: int) -> dict:
     }
 
 
-def _finite(value: object) -> object:
-    """``value`` with NaN floats as ``None`` (JSON has no NaN)."""
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_finite(v) for v in value]
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
-    return value
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", default="menagerie:franka_emika_panda")
@@ -157,7 +147,7 @@ def main() -> None:
         },
         "seeds": rows,
     }
-    text = json.dumps(_finite(out), indent=2, default=float)
+    text = json.dumps(jsonable(out), indent=2, default=float)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(text + "\n")
     print(text)
