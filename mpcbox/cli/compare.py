@@ -60,7 +60,7 @@ DEFAULTS: dict[str, Any] = {
 _SIMPLE = (bool, int, float, str)
 
 
-def _task_parameters(task: str) -> dict[str, inspect.Parameter]:
+def task_parameters(task: str) -> dict[str, inspect.Parameter]:
     """Keyword arguments of a task class that have a plain (bool/int/float/str) default."""
     from mpcbox.registry import task_class
 
@@ -188,7 +188,7 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
     if task is not None:
         group = parser.add_argument_group(f"options of the task {task!r}")
         taken = {a.dest for a in parser._actions}
-        for name, param in _task_parameters(task).items():
+        for name, param in task_parameters(task).items():
             if name in taken:
                 continue
             default = param.default
@@ -201,7 +201,8 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
     return parser
 
 
-def _scenarios(args: argparse.Namespace):
+def scenarios_from_args(args: argparse.Namespace):
+    """The scenarios that the duration, noise, push and mismatch flags describe."""
     from mpcbox.comparison.scenario import Scenario
     from mpcbox.sim.disturbances import ModelMismatch, Push
 
@@ -234,7 +235,7 @@ def _scenarios(args: argparse.Namespace):
     )
 
 
-def _parse_sets(items: Sequence[str]) -> dict[str, dict[str, Any]]:
+def parse_sets(items: Sequence[str]) -> dict[str, dict[str, Any]]:
     """``["mppi.num_samples=64"]`` -> ``{"mppi": {"num_samples": 64}}`` (Python literals)."""
     import ast
 
@@ -292,12 +293,12 @@ def run_comparison(
     chosen = list(resolve_controllers(task_class(task), args.controllers or None))
     defaults = {k: dict(v) for k, v in (controller_defaults or {}).items() if k in chosen}
     overrides = {k: dict(v) for k, v in defaults.items()}
-    sets = _parse_sets(args.set)
+    sets = parse_sets(args.set)
     for name, options in sets.items():
         check_options(name, options, chosen)
         overrides.setdefault(name, {}).update(options)
     reductions = cpu_reductions(task_class(task), defaults, sets)
-    task_options = {name: getattr(args, name) for name in _task_parameters(task)}
+    task_options = {name: getattr(args, name) for name in task_parameters(task)}
     push_tests = ()
     if args.largest_push:
         common = dict(
@@ -312,7 +313,7 @@ def run_comparison(
             PushTest(direction=(-1.0, 0.0, 0.0), name="backward", **common),
         )
     seeds = range(args.seed, args.seed + args.seeds)
-    scenarios = _scenarios(args)
+    scenarios = scenarios_from_args(args)
     t0 = time.perf_counter()
     result = compare(
         task,
@@ -329,7 +330,7 @@ def run_comparison(
         progress=args.progress,
     )
     elapsed = time.perf_counter() - t0
-    params = _task_parameters(task)
+    params = task_parameters(task)
     changed = {k: v for k, v in task_options.items() if v != params[k].default}
     options = "".join(f", {k}={v}" for k, v in changed.items())
     print(

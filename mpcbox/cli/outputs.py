@@ -174,12 +174,18 @@ def _plain(value: Any) -> bool:
 
 def _single_run(result, problem, task, options, saved, video) -> list[Path]:
     from mpcbox.comparison.records import run_trajectory
-    from mpcbox.sim.trajectory import save_trajectory
 
     run = next((r for r in result.runs if r.trace is not None), None)
     if run is None or run.trace.states is None:
         raise InvalidArgumentError("the run kept no trajectory to save or render")
     traj = run_trajectory(result, run, problem, {"task": task, "task_options": dict(options)})
+    return save_or_render(traj, problem, saved, video)
+
+
+def save_or_render(traj, problem, saved: str | None, video: str | None) -> list[Path]:
+    """Save ``traj`` as ``saved`` (CSV + JSON) and/or render it to ``video``; the files."""
+    from mpcbox.sim.trajectory import save_trajectory
+
     written: list[Path] = []
     if saved:
         written += list(save_trajectory(traj, saved))

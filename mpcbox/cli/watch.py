@@ -80,7 +80,7 @@ def run_watched(
         The exit status (0).
     """
     from mpcbox.cli.checks import check_arguments, check_options, check_output_folder
-    from mpcbox.cli.compare import _parse_sets, _scenarios, _task_parameters
+    from mpcbox.cli.compare import parse_sets, scenarios_from_args, task_parameters
     from mpcbox.cli.outputs import check_single_run_flags
     from mpcbox.comparison.runner import resolve_controllers
     from mpcbox.registry import make_controller, task_class
@@ -96,15 +96,15 @@ def run_watched(
             f"--viewer watches one controller; --controller gave {', '.join(chosen)}"
         )
     name = chosen[0]
-    sets = _parse_sets(args.set)
+    sets = parse_sets(args.set)
     for label, options in sets.items():
         check_options(label, options, [name])
     options = {**dict(controller_defaults.get(name, {})), **sets.get(name, {})}
     viewer = viewer_from_args(args, out)
-    task_options = {k: getattr(args, k) for k in _task_parameters(task)}
+    task_options = {k: getattr(args, k) for k in task_parameters(task)}
     problem = task_class(task)(**task_options)
     controller = make_controller(name, problem, **options)
-    scenario = _scenarios(args)[0]
+    scenario = scenarios_from_args(args)[0]
     loop, extra = (simulate_realtime, {"speed": args.speed}) if args.realtime else (simulate, {})
     result = loop(
         problem,
@@ -132,7 +132,8 @@ def run_watched(
 
 
 def _files(result, problem, task, task_options, args, viewer) -> Sequence[Path]:
-    from mpcbox.sim.trajectory import save_trajectory, trajectory_from_result
+    from mpcbox.cli.outputs import save_or_render
+    from mpcbox.sim.trajectory import trajectory_from_result
 
     written: list[Path] = []
     path = getattr(viewer, "path", None)
@@ -141,12 +142,7 @@ def _files(result, problem, task, task_options, args, viewer) -> Sequence[Path]:
     if args.save_trajectory or args.video:
         meta = {"task": task, "task_options": dict(task_options)}
         traj = trajectory_from_result(result, problem, metadata=meta)
-        if args.save_trajectory:
-            written += list(save_trajectory(traj, args.save_trajectory))
-        if args.video:
-            from mpcbox.sim.video import render_video
-
-            written.append(render_video(traj, problem, args.video))
+        written += save_or_render(traj, problem, args.save_trajectory, args.video)
     return written
 
 
