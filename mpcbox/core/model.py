@@ -378,3 +378,24 @@ def free_body(model: mujoco.MjModel) -> int | None:
         if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE and model.jnt_bodyid[j] != 0:
             return int(model.jnt_bodyid[j])
     return None
+
+
+def dof_weights(
+    model: mujoco.MjModel,
+    joints: float | np.ndarray,
+    free: Sequence[float] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+) -> np.ndarray:
+    """Per-dof weights ``(nv,)``: ``joints`` everywhere except on free joints.
+
+    Args:
+        model: The model.
+        joints: Weight of every dof, a scalar or ``(nv,)``.
+        free: The six weights of each free joint's dofs (linear x, y, z in the world frame,
+            then angular); zero by default, so a floating root is left to other terms.
+    """
+    weights = np.array(np.broadcast_to(np.asarray(joints, dtype=float), (model.nv,)))
+    for j in range(model.njnt):
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+            adr = model.jnt_dofadr[j]
+            weights[adr : adr + 6] = free
+    return weights

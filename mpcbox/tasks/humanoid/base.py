@@ -7,6 +7,7 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
+from mpcbox.core.model import dof_weights
 from mpcbox.sim.disturbances import ActuatorNoise
 from mpcbox.tasks.humanoid.noise import balance_noise
 from mpcbox.tasks.legged.balance import LeggedBalance
@@ -57,10 +58,6 @@ def joint_weights(
 ) -> np.ndarray:
     """Per-dof position weights ``(nv,)``: ``balance_joint`` on ``dofs``, ``other_joint``
     elsewhere, zero on free joints (the root)."""
-    wq = np.full(model.nv, float(other_joint))
-    for j in range(model.njnt):
-        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
-            adr = model.jnt_dofadr[j]
-            wq[adr : adr + 6] = 0.0
+    wq = dof_weights(model, float(other_joint))
     wq[dofs] = balance_joint
     return wq

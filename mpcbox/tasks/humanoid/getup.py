@@ -10,7 +10,7 @@ import numpy as np
 
 from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, PredictiveSamplingConfig
 from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, FrameHeight, StateCost, Upright
-from mpcbox.core.model import ModelSource
+from mpcbox.core.model import ModelSource, dof_weights
 from mpcbox.core.problem import Problem
 from mpcbox.tasks import scene_path
 from mpcbox.validation import non_negative, non_negative_weights, positive
@@ -121,11 +121,7 @@ class HumanoidGetup(Problem):
 
     def _terms(self, model: mujoco.MjModel, scale: float, suffix: str) -> list:
         w = self.getup_weights
-        wq = np.full(model.nv, w["posture"])
-        for j in range(model.njnt):
-            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
-                adr = model.jnt_dofadr[j]
-                wq[adr : adr + 6] = 0.0
+        wq = dof_weights(model, w["posture"])
         return [
             *(
                 ComOverSupport(

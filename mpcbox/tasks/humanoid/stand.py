@@ -5,11 +5,10 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import mujoco
-import numpy as np
 
 from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, PredictiveSamplingConfig
 from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, FrameHeight, StateCost, Upright
-from mpcbox.core.model import ModelSource
+from mpcbox.core.model import ModelSource, dof_weights
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.base import HumanoidProblem
 from mpcbox.validation import finite, non_negative_weights
@@ -137,12 +136,8 @@ class HumanoidStand(HumanoidProblem):
 
     def _terms(self, model: mujoco.MjModel, scale: float, suffix: str) -> list:
         w = self.stand_weights
-        wq = np.full(model.nv, w["posture"])
-        for j in range(model.njnt):
-            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
-                adr = model.jnt_dofadr[j]
-                wq[adr : adr + 2] = w["root"]
-                wq[adr + 2 : adr + 6] = 0.0
+        # the root's horizontal drift; its height and orientation have terms of their own
+        wq = dof_weights(model, w["posture"], free=(w["root"], w["root"], 0.0, 0.0, 0.0, 0.0))
         balance = [
             ComOverSupport(
                 f"foot_{side}",

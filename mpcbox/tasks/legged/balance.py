@@ -16,6 +16,7 @@ from mpcbox.core.equilibrium import Equilibrium, find_equilibrium
 from mpcbox.core.model import (
     ModelSource,
     compile_spec,
+    dof_weights,
     free_body,
     load_spec,
     names,
@@ -271,12 +272,7 @@ class LeggedBalance(Problem):
 
     def joint_weights(self, model: mujoco.MjModel) -> np.ndarray:
         """Per-dof posture weights ``(nv,)``: ``joint_cost``, zero on free joints (the root)."""
-        wq = as_weights("joint_cost", self.weights["joint"], model.nv).copy()
-        for j in range(model.njnt):
-            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
-                adr = model.jnt_dofadr[j]
-                wq[adr : adr + 6] = 0.0
-        return wq
+        return dof_weights(model, as_weights("joint_cost", self.weights["joint"], model.nv))
 
     def ctrl_weights(self, model: mujoco.MjModel) -> np.ndarray:
         """Per-actuator control weights ``(nu,)`` in control units (from ``ctrl_units``)."""

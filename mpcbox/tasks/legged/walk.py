@@ -10,7 +10,7 @@ import numpy as np
 
 from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, PredictiveSamplingConfig
 from mpcbox.core.cost import ControlCost, Cost, CostTerm, FrameHeight, FramePosition, StateCost
-from mpcbox.core.model import ModelSource
+from mpcbox.core.model import ModelSource, dof_weights
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.sim.measures import Measure
 from mpcbox.tasks.legged.measures import TargetDistance, Tilt
@@ -194,12 +194,7 @@ class QuadrupedWalk(QuadrupedStand):
 
     def _terms(self, model: mujoco.MjModel, scale: float, suffix: str) -> list[CostTerm]:
         w = self.walk_weights
-        wq = np.full(model.nv, w["posture"])
-        for j in range(model.njnt):
-            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
-                adr = model.jnt_dofadr[j]
-                wq[adr : adr + 3] = 0.0
-                wq[adr + 3 : adr + 6] = w["orientation"]
+        wq = dof_weights(model, w["posture"], free=(0.0, 0.0, 0.0, *[w["orientation"]] * 3))
         goal = np.array([*self.target, 0.0])
         return [
             FramePosition(
