@@ -81,7 +81,7 @@ class LiveViewer(Viewer):
         self.handle: Any = None
         self._clock: tuple[float, float] | None = None
 
-    def open(self, problem: Problem, controller: Controller) -> None:
+    def open(self, problem: Problem, controller: Controller | None) -> None:
         reason = display_missing()
         if reason is not None:
             raise BackendUnavailableError(

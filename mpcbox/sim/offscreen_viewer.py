@@ -85,7 +85,7 @@ class OffscreenViewer(Viewer):
         self._track = 0
         self._name = ""
 
-    def open(self, problem: Problem, controller: Controller) -> None:
+    def open(self, problem: Problem, controller: Controller | None) -> None:
         assert self.model is not None
         model = copy.copy(self.model)
         model.vis.global_.offwidth = max(self.width, model.vis.global_.offwidth)

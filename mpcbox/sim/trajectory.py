@@ -474,7 +474,7 @@ def replay(traj: Trajectory, problem: Problem, *, viewer: Any = None) -> Replay:
     push_ids = [object_id(model, "body", p.body) for p in traj.pushes]
     view = as_viewer(viewer)
     if view is not None:
-        view.start(problem, None, model, data)  # type: ignore[arg-type]  # no planner
+        view.start(problem, None, model, data)  # a replay has no planner
     steps = len(traj.time)
     times = np.empty(steps)
     states = np.empty((steps, problem.nstate))

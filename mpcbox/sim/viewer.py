@@ -82,13 +82,18 @@ class Viewer(abc.ABC):
 
     # ------------------------------------------------------------------ for the loops
     def start(
-        self, problem: Problem, controller: Controller, model: mujoco.MjModel, data: mujoco.MjData
+        self,
+        problem: Problem,
+        controller: Controller | None,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
     ) -> None:
         """Prepare to draw ``model``; turn the controller's trace recording on if needed.
 
         Args:
             problem: The Problem simulated.
-            controller: The controller (its ``traces`` are drawn when it has any).
+            controller: The controller (its ``traces`` are drawn when it has any), or
+                ``None`` when nothing plans (a replay).
             model: The simulated model (with any mismatch).
             data: The simulation's data (only read).
 
@@ -153,7 +158,7 @@ class Viewer(abc.ABC):
 
     # ------------------------------------------------------------------ for the viewers
     @abc.abstractmethod
-    def open(self, problem: Problem, controller: Controller) -> None:
+    def open(self, problem: Problem, controller: Controller | None) -> None:
         """Make the window or the renderer for :attr:`model` and :attr:`data`."""
 
     @abc.abstractmethod
