@@ -103,7 +103,10 @@ class OffscreenViewer(Viewer):
             if not self.note:
                 raise
             raise BackendUnavailableError(f"{self.note}; and {exc}") from exc
-        self._name = str(getattr(controller, "name", type(controller).__name__))
+        if controller is None:
+            self._name = "replay"
+        else:
+            self._name = str(getattr(controller, "name", type(controller).__name__))
         try:
             self.writer = FrameWriter(self.path, fps=self.fps, width=self.width, height=self.height)
         except BaseException:
