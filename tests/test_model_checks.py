@@ -89,15 +89,68 @@ def test_models_without_rk4_are_planned_unchanged_and_silently():
     assert "planning_integrator" not in repr(problem)
 
 
+def test_plan_rk4_linearizes_the_rk4_step_itself():
+    # plan_rk4 keeps RK4, silently; its Jacobians are central differences of the RK4 step.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        problem = mpcbox.Problem(pendulum(integrator="RK4", timestep="0.05"), plan_rk4=True)
+    assert problem.planning_model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
+    assert "planning_integrator" not in repr(problem)
+    x, u = np.array([0.7, -0.3]), np.array([0.5])
+    lin = problem.linearize(x, u)
+    eps = 1e-5
+
+    def step(state, ctrl):
+        return problem.step(state, ctrl)
+
+    A = np.stack([(step(x + eps * e, u) - step(x - eps * e, u)) / (2 * eps) for e in np.eye(2)], 1)
+    B = ((step(x, u + eps) - step(x, u - eps)) / (2 * eps))[:, None]
+    np.testing.assert_allclose(lin.A, A, atol=1e-7)
+    np.testing.assert_allclose(lin.B, B, atol=1e-7)
+    # ... unlike the implicitfast copy's at this 0.05 s step.
+    with pytest.warns(mpcbox.PlanningModelWarning):
+        copied = mpcbox.Problem(pendulum(integrator="RK4", timestep="0.05"))
+    assert np.abs(copied.linearize(x, u).A - A).max() > 1e-3
+    lin3 = problem.linearize_trajectory(np.tile(x, (3, 1)), np.tile(u, (3, 1)))
+    np.testing.assert_allclose(lin3.A[1], lin.A, atol=1e-12)
+
+
+def test_step_jacobians_match_mjd_transition_fd_on_a_free_body():
+    # On a model mjd_transitionFD handles (a free body: quaternion positions) both agree.
+    from mpcbox.core.step_fd import step_jacobians
+
+    model = mujoco.MjModel.from_xml_string(
+        """<mujoco><option integrator="implicitfast" gravity="0 0 -9.81"/><worldbody>
+        <body pos="0 0 1"><freejoint/><geom type="box" size=".1 .2 .3" mass="1"/>
+        <body pos="0 0 .4"><joint name="j" axis="1 0 0" damping=".1"/>
+        <geom type="capsule" fromto="0 0 0 0 0 .4" size=".05"/></body></body></worldbody>
+        <actuator><motor joint="j"/></actuator></mujoco>"""
+    )
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(0)
+    data.qpos[3:7] = rng.normal(size=4) / 2.0
+    data.qpos[3:7] /= np.linalg.norm(data.qpos[3:7])
+    data.qvel[:] = rng.normal(size=model.nv)
+    data.ctrl[:] = 0.3
+    nx = 2 * model.nv
+    A, B, A_ref, B_ref = (
+        np.zeros((nx, nx)),
+        np.zeros((nx, 1)),
+        np.zeros((nx, nx)),
+        np.zeros((nx, 1)),
+    )
+    before = data.qpos.copy()
+    step_jacobians(model, data, 1e-6, True, A, B)
+    np.testing.assert_array_equal(data.qpos, before)  # the state is restored
+    mujoco.mjd_transitionFD(model, data, 1e-6, True, A_ref, B_ref, None, None)
+    np.testing.assert_allclose(A, A_ref, atol=1e-6)
+    np.testing.assert_allclose(B, B_ref, atol=1e-6)
+
+
 def test_a_mujoco_fatal_error_becomes_an_mpcbox_error(monkeypatch):
     with pytest.warns(mpcbox.PlanningModelWarning):
         problem = mpcbox.Problem(pendulum(integrator="RK4"))
-    problem.planning_model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4  # undo the fix
     x, u = np.array([0.1, 0.0]), np.array([0.0])
-    with pytest.raises(mpcbox.UnsupportedModelError, match="RK4"):
-        problem.linearize(x, u)
-    with pytest.raises(mpcbox.UnsupportedModelError, match="RK4"):
-        problem.linearize_trajectory(x[None], u[None])
 
     # A fatal error that the Problem does not foresee is wrapped as well.
     def fatal(*args):

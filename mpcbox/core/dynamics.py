@@ -20,7 +20,8 @@ from typing import NamedTuple, TypeVar
 import mujoco
 import numpy as np
 
-from mpcbox.errors import MujocoError, UnsupportedModelError
+from mpcbox.core.step_fd import step_jacobians
+from mpcbox.errors import MujocoError
 from mpcbox.validation import positive_int
 
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -158,7 +159,8 @@ class Dynamics:
     def linearize(
         self, state: np.ndarray, ctrl: np.ndarray, eps: float, centered: bool
     ) -> Linearization:
-        """Jacobians ``A`` ``(nx, nx)``, ``B`` ``(nx, nu)`` of one step (``mjd_transitionFD``).
+        """Jacobians ``A`` ``(nx, nx)``, ``B`` ``(nx, nu)`` of one step (``mjd_transitionFD``;
+        for RK4, which it refuses, :func:`~mpcbox.core.step_fd.step_jacobians`).
 
         Args:
             state: State ``(nstate,)``.
@@ -166,7 +168,6 @@ class Dynamics:
             eps: Finite-difference step.
             centered: Centered (True) or forward (False) differences.
         """
-        self._check_differentiable()
         with mujoco_errors("linearize"):
             return self._linearize(state, ctrl, eps, centered)
 
@@ -176,7 +177,10 @@ class Dynamics:
         data.ctrl[:] = ctrl
         A = np.zeros((self.nx, self.nx))
         B = np.zeros((self.nx, self.nu))
-        mujoco.mjd_transitionFD(self.model, data, eps, centered, A, B, None, None)
+        if self.model.opt.integrator == _RK4:  # mjd_transitionFD refuses RK4
+            step_jacobians(self.model, data, eps, centered, A, B)
+        else:
+            mujoco.mjd_transitionFD(self.model, data, eps, centered, A, B, None, None)
         return Linearization(A, B)
 
     def linearize_trajectory(
@@ -192,19 +196,11 @@ class Dynamics:
         Returns:
             ``A`` ``(T, nx, nx)`` and ``B`` ``(T, nx, nu)``.
         """
-        self._check_differentiable()
         with mujoco_errors("linearize_trajectory"):
             out = self.map(
                 lambda i: self._linearize(states[i], ctrls[i], eps, centered), len(states), threads
             )
         return Linearization(np.stack([o.A for o in out]), np.stack([o.B for o in out]))
-
-    def _check_differentiable(self) -> None:
-        if self.model.opt.integrator == _RK4:
-            raise UnsupportedModelError(
-                "linearize: mujoco.mjd_transitionFD does not support the RK4 integrator; set "
-                "the planning model's opt.integrator to implicitfast, implicit or Euler"
-            )
 
     def rollout(
         self,

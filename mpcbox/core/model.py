@@ -263,18 +263,22 @@ def _ids(model: mujoco.MjModel, field: str, ids: np.ndarray) -> str:
     return ", ".join(shown)
 
 
-def plannable(model: mujoco.MjModel, owner: str) -> mujoco.MjModel:
+def plannable(model: mujoco.MjModel, owner: str, keep_rk4: bool = False) -> mujoco.MjModel:
     """``model``, or a copy using :data:`PLANNING_INTEGRATOR` when it uses RK4.
 
     MuJoCo's ``mjd_transitionFD`` cannot differentiate an RK4 step; planning on a copy with
     another integrator keeps linearization-based controllers working. The replacement is
-    announced with a :class:`~mpcbox.errors.PlanningModelWarning`.
+    announced with a :class:`~mpcbox.errors.PlanningModelWarning`. With ``keep_rk4`` the
+    model is planned as it is, and linearized by finite differences of ``mj_step``
+    (:func:`~mpcbox.core.step_fd.step_jacobians`: exact for the simulated step, and
+    ``2 (2 nv + na + nu)`` RK4 steps per linearization).
 
     Args:
         model: A planning model.
         owner: Who plans with it, for the warning (e.g. ``"Problem"``).
+        keep_rk4: Keep RK4 (no copy, no warning).
     """
-    if model.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4:
+    if keep_rk4 or model.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4:
         return model
     warnings.warn(
         PlanningModelWarning(

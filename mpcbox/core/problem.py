@@ -8,9 +8,8 @@ State conventions (``nq`` positions, ``nv`` velocities, ``na`` actuator activati
 * linearizations map deviations: :math:`dx_{t+1} = A\,dx_t + B\,du_t` with
   ``A`` of shape ``(nx, nx)``, ``B`` of shape ``(nx, nu)`` and ``nx = 2 nv + na``.
 
-The Problem checks its arguments and delegates the work: stepping, rollouts and
-linearization to :mod:`mpcbox.core.dynamics`, cost evaluation and quadratization to
-:mod:`mpcbox.core.derivatives`.
+The Problem checks its arguments and delegates: stepping, rollouts and linearization to
+:mod:`mpcbox.core.dynamics`, cost evaluation and quadratization to :mod:`~.derivatives`.
 """
 
 from __future__ import annotations
@@ -67,6 +66,7 @@ class Problem:
 
     An RK4 model is planned with ``implicitfast`` (MuJoCo cannot differentiate an RK4 step),
     said by a :class:`~mpcbox.errors.PlanningModelWarning` and the repr; it simulates in RK4.
+    With ``plan_rk4`` it is planned in RK4 too, linearized by finite differences of steps.
 
     Subclasses typically override :meth:`build_cost` (and :meth:`prepare` to compute a
     reference posture before the cost is built) and :meth:`failure` (what counts as a fall);
@@ -88,6 +88,7 @@ class Problem:
             ``nq``, ``nv``, ``nu`` and ``na``.
         fd_eps: Finite-difference step.
         fd_centered: Centered (True) or forward (False) differences by default.
+        plan_rk4: Plan an RK4 model in RK4 (:func:`~mpcbox.core.model.plannable`).
         threads: Threads for batched linearization (default: all cores).
         name: Label used in tables.
 
@@ -118,6 +119,7 @@ class Problem:
         planning_model: ModelSource | None = None,
         fd_eps: float = 1e-6,
         fd_centered: bool = True,
+        plan_rk4: bool = False,
         threads: int | None = None,
         name: str | None = None,
     ) -> None:
@@ -155,7 +157,7 @@ class Problem:
         requests = self.cost.sensors(base)
         self.model = with_sensors(base if spec is None else spec, requests)
         pm = build_planning_model(self.model, spec, requests, planning_model, planning_timestep)
-        self.planning_model = plannable(pm, type(self).__name__)
+        self.planning_model = plannable(pm, type(self).__name__, boolean("plan_rk4", plan_rk4))
         #: The simulation integrator that planning replaced (``"RK4"``), else ``None``.
         self.replaced_integrator = None if self.planning_model is pm else "RK4"
         self.cost.bind(self.planning_model)
