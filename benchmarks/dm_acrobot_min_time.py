@@ -21,8 +21,7 @@ states rolled out from them):
 
 - ``reach``: the least time ``T`` for the tip to come within ``--radius`` (0.2 m, the task's
   tolerance) of the target, at any speed: a lower bound on any controller's time to upright.
-- ``rest``: the least time to the upright at rest (``sin q_1 = sin q_12 = 0``,
-  ``cos q_1, cos q_12 >= 0``, ``qd = 0``).
+- ``rest``: the least time to the upright at rest (``q`` a multiple of ``2 pi``, ``qd = 0``).
 
 Each uses ``--knots`` intervals of ``T / knots`` while minimizing ``T``. The best ``rest``
 solution is then re-solved on the simulator's own grid (0.01 s steps, ``T`` rounded up to
@@ -170,9 +169,9 @@ def random_guess(
     seeds mpcbox's iLQR (terminal tip weight 1000 and velocity weight 100 only, 0.02 s
     step, ``iterations`` at most), a single-shooting method that escapes the hanging rest
     where multiple shooting from a raw guess stays; its plan, resampled onto ``knots``
-    intervals of ``duration / knots`` with the shoulder unwrapped to end near 0 (the
-    mirror image, by the chain's symmetry, when it ends near ``2 pi``), is IPOPT's guess.
-    Returns (ctrl ``(knots,)``, states ``(4, knots + 1)``, the raw guess's parameters).
+    intervals of ``duration / knots``, is IPOPT's guess, and the upright angles nearest its
+    end (multiples of ``2 pi``) are the goal. Returns (ctrl ``(knots,)``, states
+    ``(4, knots + 1)``, the raw guess's parameters, goal angles ``(2,)``).
     """
     weights = SwingupWeights(
         site=0.0,
@@ -202,33 +201,37 @@ def random_guess(
     waves = [(1.0, rng.uniform(2.2, 3.4), rng.uniform(0, 2 * np.pi))]
     ctrl = np.clip(sum(a * np.cos(w * t + f) for a, w, f in waves), -1, 1)
     plan = solver.solve(problem.initial_state(), ctrl[:, None])
-    states = plan.states.T.copy()
-    states[0] -= 2 * np.pi * round(states[0, -1] / (2 * np.pi))
-    states[1] -= 2 * np.pi * round(states[1, -1] / (2 * np.pi))
-    ctrls = plan.ctrls[:, 0].copy()
-    if states[0, 0] < 0:
-        states, ctrls = -states, -ctrls
+    states, ctrls = plan.states.T, plan.ctrls[:, 0]
+    goal = (2 * np.pi * np.round(states[:2, -1] / (2 * np.pi))).tolist()
     t_plan = problem.dt * np.arange(steps + 1)
     t_knots = np.linspace(0, duration, knots + 1)
     resampled = np.stack([np.interp(t_knots, t_plan, row) for row in states])
     held = np.interp(t_knots[:-1], t_plan[:-1], ctrls)
     raw = [[round(float(v), 3) for v in wave] for wave in waves]
-    return held, resampled, raw
+    return held, resampled, raw, goal
 
 
-def end_conditions(opti: Any, p: AcrobotParameters, end: Any, kind: str, radius: float) -> None:
-    """Constrain the final state ``(4,)``: ``"reach"`` (tip within ``radius``) or ``"rest"``."""
+def end_conditions(
+    opti: Any, p: AcrobotParameters, end: Any, kind: str, radius: float, goal: Any
+) -> None:
+    """Constrain the final state ``(4,)``: ``"reach"`` (tip within ``radius``) or ``"rest"``
+    (at rest at the upright joint angles ``goal`` ``(2,)``, multiples of ``2 pi``)."""
     if kind == "reach":
         target = ca.DM([0.0, p.length + 2 * p.com[1]])
         opti.subject_to(ca.sumsqr(tip(p, end[0:2]) - target) <= radius**2)
         return
-    opti.subject_to(end[0] == (0.0 if kind == "rest" else 2 * np.pi))
-    opti.subject_to(end[1] == 0)
+    opti.subject_to(end[0:2] == ca.DM(goal))
     opti.subject_to(end[2:4] == 0)
 
 
 def solve_fixed(
-    p: AcrobotParameters, kind: str, duration: float, knots: int, radius: float, init: tuple
+    p: AcrobotParameters,
+    kind: str,
+    duration: float,
+    knots: int,
+    radius: float,
+    init: tuple,
+    goal: Any,
 ) -> tuple[bool, np.ndarray, np.ndarray, int]:
     """Multiple shooting over a fixed ``duration`` from ``init = (ctrl, states)``.
 
@@ -245,7 +248,7 @@ def solve_fixed(
         opti.subject_to(x[:, k + 1] == rk4_step(p, x[:, k], u[0, k], duration / knots))
     end = x[:, knots]
     opti.minimize(effort)
-    end_conditions(opti, p, end, kind, radius)
+    end_conditions(opti, p, end, kind, radius, goal)
     opti.set_initial(u, init[0][None, :])
     opti.set_initial(x, init[1])
     opti.solver(
@@ -269,6 +272,7 @@ def min_time(
     radius: float,
     start: tuple[float, np.ndarray, np.ndarray],
     step: float,
+    goal: Any,
 ) -> dict:
     """Least ``T`` for ``kind`` by continuation from ``start = (T_0, ctrl, states)``.
 
@@ -278,21 +282,21 @@ def min_time(
     """
     wall = time.perf_counter()
     duration, ctrl, states = start
-    ok, ctrl, states, _ = solve_fixed(p, kind, duration, knots, radius, (ctrl, states))
+    ok, ctrl, states, _ = solve_fixed(p, kind, duration, knots, radius, (ctrl, states), goal)
     if not ok:
         return {"kind": kind, "solved": False, "min_time_s": None}
     best = (duration, ctrl, states)
     low, high = None, duration
     while low is None:
         trial = high - step
-        ok, c, s, _ = solve_fixed(p, kind, trial, knots, radius, best[1:])
+        ok, c, s, _ = solve_fixed(p, kind, trial, knots, radius, best[1:], goal)
         if ok:
             best, high = (trial, c, s), trial
         else:
             low = trial
     for _ in range(2):
         trial = 0.5 * (low + high)
-        ok, c, s, _ = solve_fixed(p, kind, trial, knots, radius, best[1:])
+        ok, c, s, _ = solve_fixed(p, kind, trial, knots, radius, best[1:], goal)
         if ok:
             best, high = (trial, c, s), trial
         else:
@@ -304,6 +308,7 @@ def min_time(
         "failed_at_s": round(float(low), 4),
         "solve_s": round(time.perf_counter() - wall, 1),
         "_best": best,
+        "_goal": goal,
     }
 
 
@@ -322,7 +327,7 @@ def refine_on_sim_grid(p: AcrobotParameters, best: dict) -> dict:
     opti.subject_to(opti.bounded(-1, u, 1))
     for k in range(steps):
         opti.subject_to(x[:, k + 1] == rk4_step(p, x[:, k], u[0, k], p.dt))
-    end_conditions(opti, p, x[:, steps], "rest", 0.0)
+    end_conditions(opti, p, x[:, steps], "rest", 0.0, best["_goal"])
     opti.set_initial(x, np.stack([np.interp(t_new, t_old, row) for row in states_old]))
     held = np.minimum(np.searchsorted(t_old, t_new[:-1], side="right") - 1, knots - 1)
     opti.set_initial(u, ctrl_old[held][None, :])
@@ -357,7 +362,7 @@ def main() -> None:
     parser.add_argument("--knots", type=int, default=80)
     parser.add_argument("--duration", type=float, default=6.5)
     parser.add_argument("--step", type=float, default=0.25)
-    parser.add_argument("--ilqr-iterations", type=int, default=300)
+    parser.add_argument("--ilqr-iterations", type=int, default=150)
     parser.add_argument("--radius", type=float, default=0.2)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
@@ -370,13 +375,14 @@ def main() -> None:
     runs, best = [], None
     for start in range(args.starts):
         wall = time.perf_counter()
-        ctrl, states, waves = random_guess(p, args.knots, args.duration, rng, args.ilqr_iterations)
+        guess = random_guess(p, args.knots, args.duration, rng, args.ilqr_iterations)
+        ctrl, states, waves, goal = guess
         rest = min_time(
             p, "rest", args.knots, args.radius, (args.duration, ctrl, states), args.step
         )
         reach = {"solved": False, "min_time_s": None}
         if rest["solved"]:
-            reach = min_time(p, "reach", args.knots, args.radius, rest["_best"], args.step)
+            reach = min_time(p, "reach", args.knots, args.radius, rest["_best"], args.step, goal)
             if best is None or rest["min_time_s"] < best["min_time_s"]:
                 best = rest
         runs.append(
@@ -384,6 +390,7 @@ def main() -> None:
                 "start": start,
                 "guess_waves_a_w_phi": waves,
                 "ilqr_guess_final_state": states[:, -1].round(3).tolist(),
+                "goal_angles": [round(g, 4) for g in goal],
                 "rest_min_time_s": rest["min_time_s"],
                 "rest_failed_at_s": rest.get("failed_at_s"),
                 "reach_min_time_s": reach["min_time_s"],
