@@ -166,10 +166,11 @@ def random_guess(
 
     The guess ``cos(w t + phi)`` (``w`` in [2.2, 3.4] rad/s about the slow hanging mode's
     2.67, ``phi`` in [0, 2 pi))
-    seeds mpcbox's iLQR (terminal tip weight 1000 and velocity weight 100 only, 0.02 s
-    step, ``iterations`` at most), a single-shooting method that escapes the hanging rest
-    where multiple shooting from a raw guess stays; its plan, resampled onto ``knots``
-    intervals of ``duration / knots``, is IPOPT's guess, and the upright angles nearest its
+    seeds mpcbox's iLQR (terminal tip weight 1000 and velocity weight 100 only, on the RK4
+    model itself, ``Problem(plan_rk4=True)``, at IPOPT's step ``duration / knots``,
+    ``iterations`` at most), a single-shooting method that escapes the hanging rest where
+    multiple shooting from a raw guess stays; its plan (no defects: the same RK4 step) is
+    IPOPT's guess, and the upright angles nearest its
     end (multiples of ``2 pi``) are the goal. Returns (ctrl ``(knots,)``, states
     ``(4, knots + 1)``, the raw guess's parameters, goal angles ``(2,)``).
     """
@@ -184,8 +185,10 @@ def random_guess(
         terminal_position=0.0,
         terminal_angle=0.0,
     )
-    problem = DmAcrobotSwingup(planning_timestep=0.02, threads=1, weights=weights)
-    steps = round(duration / problem.dt)
+    problem = DmAcrobotSwingup(
+        planning_timestep=duration / knots, plan_rk4=True, threads=1, weights=weights
+    )
+    steps = knots
     solver = ILQRSolver(
         problem,
         horizon=steps,
@@ -203,12 +206,8 @@ def random_guess(
     plan = solver.solve(problem.initial_state(), ctrl[:, None])
     states, ctrls = plan.states.T, plan.ctrls[:, 0]
     goal = (2 * np.pi * np.round(states[:2, -1] / (2 * np.pi))).tolist()
-    t_plan = problem.dt * np.arange(steps + 1)
-    t_knots = np.linspace(0, duration, knots + 1)
-    resampled = np.stack([np.interp(t_knots, t_plan, row) for row in states])
-    held = np.interp(t_knots[:-1], t_plan[:-1], ctrls)
     raw = [[round(float(v), 3) for v in wave] for wave in waves]
-    return held, resampled, raw, goal
+    return ctrls.copy(), states.copy(), raw, goal
 
 
 def end_conditions(
@@ -359,7 +358,7 @@ def replay(model: mujoco.MjModel, ctrl: np.ndarray) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--starts", type=int, default=20)
-    parser.add_argument("--knots", type=int, default=80)
+    parser.add_argument("--knots", type=int, default=162)
     parser.add_argument("--duration", type=float, default=6.5)
     parser.add_argument("--step", type=float, default=0.25)
     parser.add_argument("--ilqr-iterations", type=int, default=150)
@@ -377,9 +376,8 @@ def main() -> None:
         wall = time.perf_counter()
         guess = random_guess(p, args.knots, args.duration, rng, args.ilqr_iterations)
         ctrl, states, waves, goal = guess
-        rest = min_time(
-            p, "rest", args.knots, args.radius, (args.duration, ctrl, states), args.step
-        )
+        first = (args.duration, ctrl, states)
+        rest = min_time(p, "rest", args.knots, args.radius, first, args.step, goal)
         reach = {"solved": False, "min_time_s": None}
         if rest["solved"]:
             reach = min_time(p, "reach", args.knots, args.radius, rest["_best"], args.step, goal)
