@@ -286,6 +286,16 @@ def test_lqr_stands_the_g1_on_two_feet_under_the_generic_noise(g1_two_feet):
 
 
 @pytest.mark.menagerie
+def test_qp_mpc_stands_the_g1_on_eight_friction_cones(g1_two_feet):
+    problem = g1_two_feet
+    qp = mpcbox.make_controller("qp", problem)
+    assert qp.points.count == 8  # four spheres under each foot
+    res = mpcbox.simulate(problem, qp, 1.0, noise=problem.noise(), seed=2)
+    assert res.metrics.success, res.failure
+    assert res.metrics.fallbacks <= 0.01 * res.metrics.solve_ticks
+
+
+@pytest.mark.menagerie
 def test_g1_one_foot_stance_is_collision_free_and_lqr_stands_on_it():
     from mpcbox.tasks.legged.biped import BipedStand
 
