@@ -97,26 +97,26 @@ class DmAcrobotSwingup(Swingup):
 
     Not yet solved: the tuned iLQR-MPC and MPPI pump energy but settle into a local minimum
     of this cost, one link up and the other down, and do not reach the target within 5 s
-    (``benchmarks/swingup_dm_control.py``). Why 5 s looks out of reach: the elbow gives at
-    most 2 N m and the swing-up must add 39.2 J of potential energy, 19.6 rad of elbow
-    travel at full torque, against a slow hanging mode of period 2.36 s; offline iLQR with a
-    terminal-only cost (tip weight 1000, from six ``cos(w t + phi)`` restarts,
-    ``benchmarks/dm_acrobot_reachability.py``) ends at best 1.13 m from the target after
-    4.8 s (0.73 m when the tip may pass through), but 0.004 m, at rest, after 6.5 s (a
-    local optimizer: evidence, not proof). That plan is bang-bang (78 % of its knots at the
-    limit) and box-DDP's feedback gains are zero at clamped knots, so its own feedback law
-    cannot track it in the RK4 simulation. In unbenchmarked prototypes, a plan limited to
-    0.94 of the torque (0.002 m from the target after 6.7 s) tracked by time-varying LQR
-    gains without the box drifts under the mismatch between the implicitfast plan and the
-    RK4 simulation (largest state error 0.5 after 5.5 s at a 0.01 s planning step, after
-    6.5 s at 0.005 s) and loses the catch: at 6.5 s the tip is 0.41 m from the target where
-    the plan has 0.11 m, and neither LQR at upright nor re-solving the last second by
-    shrinking-horizon iLQR (3 iterations per 0.01 s: 0.76 m at 6.5 s) recovers it;
-    replanning the whole plan by a few iLQR iterations falls back into the local minimum.
-    Earlier attempts: a straight-line state guess over 4 s (iLQR and IPOPT both stop 1.96 m
-    away), an energy-pumping feedback rollout as guess (0.6-2.1 m), and the time reverse of
-    an energy-draining fall from upright (``benchmarks/acrobot_swingup.py``; 0.05 m after
-    7.5 s, passing through). MPPI with a prototype energy term (total energy against the
+    (``benchmarks/swingup_dm_control.py``). From the hanging rest 5 s is out of reach with
+    this elbow: the elbow gives at most 2 N m and the swing-up must add 39.2 J of potential
+    energy, 19.6 rad of elbow travel at full torque, against a slow hanging mode of period
+    2.36 s. Minimum-time direct multiple shooting (IPOPT, on equations of motion read from
+    this model and equal to MuJoCo's ``qacc`` to 3e-13, ``benchmarks/dm_acrobot_min_time.py``)
+    finds MIN_REST at the upright at rest and MIN_REACH for the tip merely to enter the
+    0.2 m ball (local optima from STARTS_SOLVED random starts: evidence, not proof).
+    Offline iLQR with a terminal-only cost (``benchmarks/dm_acrobot_reachability.py``)
+    agrees: 1.13 m from the target after 4.8 s, 0.004 m after 6.5 s. Those plans are
+    bang-bang, so box-DDP's feedback gains vanish at their clamped knots. Planned on the
+    implicitfast copy they are lost in the RK4 simulation (largest state error 0.5 after 5.5
+    s); planned on the RK4 model itself (``plan_rk4=True``, finite-difference Jacobians of
+    ``mj_step``) the simulation follows the plan to 0.01 m, but an iLQR plan from
+    ``cos(2.67 t)`` over 6.5 s at a 0.02 s step stops 0.28 m short after 300 iterations and
+    nothing catches it after its horizon; receding-horizon replanning of such a plan (one
+    iteration per 0.02 s) falls back into the local minimum. Earlier attempts: a
+    straight-line state guess over 4 s (iLQR and IPOPT both stop 1.96 m away), an
+    energy-pumping feedback rollout as guess (0.6-2.1 m), and the time reverse of an
+    energy-draining fall from upright (``benchmarks/acrobot_swingup.py``; 0.05 m after 7.5
+    s, passing through). MPPI with a prototype energy term (total energy against the
     upright's; not in mpcbox) pumps the chain to the upright energy in about 4 s but does
     not catch it. mpcbox's acrobot with a 6 N m elbow,
     :class:`~mpcbox.tasks.swingup.presets.AcrobotSwingup`, is swung up and held.
