@@ -1,0 +1,103 @@
+"""Unitree's Go2 standing: LQR against QP-MPC with four friction-cone feet, under noise and pushes.
+
+The robot is MuJoCo Menagerie's Go2 (12 torque motors, keyframe ``home``, foot geoms FR, FL,
+RR, RL) unless ``--model`` names another Menagerie robot or an MJCF path (``--feet`` then
+names its four feet, unless :class:`~mpcbox.tasks.legged.quadruped.QuadrupedStand` knows
+them: Go1, Go2, A1, ANYmal C). ``problems/go1_stand.py`` is this script on the Go1.
+
+The task is :class:`~mpcbox.tasks.legged.quadruped.QuadrupedStand`: the robot's own
+keyframe with the root height adjusted until the feet carry the weight, the holding control
+through its actuators (torques for the Go2's motors, set-points for the Go1's position
+servos), the robot-independent noise recipe (5 % of each actuator's range; on the Go2 1.2 N m
+at the hips and thighs, 2.3 N m at the knees), and QP-MPC with a friction pyramid at each
+foot. Every controller runs the same
+seeded scenarios (:func:`mpcbox.compare`): noise alone, and noise with a forward push on the
+root body at 1 s; then the largest forward push (0.1 s, no noise) is found by bisection.
+Prints a markdown table.
+
+Examples::
+
+    python problems/go2_stand.py
+    python problems/go2_stand.py --model unitree_go1 --seeds 3
+    python problems/go2_stand.py --model anybotics_anymal_c --push 120
+    python problems/go2_stand.py --model path/to/robot.xml --feet FR,FL,RR,RL
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from mpcbox.comparison.runner import compare
+from mpcbox.comparison.scenario import PushTest, Scenario
+from mpcbox.errors import MpcboxError
+from mpcbox.sim.disturbances import Push
+from mpcbox.tasks.legged.quadruped import QuadrupedStand
+
+
+def model_source(model: str) -> str:
+    """A Menagerie name (``unitree_go1``) becomes ``menagerie:unitree_go1``; paths stay."""
+    if model.startswith("menagerie:") or "/" in model or model.endswith(".xml"):
+        return model
+    return f"menagerie:{model}"
+
+
+def main(
+    argv: list[str] | None = None, *, default_model: str = "unitree_go2", prog: str = "go2_stand.py"
+) -> int:
+    """Run the comparison (``argv`` defaults to the command line)."""
+    parser = argparse.ArgumentParser(
+        prog=prog,
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    parser.add_argument("--model", default=default_model, help="Menagerie name or MJCF path")
+    parser.add_argument("--feet", default="", help="comma-separated feet (unknown robots)")
+    parser.add_argument("--controllers", default="lqr,qp", help="comma-separated controllers")
+    parser.add_argument("--seeds", type=int, default=2, help="seeds per scenario")
+    parser.add_argument("--duration", type=float, default=5.0, help="seconds per run")
+    parser.add_argument(
+        "--push", type=float, default=0.0, help="forward push (N); default: 30 %% of the weight"
+    )
+    parser.add_argument(
+        "--largest-push",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="bisect the largest forward push (0.1 s, no noise)",
+    )
+    parser.add_argument("--workers", type=int, default=1, help="worker processes")
+    args = parser.parse_args(argv)
+    try:
+        feet = [f for f in args.feet.split(",") if f] or None
+        problem = QuadrupedStand(model_source(args.model), feet=feet)
+        weight = float(problem.model.body_subtreemass[problem.root_id]) * 9.81
+        force = args.push or round(0.3 * weight)
+        push = Push(force=(force, 0.0, 0.0), start=1.0, duration=0.1, body=problem.root)
+        scenarios = [
+            Scenario(name="noise", duration=args.duration),
+            Scenario(name=f"noise + {force:g} N push", duration=args.duration, pushes=(push,)),
+        ]
+        tests = (
+            [PushTest(body=problem.root, settle=2.0, tolerance=5.0, max_force=20 * weight)]
+            if args.largest_push
+            else []
+        )
+        result = compare(
+            problem,
+            args.controllers.split(","),
+            scenarios,
+            args.seeds,
+            push_tests=tests,
+            workers=args.workers,
+            progress=False,
+        )
+    except MpcboxError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(f"{problem!r}: feet {', '.join(problem.contacts)}, root {problem.root!r}\n")
+    print(result.to_markdown())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
