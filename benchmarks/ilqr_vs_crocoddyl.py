@@ -4,14 +4,16 @@ Problems: pendulum swing-up (150 x 0.02 s), cart-pole swing-up (150 x 0.02 s) an
 torque-controlled Panda reach (40 x 0.01 s): ``arm`` is the Panda of the ``panda.urdf`` that
 Crocoddyl's wheel ships (example-robot-data: its masses and inertias, joint damping 0.003, no
 armature, the fingers fixed), with joint motors limited to the Franka torque limits, reaching
-0.3 m along each axis (x, y and -z) from the ``home`` posture, guess ``ctrl_ref`` (the torques
-that hold the goal posture); ``arm_menagerie`` is the easier reach of earlier runs
-(Menagerie's ``panda_nohand.xml``, armature 0.1, motors instead of its servos, 0.15 / 0.1 /
--0.15 m). Crocoddyl runs the same MuJoCo
-dynamics through a Python action model: ``calc`` is one ``mj_step`` of mpcbox's planning model
-(:meth:`mpcbox.Problem.step`) plus the running cost, ``calcDiff`` is ``mjd_transitionFD``
-(:meth:`mpcbox.Problem.linearize`) plus the Gauss-Newton cost model
-(:meth:`mpcbox.Problem.quadratize`); horizon, control limits and initial guesses are the same.
+0.3 m along each axis (x, y and -z) from the ``home`` posture, control guess the torques that
+hold the start posture still (gravity compensation, what a real Panda adds to a zero torque
+command); ``arm_menagerie`` is the easier reach of earlier runs (Menagerie's
+``panda_nohand.xml``, armature 0.1, motors instead of its servos, 0.15 / 0.1 / -0.15 m, guess
+``ctrl_ref``: the torques that hold the goal posture, kept so its row compares with earlier
+runs). Crocoddyl runs the same MuJoCo dynamics through a Python action model: ``calc`` is
+one ``mj_step`` of mpcbox's planning model (:meth:`mpcbox.Problem.step`) plus the running
+cost, ``calcDiff`` is ``mjd_transitionFD`` (:meth:`mpcbox.Problem.linearize`) plus the
+Gauss-Newton cost model (:meth:`mpcbox.Problem.quadratize`); horizon, control limits and
+initial guesses are the same.
 
 Each solver runs twice per problem: from the control guess alone (single shooting; Crocoddyl
 with the rollout of that guess, ``is_feasible=True``) and from zero controls with a state guess
@@ -26,12 +28,17 @@ also gives the time inside them and the wall time without them (Crocoddyl's own 
 fair reference for mpcbox's solver overhead.
 
 Every solution also gets a finite-difference stationarity check of its rollout cost over
-the controls (:func:`stationarity`). On ``arm`` by single shooting both solvers end where the
-lower limit of joint 2 switches on at the last knots (the joint arrives at about -12 rad/s):
-the smooth gradient is far from 0 (entries above 100), but a 1e-5 step down it skips the
-limit's activation and raises the cost by about 1700. Neither end is a stationary point;
-each solver is blocked at another point of that jump, so their costs differ (1925.53 and
-1916.39) however the iterations end.
+the controls (:func:`stationarity`), and on the arms a check of how hard it drives the joints
+(:func:`joint_motion`: largest joint speed against the Franka datasheet's 2.175 / 2.61 rad/s,
+closest approach to a joint limit). On ``arm``, earlier runs started single shooting from the
+torques that hold the goal posture; applied at ``home`` they throw joint 2 backward, and both
+solvers ended at a non-stationary point of the cost's jump where that joint meets its lower
+limit at about -12 rad/s (1925.53 vs 1916.39). From the torques that hold the start posture
+both shooting modes of both solvers reach the same smooth minimum (586.0285, relative gap
+< 1.1e-7, a 1e-5 step down the gradient lowers the cost): the joints stay below 0.55 of their
+datasheet speed and at least 1.4 rad from their limits, and no torque saturates. The
+optimum ends 0.29 m short of the 0.52 m reach at 0.4 s: the cost trades the remaining
+distance against joint speed and torque.
 
 Crocoddyl is optional (``pip install crocoddyl``); without it only mpcbox's numbers are written.
 
@@ -64,6 +71,10 @@ RESULTS = Path(__file__).parent / "results" / "ilqr_vs_crocoddyl.json"
 PANDA_HOME = np.array([0.0, 0.0, 0.0, -1.57079, 0.0, 1.57079, -0.7853])
 #: Franka Emika Panda joint torque limits (N m).
 PANDA_TORQUE = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])
+#: Franka Emika Panda joint velocity limits (rad/s), from its datasheet.
+PANDA_SPEED = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
+#: The two Panda reaches.
+ARMS = ("arm", "arm_menagerie")
 MAX_ITERATIONS = 300
 #: Finite-difference step (control units) of the stationarity check.
 FD_STEP = 1e-6
@@ -134,11 +145,13 @@ def build(name: str) -> dict[str, Any]:
             "ctrls": np.full((150, 1), 0.1),
             "states": straight_line_states(p, x0, p.reference_state(), 150, arrival=105),
         }
-    if name in ("arm", "arm_menagerie"):
-        # (model, reaching frame, target offset, start posture: None keeps the keyframe's)
-        spec, frame, offset, start = {
-            "arm": (urdf_panda, "panda_hand_tcp", [0.3, 0.3, -0.3], PANDA_HOME),
-            "arm_menagerie": (torque_panda, "attachment", [0.15, 0.1, -0.15], None),
+    if name in ARMS:
+        # (model, reaching frame, target offset, start posture: None keeps the keyframe's,
+        # control guess: "hold_start" the torques that hold the start posture still,
+        # "ctrl_ref" those that hold the goal posture)
+        spec, frame, offset, start, guess = {
+            "arm": (urdf_panda, "panda_hand_tcp", [0.3, 0.3, -0.3], PANDA_HOME, "hold_start"),
+            "arm_menagerie": (torque_panda, "attachment", [0.15, 0.1, -0.15], None, "ctrl_ref"),
         }[name]
         p = ArmReach(
             spec(),
@@ -150,10 +163,14 @@ def build(name: str) -> dict[str, Any]:
             threads=1,
         )
         x0 = p.initial_state()
+        if guess == "hold_start":
+            ctrl = mpcbox.find_equilibrium(p.planning_model, x0[: p.nq]).ctrl
+        else:
+            ctrl = p.ctrl_ref
         return {
             "problem": p,
             "horizon": 40,
-            "ctrls": np.tile(p.ctrl_ref, (40, 1)),
+            "ctrls": np.tile(np.clip(ctrl, p.ctrl_low, p.ctrl_high), (40, 1)),
             "states": np.tile(x0, (41, 1)),
         }
     raise ValueError(name)
@@ -218,6 +235,26 @@ def stationarity(problem: mpcbox.Problem, x0: np.ndarray, ctrls: np.ndarray) -> 
     }
 
 
+def joint_motion(problem: mpcbox.Problem, x0: np.ndarray, ctrls: np.ndarray) -> dict[str, Any]:
+    """How hard a Panda solution drives its joints (rollout of ``ctrls`` from ``x0``).
+
+    ``max_joint_speed`` (rad/s) per joint, ``max_speed_over_datasheet``: the largest ratio of
+    a joint's speed to its Franka datasheet limit (:data:`PANDA_SPEED`; <= 1 within it),
+    ``min_joint_limit_distance`` (rad): the closest any joint comes to its range's ends over
+    the trajectory (negative: past the limit, the limit constraint active).
+    """
+    model = problem.planning_model
+    states = problem.rollout(x0, ctrls).states[0]
+    q, v = states[:, : model.nq], states[:, model.nq :]
+    lo, hi = model.jnt_range[:, 0], model.jnt_range[:, 1]
+    speed = np.abs(v).max(axis=0)
+    return {
+        "max_joint_speed": [round(float(s), 4) for s in speed],
+        "max_speed_over_datasheet": float(np.max(speed / PANDA_SPEED)),
+        "min_joint_limit_distance": float(np.min(np.minimum(q - lo, hi - q))),
+    }
+
+
 def run_mpcbox(case: dict[str, Any], shooting: str, **options: Any) -> dict[str, Any]:
     """One mpcbox solve; ``options`` are further ILQRConfig fields."""
     p, horizon = case["problem"], case["horizon"]
@@ -247,6 +284,7 @@ def run_mpcbox(case: dict[str, Any], shooting: str, **options: Any) -> dict[str,
         "defect": float(res.defect),
         "upright_or_goal_error": _goal_error(p, res.states[-1]),
         **stationarity(p, x0, res.ctrls),
+        **(joint_motion(p, x0, res.ctrls) if case["name"] in ARMS else {}),
     }
 
 
@@ -336,6 +374,7 @@ def run_crocoddyl(case: dict[str, Any], shooting: str) -> dict[str, Any]:
         "stop": float(solver.stop),
         "upright_or_goal_error": _goal_error(p, p.rollout(x0, ctrls).states[0, -1]),
         **stationarity(p, x0, ctrls),
+        **(joint_motion(p, x0, ctrls) if case["name"] in ARMS else {}),
     }
 
 
@@ -367,7 +406,7 @@ def main() -> None:
         "problems": {},
     }
     for name in args.problems:
-        case = build(name)
+        case = {"name": name, **build(name)}
         row: dict[str, Any] = {"horizon": case["horizon"], "dt": case["problem"].dt}
         for shooting in ("single", "multiple"):
             row[f"mpcbox_{shooting}"] = run_mpcbox(case, shooting)

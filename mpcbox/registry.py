@@ -37,6 +37,7 @@ TASKS: dict[str, str] = {
     "humanoid_two_feet": "mpcbox.tasks.humanoid.two_feet:HumanoidTwoFeet",
     "quadruped_stand": "mpcbox.tasks.legged.quadruped:QuadrupedStand",
     "quadruped_walk": "mpcbox.tasks.legged.walk:QuadrupedWalk",
+    "biped_stand": "mpcbox.tasks.legged.biped:BipedStand",
     "arm_track": "mpcbox.tasks.arm.track:ArmTrack",
     "stack_cubes": "mpcbox.tasks.manipulation.stacking:StackCubes",
     "pot_lift": "mpcbox.tasks.manipulation.pot_lift:PotLift",

@@ -247,3 +247,74 @@ def test_qp_mpc_stands_the_go1_on_four_friction_cones():
     res = mpcbox.simulate(problem, qp, 1.0, noise=problem.noise(), seed=0)
     assert res.survived, res.failure
     assert res.metrics.fallbacks <= 0.01 * res.metrics.solve_ticks
+
+
+@pytest.fixture(scope="module")
+def g1_two_feet():
+    from mpcbox.tasks.legged.biped import BipedStand
+
+    _menagerie("unitree_g1")
+    problem = BipedStand(threads=1)
+    yield problem
+    problem.close()
+
+
+@pytest.mark.menagerie
+def test_g1_equilibrium_holds_through_its_position_servos(g1_two_feet):
+    problem = g1_two_feet
+    eq, model = problem.equilibrium, problem.model
+    assert problem.contacts == ("body:left_ankle_roll_link", "body:right_ankle_roll_link")
+    assert eq.shortfall < 1e-6  # every actuated joint's torque is supplied
+    lo, hi = model.actuator_ctrlrange.T
+    assert np.all((eq.ctrl >= lo) & (eq.ctrl <= hi))
+    # Servo set-points q + tau/kp: close to the posture, not torques read as angles.
+    assert np.max(np.abs(eq.ctrl - eq.qpos[7:])) < 0.05
+    data = mujoco.MjData(model)
+    data.qpos[:], data.ctrl[:] = eq.qpos, eq.ctrl
+    mujoco.mj_forward(model, data)
+    np.testing.assert_allclose(data.qfrc_actuator[6:], eq.qfrc[6:], atol=1e-6)
+    # The feet carry the weight: no vertical force left on the root.
+    assert abs(eq.vertical_residual) < 1e-3
+
+
+@pytest.mark.menagerie
+def test_lqr_stands_the_g1_on_two_feet_under_the_generic_noise(g1_two_feet):
+    problem = g1_two_feet
+    res = mpcbox.simulate(problem, mpcbox.LQR(problem), 3.0, noise=problem.noise(), seed=3)
+    assert res.metrics.success, res.failure
+    assert res.metrics.measures["tilt_rms_deg"] < 3.0
+
+
+@pytest.mark.menagerie
+def test_qp_mpc_stands_the_g1_on_eight_friction_cones(g1_two_feet):
+    problem = g1_two_feet
+    qp = mpcbox.make_controller("qp", problem)
+    assert qp.points.count == 8  # four spheres under each foot
+    res = mpcbox.simulate(problem, qp, 1.0, noise=problem.noise(), seed=2)
+    assert res.metrics.success, res.failure
+    assert res.metrics.fallbacks <= 0.01 * res.metrics.solve_ticks
+
+
+@pytest.mark.menagerie
+def test_g1_one_foot_stance_is_collision_free_and_lqr_stands_on_it():
+    from mpcbox.tasks.legged.biped import BipedStand
+
+    _menagerie("unitree_g1")
+    problem = BipedStand(stance="right", threads=1)
+    assert problem.contacts == ("body:right_ankle_roll_link",)
+    assert problem.posture.collisions == ()
+    assert problem.posture.swing_height > 0.09
+    assert problem.equilibrium.shortfall < 1e-6
+    # The center of mass is over the stance sole, so the root needs almost no wrench.
+    assert np.max(np.abs(problem.equilibrium.residual_wrench)) < 1.0
+    res = mpcbox.simulate(problem, mpcbox.LQR(problem), 2.0, noise=problem.noise(), seed=1)
+    assert res.metrics.success, res.failure
+    assert res.metrics.measures["com_deviation_rms_m"] < 0.02
+    problem.close()
+
+
+def test_biped_stand_names_the_feet_it_needs():
+    from mpcbox.tasks.legged.biped import BipedStand
+
+    with pytest.raises(InvalidArgumentError, match="feet"):
+        BipedStand(str(scene_path("humanoid.xml")))

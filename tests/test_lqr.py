@@ -28,6 +28,26 @@ def balance() -> HumanoidBalance:
     return HumanoidBalance()
 
 
+def test_an_unweighted_mode_on_the_unit_circle_still_gets_a_stabilizing_gain():
+    """A double integrator that Q does not see (a robot yawing about one foot) beside a
+    weighted unstable mode: SciPy's solver alone rejects the pencil; dlqr's gain leaves the
+    weighted mode where the scalar closed form puts it and the unweighted one inside."""
+    scipy_linalg = pytest.importorskip("scipy.linalg")
+    A = np.array([[1.0, 0.01, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.1]])
+    B = np.array([[0.0, 0.0], [0.01, 0.0], [0.0, 0.1]])
+    Q, R = np.diag([0.0, 0.0, 1.0]), np.eye(2)
+    with pytest.raises((np.linalg.LinAlgError, ValueError)):
+        scipy_linalg.solve_discrete_are(A, B, Q, R)
+    K, _ = dlqr(A, B, Q, R)
+    eig = np.linalg.eigvals(A - B @ K)
+    assert np.max(np.abs(eig)) < 1.0
+    # The third mode is decoupled: its closed loop is the scalar problem's.
+    a, b = 1.1, 0.1
+    p = scipy_linalg.solve_discrete_are(np.array([[a]]), np.array([[b]]), np.eye(1), np.eye(1))
+    k = (b * p[0, 0] * a) / (1.0 + b * b * p[0, 0])
+    assert np.min(np.abs(eig - (a - b * k))) < 1e-6
+
+
 def test_humanoid_gain_matches_python_control(balance):
     control = pytest.importorskip("control")
     lqr = mpcbox.LQR(balance)

@@ -126,10 +126,19 @@ def dlqr(
     try:
         P = scipy.linalg.solve_discrete_are(A, B, Q, R, s=N)
     except (np.linalg.LinAlgError, ValueError) as exc:
-        raise SolverError(
-            f"the discrete Riccati equation has no stabilizing solution ({exc}); "
-            "check that every unstable mode is penalized by Q (detectability)"
-        ) from exc
+        # A mode on the unit circle that Q does not see (a floating robot turning about its
+        # one stance foot) makes the pencil singular; weighing every state negligibly
+        # moves it off the circle without changing the gain elsewhere.
+        delta = 1e-9 * max(1.0, float(np.max(np.abs(np.diag(Q)))))
+        try:
+            P = scipy.linalg.solve_discrete_are(A, B, Q + delta * np.eye(n), R, s=N)
+        except (np.linalg.LinAlgError, ValueError):
+            P = None
+        if P is None or not np.all(np.isfinite(P)):
+            raise SolverError(
+                f"the discrete Riccati equation has no stabilizing solution ({exc}); "
+                "check that every unstable mode is penalized by Q (detectability)"
+            ) from exc
     cross = B.T @ P @ A if N is None else B.T @ P @ A + N.T
     K = np.linalg.solve(R + B.T @ P @ B, cross)
     return K, P

@@ -8,6 +8,14 @@ the recorded modules to :func:`warp.force_load`, which compiles (or loads from W
 cache) up to ``max_workers`` modules at a time. The real tick that follows finds every module
 loaded.
 
+All ``(module, block_dim)`` variants go into one pool, heaviest first. Loading them in one
+:func:`warp.force_load` call per ``block_dim`` instead, one call after the other, waits for the
+slowest module of each group in turn: on the humanoid, four groups whose slowest modules take
+20, 13, 11 and a few seconds made a 51 s cold start on an H100 (``benchmarks/startup.py``).
+Warp's compile time of a module is not known before it compiles, so "heaviest" is a guess:
+tiled kernels (those launched with a ``block_dim``) first, then modules by their number of
+kernels.
+
 Warp's kernel cache (``warp.config.kernel_cache_dir``, by default under ``~/.cache/warp``)
 is keyed by a hash of each module's source and options, so a re-run of the same model in a
 new process loads the compiled modules instead of compiling them again.
@@ -18,6 +26,7 @@ from __future__ import annotations
 import contextlib
 import os
 from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 
@@ -91,12 +100,26 @@ def precompile(run: Callable[[], None], device: str, max_workers: int | None = N
     except Exception:  # pragma: no cover - a tick that cannot run without device results
         return 0
     workers = max_workers if max_workers is not None else min(os.cpu_count() or 1, 32)
-    by_block: dict[int | None, list[Any]] = {}
-    for module, block_dim in modules.values():
-        by_block.setdefault(block_dim, []).append(module)
-    for block_dim, mods in by_block.items():
-        wp.force_load(device=device, modules=mods, block_dim=block_dim, max_workers=workers)
+    variants = sorted(modules.values(), key=_weight, reverse=True)
+
+    def load(variant: tuple[Any, int | None]) -> None:
+        module, block_dim = variant
+        wp.force_load(device=device, modules=[module], block_dim=block_dim, max_workers=0)
+
+    if workers <= 1:
+        for variant in variants:
+            load(variant)
+    else:
+        with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="mpcbox-compile") as pool:
+            for future in [pool.submit(load, variant) for variant in variants]:
+                future.result()
     return len(modules)
+
+
+def _weight(variant: tuple[Any, int | None]) -> tuple[bool, int]:
+    """Guessed compile cost of a ``(module, block_dim)`` variant, for ordering the loads."""
+    module, block_dim = variant
+    return block_dim is not None, len(getattr(module, "kernels", ()))
 
 
 __all__ = ["precompile"]

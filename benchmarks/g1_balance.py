@@ -1,0 +1,206 @@
+"""Unitree's G1 (MuJoCo Menagerie) balancing: the targets of issue #13, measured.
+
+The task is :class:`~mpcbox.tasks.legged.biped.BipedStand` with its defaults: the G1's
+keyframe ``stand`` (one foot: the inverse-kinematics stance on the left foot, checked for
+self-collision), the root height and holding set-points from the actuator model
+(:func:`~mpcbox.find_equilibrium`), cost weights in fractions of each actuator's range, and
+the robot-independent noise recipe (``problem.noise()``: 5 % of each actuator's range; for
+the G1's position servos, 5 % of the force range as torque). Nothing here is tuned to the
+G1 beyond the preset's controller configurations (``BipedStand.controller_configs``), fixed
+before the seeded runs.
+
+Measured:
+
+* two feet, LQR: success over ``--seeds`` seeds of ``--duration`` s under the recipe;
+* the largest forward push on the pelvis (0.1 s at 1 s, no noise, 2 s to recover) by
+  bisection to ``--push-tolerance`` N, for LQR and each MPC (``--mpc``);
+* each MPC under the recipe over ``--mpc-seeds`` seeds: success, QP fallbacks over all
+  solves, and the median and 99th percentile tick time (one thread, one process per run,
+  on a shared 2-core machine: other jobs inflate the percentiles);
+* one foot, LQR: success over ``--seeds`` seeds of ``--duration`` s under the recipe;
+* QP-MPC's tick alone: one ``--tick-seconds`` run under the recipe in this process, after
+  the worker processes have finished (one thread; other jobs on the machine still count).
+
+Needs ``MENAGERIE_ROOT`` (or the mujoco-menagerie package)::
+
+    python benchmarks/g1_balance.py --json benchmarks/results/g1_balance.json
+    python benchmarks/g1_balance.py --seeds 3 --mpc-seeds 1 --duration 3
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np
+
+from mpcbox.comparison.report import Comparison
+from mpcbox.comparison.runner import compare
+from mpcbox.comparison.scenario import PushTest, Scenario
+from mpcbox.core.actuator_scales import actuator_scales
+from mpcbox.registry import make_controller
+from mpcbox.sim.simulation import simulate
+from mpcbox.tasks.legged.biped import BipedStand
+
+MODEL = "menagerie:unitree_g1"
+
+
+def summary(result: Comparison, name: str) -> dict:
+    """One controller's noise runs and push limit, JSON-ready."""
+    runs = result.runs_of(name, 0)
+    metrics = [r.metrics for r in runs]
+    out: dict = {}
+    if metrics:
+        solves = sum(m.solve_ticks for m in metrics)
+        fallbacks = sum(m.fallbacks for m in metrics)
+        out = {
+            "success": sum(m.success for m in metrics),
+            "runs": len(metrics),
+            "failed_seeds": [r.seed for r in runs if not r.metrics.success],
+            "failures": sorted({r.failure for r in runs if r.failure}),
+            "solves": solves,
+            "fallbacks": fallbacks,
+            "fallback_fraction": round(fallbacks / solves, 5) if solves else None,
+            "tick_median_ms": round(float(np.median([m.compute_p50_ms for m in metrics])), 3),
+            "tick_p99_ms": round(float(np.max([m.compute_p99_ms for m in metrics])), 3),
+            "period_ms": round(1000 * metrics[0].period_s, 2),
+            "tilt_rms_deg": round(float(np.mean([m.measures["tilt_rms_deg"] for m in metrics])), 3),
+            "com_deviation_rms_cm": round(
+                100 * float(np.mean([m.measures["com_deviation_rms_m"] for m in metrics])), 3
+            ),
+        }
+    for label, limit in result.push_limits.get(name, {}).items():
+        out[f"largest_push_{label}"] = {
+            "force_N": round(limit.force, 1),
+            "smallest_failed_N": round(limit.smallest_failed, 1),
+            "simulations": limit.simulations,
+        }
+    return out
+
+
+def reference(problem: BipedStand) -> dict:
+    """The equilibrium the controllers regulate to."""
+    eq = problem.equilibrium
+    scales = actuator_scales(problem.model, problem.qpos_ref)
+    torque = problem.noise().std * scales.torque_per_ctrl
+    lo, hi = problem.model.actuator_ctrlrange.T
+    out = {
+        "mass_kg": round(float(problem.model.body_subtreemass[problem.root_id]), 3),
+        "contacts": list(problem.contacts),
+        "fall_height_m": round(problem.fall_height, 4),
+        "ctrl_within_range": bool(np.all((eq.ctrl >= lo) & (eq.ctrl <= hi))),
+        "setpoint_minus_q_max_rad": round(float(np.max(np.abs(eq.ctrl - eq.qpos[7:]))), 5),
+        "shortfall_actuated": float(eq.shortfall),
+        "root_residual_wrench": [round(float(v), 4) for v in eq.residual_wrench],
+        "noise_std_torque_Nm_range": [round(float(f(torque)), 3) for f in (np.min, np.max)],
+    }
+    if problem.posture is not None:
+        out["posture"] = {
+            "com_error_m": round(problem.posture.com_error, 5),
+            "swing_height_m": round(problem.posture.swing_height, 4),
+            "self_collisions": list(problem.posture.collisions),
+        }
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--seeds", type=int, default=20, help="LQR seeds (two feet, one foot)")
+    parser.add_argument("--mpc", default="qp,ilqr", help="MPC controllers to compare")
+    parser.add_argument("--mpc-seeds", type=int, default=5, help="seeds of each MPC")
+    parser.add_argument("--duration", type=float, default=10.0, help="seconds per run")
+    parser.add_argument("--push-tolerance", type=float, default=5.0, help="bisection (N)")
+    parser.add_argument("--workers", type=int, default=2, help="worker processes")
+    parser.add_argument("--tick-seconds", type=float, default=5.0, help="QP tick run (s)")
+    parser.add_argument("--json", default="", help="also write the JSON here")
+    args = parser.parse_args(argv)
+    t0 = time.perf_counter()
+    mpcs = [m for m in args.mpc.split(",") if m]
+    noise = Scenario(name="noise", duration=args.duration)
+    out: dict = {
+        "benchmark": "g1_balance",
+        "model": MODEL,
+        "task": "biped_stand (LeggedBalance defaults; noise recipe: 5 % of each range)",
+        "seeds": args.seeds,
+        "mpc_seeds": args.mpc_seeds,
+        "duration_s": args.duration,
+        "push": {"start_s": 1.0, "duration_s": 0.1, "settle_s": 2.0, "noise": 0},
+    }
+    for stance in ("two", "left"):
+        options = {"model": MODEL, "stance": stance, "threads": 1}
+        probe = BipedStand(**options)
+        weight = float(probe.model.body_subtreemass[probe.root_id]) * 9.81
+        test = PushTest(
+            body=probe.root,
+            settle=2.0,
+            tolerance=args.push_tolerance,
+            max_force=5 * weight,
+            name="forward",
+        )
+        entry: dict = {"reference": reference(probe), "controllers": {}}
+        common = dict(problem_options=options, workers=args.workers or None, progress=False)
+        t1 = time.perf_counter()
+        lqr = compare("biped_stand", ["lqr"], noise, range(args.seeds), push_tests=[test], **common)
+        entry["controllers"]["lqr"] = summary(lqr, "lqr")
+        if stance == "two" and mpcs:
+            mpc = compare(
+                "biped_stand", mpcs, noise, range(args.mpc_seeds), push_tests=[test], **common
+            )
+            base = entry["controllers"]["lqr"]["largest_push_forward"]["force_N"]
+            for name in mpcs:
+                entry["controllers"][name] = summary(mpc, name)
+                force = entry["controllers"][name]["largest_push_forward"]["force_N"]
+                entry["controllers"][name]["push_ratio_to_lqr"] = round(force / base, 3)
+        entry["wall_time_s"] = round(time.perf_counter() - t1, 1)
+        out["two_feet" if stance == "two" else "one_foot_left"] = entry
+        probe.close()
+    if "qp" in mpcs and args.tick_seconds > 0:
+        problem = BipedStand(MODEL, threads=1)
+        qp = make_controller("qp", problem)
+        run = simulate(problem, qp, args.tick_seconds, noise=problem.noise(), seed=0)
+        out["qp_tick_serial"] = {
+            "duration_s": args.tick_seconds,
+            "success": bool(run.metrics.success),
+            "solves": run.metrics.solve_ticks,
+            "fallbacks": run.metrics.fallbacks,
+            "tick_median_ms": round(run.metrics.compute_p50_ms, 3),
+            "tick_p99_ms": round(run.metrics.compute_p99_ms, 3),
+        }
+        problem.close()
+    two = out["two_feet"]["controllers"]
+    best = max((two[m]["push_ratio_to_lqr"] for m in mpcs), default=None)
+    out["targets"] = {
+        "two_feet_lqr_success": f"{two['lqr']['success']}/{two['lqr']['runs']}",
+        "two_feet_lqr_push_N": two["lqr"]["largest_push_forward"]["force_N"],
+        "best_mpc_push_ratio": best,
+        "mpc_fallback_fraction": {m: two[m]["fallback_fraction"] for m in mpcs},
+        "one_foot_lqr_success": "{success}/{runs}".format(
+            **out["one_foot_left"]["controllers"]["lqr"]
+        ),
+        "qp_tick_ms_median_p99_serial": (
+            [out["qp_tick_serial"][k] for k in ("tick_median_ms", "tick_p99_ms")]
+            if "qp_tick_serial" in out
+            else None
+        ),
+    }
+    out["wall_time_s"] = round(time.perf_counter() - t0, 1)
+    out["machine"] = "2-core sandbox CPU, shared"
+    out["platform"] = f"{platform.machine()}, Python {sys.version.split()[0]}"
+    text = json.dumps(out, indent=2)
+    print(text)
+    if args.json:
+        with open(args.json, "w") as f:
+            f.write(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

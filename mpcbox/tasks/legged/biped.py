@@ -1,0 +1,139 @@
+"""Bipeds standing on two feet or on one: LeggedBalance with the feet of known Menagerie robots."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from types import MappingProxyType
+from typing import Any, ClassVar
+
+import mujoco
+
+from mpcbox.controllers.ilqr.config import ILQRConfig
+from mpcbox.controllers.lqr import LQRConfig
+from mpcbox.controllers.qp_mpc.config import QPMPCConfig
+from mpcbox.core.model import ModelSource
+from mpcbox.core.posture import StancePosture, stance_posture
+from mpcbox.errors import InvalidArgumentError
+from mpcbox.tasks.legged.balance import LeggedBalance
+from mpcbox.tasks.legged.feet import find_feet
+from mpcbox.validation import one_of, positive
+
+#: The (left, right) feet of Menagerie bipeds, by robot name (``"menagerie:NAME"``). The
+#: G1's sites ``left_foot``/``right_foot`` sit at the ankle, 3.5 cm above the sole; its
+#: ankle-roll bodies stand on four small spheres each, so the bodies are the feet (their
+#: soles are the middle of the spheres' bottoms, and QP-MPC gets the eight spheres).
+MENAGERIE_BIPED_FEET: MappingProxyType[str, tuple[str, str]] = MappingProxyType(
+    {
+        "unitree_g1": ("body:left_ankle_roll_link", "body:right_ankle_roll_link"),
+    }
+)
+
+#: Stances of :class:`BipedStand`.
+STANCES: tuple[str, ...] = ("two", "left", "right")
+
+
+def menagerie_biped_feet(model: ModelSource) -> tuple[str, str] | None:
+    """The feet of a ``"menagerie:NAME"`` biped in :data:`MENAGERIE_BIPED_FEET`, else None."""
+    if isinstance(model, str) and model.startswith("menagerie:"):
+        return MENAGERIE_BIPED_FEET.get(model.removeprefix("menagerie:").partition("/")[0])
+    return None
+
+
+class BipedStand(LeggedBalance):
+    """A biped standing on both feet or on one; by default Unitree's G1 from MuJoCo Menagerie.
+
+    :class:`~mpcbox.tasks.legged.balance.LeggedBalance` with its robot-independent defaults
+    (cost weights in fractions of each actuator's range, the noise recipe of 5 % of each
+    range, the fall height from the keyframe) and the feet of a known Menagerie robot
+    (:data:`MENAGERIE_BIPED_FEET`) filled in. Any other biped works with its ``feet`` named.
+
+    On one foot (``stance="left"`` or ``"right"``) the reference posture comes from
+    inverse kinematics (:func:`~mpcbox.core.posture.stance_posture`): from the keyframe, the
+    center of mass over the stance foot's sole, the other foot lifted by ``lift``, the root
+    kept upright. A posture in self-collision is rejected
+    (:class:`~mpcbox.errors.SolverError` naming the touching geoms), since its holding
+    torques would be meaningless. The equilibrium then comes through the actuator model as
+    for two feet.
+
+    Args:
+        model: The robot (default ``"menagerie:unitree_g1"``).
+        stance: ``"two"``, or the stance foot ``"left"`` or ``"right"``.
+        feet: Its (left, right) feet: site, body or geom names (default: from
+            :data:`MENAGERIE_BIPED_FEET`).
+        lift: Height the swing foot is lifted on one foot (m).
+        **kwargs: Passed to :class:`~mpcbox.tasks.legged.balance.LeggedBalance`.
+
+    Raises:
+        InvalidArgumentError: If ``feet`` is omitted for a robot not in
+            :data:`MENAGERIE_BIPED_FEET`, or does not name two feet.
+        SolverError: On one foot, if inverse kinematics cannot put the center of mass over
+            the stance foot or ends in self-collision.
+    """
+
+    name = "biped_stand"
+    #: LQR; QP-MPC with friction cones at every collision geom of the stance feet; iLQR-MPC
+    #: on the simulation's own step (0.1 s horizon of 50 knots linearized at every fifth,
+    #: 50 Hz replanning with one iteration and the plan's feedback in between, the LQR value
+    #: as terminal cost). On the G1 a coarser planning model does not hold: at 0.015 s (the
+    #: humanoid preset's) and 0.01 s the contacts diverge (QACC warnings within 0.2 s), and
+    #: at 0.005 s with the LQR terminal value it falls within 2.5 s without noise.
+    controller_configs: ClassVar[dict[str, Any]] = {
+        "lqr": LQRConfig(),
+        "qp": QPMPCConfig(period=0.02, stance_weight=1e5),
+        "ilqr": ILQRConfig(
+            horizon=50,
+            replan_period=0.02,
+            mpc_iterations=1,
+            first_iterations=5,
+            linearize_every=5,
+            fd_centered=False,
+            regularization=1e-3,
+            terminal_value="lqr",
+        ),
+    }
+    posture: StancePosture | None = None
+
+    def __init__(
+        self,
+        model: ModelSource = "menagerie:unitree_g1",
+        *,
+        stance: str = "two",
+        feet: Sequence[str] | None = None,
+        lift: float = 0.1,
+        **kwargs: Any,
+    ) -> None:
+        self.stance = one_of("stance", stance, STANCES)
+        self.lift = positive("lift", lift)
+        if feet is None:
+            feet = menagerie_biped_feet(model)
+        if feet is None:
+            raise InvalidArgumentError(
+                "feet: name the (left, right) feet (sites, bodies or geoms) of this model; "
+                "they are known only for "
+                + ", ".join(f"'menagerie:{n}'" for n in MENAGERIE_BIPED_FEET)
+            )
+        if isinstance(feet, str) or len(feet) != 2:
+            raise InvalidArgumentError(f"feet must name the (left, right) feet, got {feet!r}")
+        self.both_feet = tuple(feet)
+        if self.stance != "two":
+            feet = (feet[0],) if self.stance == "left" else (feet[1],)
+        super().__init__(model, feet=feet, **kwargs)
+
+    def prepare(self, model: mujoco.MjModel) -> None:
+        """On one foot, the inverse-kinematics stance (the swing foot's body is lifted);
+        then the equilibrium through the actuator model."""
+        if self.stance != "two":
+            swing = self.both_feet[1] if self.stance == "left" else self.both_feet[0]
+            (foot,) = find_feet(model, (swing,), self.qpos_ref)
+            self.posture = stance_posture(
+                model,
+                self.qpos_ref,
+                stance=self.foot_frames[0],
+                swing=mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, foot.body),
+                lift=self.lift,
+                com_body=self.root,
+                upright_body=self.root,
+                on_collision="raise",
+            )
+            self.qpos_ref = self.posture.qpos
+        super().prepare(model)
