@@ -16,7 +16,7 @@ from mpcbox.controllers.lqr import LQRConfig
 from mpcbox.controllers.qp_mpc.config import QPMPCConfig
 from mpcbox.core.model import ModelSource
 from mpcbox.errors import InvalidArgumentError, ModelNotFoundError
-from mpcbox.tasks.legged.balance import LeggedBalance
+from mpcbox.tasks.legged.balance import QP_OSQP_SETTINGS, LeggedBalance
 
 #: The four feet of Menagerie quadrupeds, by robot name (``"menagerie:NAME"``). The Go1 has
 #: a site and a geom called ``FR``; its sphere geoms are the feet. The A1's and ANYmal C's
@@ -43,16 +43,6 @@ DM_CONTROL_FEET: tuple[str, ...] = (
     "toe_front_right",
     "toe_back_right",
     "toe_back_left",
-)
-
-
-#: OSQP settings of the quadrupeds' QP-MPC (over :data:`~mpcbox.controllers.qp_mpc.solvers.
-#: OSQP_DEFAULTS`, which the humanoid presets keep). With the duality-gap test on, solves
-#: went on for a hundred iterations after their residuals were below 1e-5; with it off and
-#: ``rho = 0.3`` the mean iterations under the noise recipe fell from 40 to 25 (Go1), 64 to 25
-#: (A1), 59 to 33 (ANYmal C) and 376 (1 of 75 at the cap) to 34 (Go2), 1.5 s, seed 0.
-QP_OSQP_SETTINGS: MappingProxyType[str, Any] = MappingProxyType(
-    {"rho": 0.3, "check_dualgap": False}
 )
 
 
