@@ -28,18 +28,11 @@ from __future__ import annotations
 import argparse
 import sys
 
+from mpcbox.comparison.balance_suite import balance_suite
 from mpcbox.comparison.runner import compare
-from mpcbox.comparison.scenario import PushTest, Scenario
+from mpcbox.core.menagerie import model_source
 from mpcbox.errors import MpcboxError
-from mpcbox.sim.disturbances import Push
 from mpcbox.tasks.legged.quadruped import QuadrupedStand
-
-
-def model_source(model: str) -> str:
-    """A Menagerie name (``unitree_go1``) becomes ``menagerie:unitree_go1``; paths stay."""
-    if model.startswith("menagerie:") or "/" in model or model.endswith(".xml"):
-        return model
-    return f"menagerie:{model}"
 
 
 def main(
@@ -70,24 +63,20 @@ def main(
     try:
         feet = [f for f in args.feet.split(",") if f] or None
         problem = QuadrupedStand(model_source(args.model), feet=feet)
-        weight = float(problem.model.body_subtreemass[problem.root_id]) * 9.81
-        force = args.push or round(0.3 * weight)
-        push = Push(force=(force, 0.0, 0.0), start=1.0, duration=0.1, body=problem.root)
-        scenarios = [
-            Scenario(name="noise", duration=args.duration),
-            Scenario(name=f"noise + {force:g} N push", duration=args.duration, pushes=(push,)),
-        ]
-        tests = (
-            [PushTest(body=problem.root, settle=2.0, tolerance=5.0, max_force=20 * weight)]
-            if args.largest_push
-            else []
+        suite = balance_suite(
+            problem,
+            duration=args.duration,
+            force=args.push,
+            weight_fraction=0.3,
+            max_force_weights=20,
+            largest_push=args.largest_push,
         )
         result = compare(
             problem,
             args.controllers.split(","),
-            scenarios,
+            suite.scenarios,
             args.seeds,
-            push_tests=tests,
+            push_tests=suite.push_tests,
             workers=args.workers,
             progress=False,
         )
