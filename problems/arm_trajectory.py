@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 import mpcbox
+from mpcbox.core import menagerie
 from mpcbox.core.menagerie import MissingMeshWarning
 from mpcbox.core.model import load_spec
 from mpcbox.errors import EquilibriumWarning
@@ -52,9 +53,7 @@ def model_source(name: str) -> str:
     """An MJCF path as given, ``arm3`` as mpcbox's scene, else ``"menagerie:NAME"``."""
     if name == "arm3":
         return str(scene_path("arm3.xml"))
-    if name.startswith("menagerie:") or Path(name).suffix == ".xml":
-        return name
-    return f"menagerie:{name}"
+    return menagerie.model_source(name)
 
 
 def main(argv: list[str] | None = None) -> int:

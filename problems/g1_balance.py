@@ -23,21 +23,14 @@ from __future__ import annotations
 import argparse
 import sys
 
+from mpcbox.comparison.balance_suite import balance_suite
 from mpcbox.comparison.runner import compare
-from mpcbox.comparison.scenario import PushTest, Scenario
+from mpcbox.core.menagerie import model_source
 from mpcbox.errors import MpcboxError
-from mpcbox.sim.disturbances import Push
 from mpcbox.tasks.legged.biped import BipedStand
 
 #: ``--stance`` values and the task's ``stance``.
 STANCES = {"two": "two", "one": "left", "left": "left", "right": "right"}
-
-
-def model_source(model: str) -> str:
-    """A Menagerie name (``unitree_g1``) becomes ``menagerie:unitree_g1``; paths stay."""
-    if model.startswith("menagerie:") or "/" in model or model.endswith(".xml"):
-        return model
-    return f"menagerie:{model}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -71,24 +64,20 @@ def main(argv: list[str] | None = None) -> int:
         problem = BipedStand(
             model_source(args.model), stance=STANCES[args.stance], feet=feet, threads=1
         )
-        weight = float(problem.model.body_subtreemass[problem.root_id]) * 9.81
-        force = args.push or round(0.2 * weight)
-        push = Push(force=(force, 0.0, 0.0), start=1.0, duration=0.1, body=problem.root)
-        scenarios = [
-            Scenario(name="noise", duration=args.duration),
-            Scenario(name=f"noise + {force:g} N push", duration=args.duration, pushes=(push,)),
-        ]
-        tests = (
-            [PushTest(body=problem.root, settle=2.0, tolerance=5.0, max_force=5 * weight)]
-            if args.largest_push
-            else []
+        suite = balance_suite(
+            problem,
+            duration=args.duration,
+            force=args.push,
+            weight_fraction=0.2,
+            max_force_weights=5,
+            largest_push=args.largest_push,
         )
         result = compare(
             problem,
             args.controllers.split(","),
-            scenarios,
+            suite.scenarios,
             args.seeds,
-            push_tests=tests,
+            push_tests=suite.push_tests,
             workers=args.workers,
             progress=False,
         )

@@ -1,98 +1,27 @@
-"""A quadruped standing: LQR against QP-MPC with four friction-cone feet, under noise and pushes.
+"""Unitree's Go1 standing: ``problems/go2_stand.py`` with ``--model unitree_go1`` by default.
 
-The issue this answers asks for Unitree's Go2 (``problems/go2_stand.py``). The offline
-Menagerie mirror used to develop mpcbox lacks the Go2, so Unitree's Go1 stands in; the Go2
-runs the same way where Menagerie has it (``--model unitree_go2``; its feet are known to
-:class:`~mpcbox.tasks.legged.quadruped.QuadrupedStand`).
-
-The task is :class:`~mpcbox.tasks.legged.quadruped.QuadrupedStand`: the robot's own
-keyframe with the root height adjusted until the feet carry the weight, the holding control
-through its position servos, the robot-independent noise recipe (5 % of each actuator's
-range), and QP-MPC with a friction pyramid at each foot. Every controller runs the same
-seeded scenarios (:func:`mpcbox.compare`): noise alone, and noise with a forward push on the
-root body at 1 s; then the largest forward push (0.1 s, no noise) is found by bisection.
-Prints a markdown table.
+The Go1 of MuJoCo Menagerie drives its joints with position servos (kp 100), where the Go2
+has torque motors; the same options apply (``python problems/go1_stand.py --help``).
 
 Examples::
 
     python problems/go1_stand.py
     python problems/go1_stand.py --model unitree_a1 --seeds 3
-    python problems/go1_stand.py --model anybotics_anymal_c --push 120
-    python problems/go1_stand.py --model path/to/robot.xml --feet FR,FL,RR,RL
 """
 
 from __future__ import annotations
 
-import argparse
 import sys
+from pathlib import Path
 
-from mpcbox.comparison.runner import compare
-from mpcbox.comparison.scenario import PushTest, Scenario
-from mpcbox.errors import MpcboxError
-from mpcbox.sim.disturbances import Push
-from mpcbox.tasks.legged.quadruped import QuadrupedStand
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-
-def model_source(model: str) -> str:
-    """A Menagerie name (``unitree_go1``) becomes ``menagerie:unitree_go1``; paths stay."""
-    if model.startswith("menagerie:") or "/" in model or model.endswith(".xml"):
-        return model
-    return f"menagerie:{model}"
+from go2_stand import main as go2_main
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the comparison (``argv`` defaults to the command line)."""
-    parser = argparse.ArgumentParser(
-        prog="go1_stand.py",
-        description=__doc__.split("\n\n")[0],
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-    )
-    parser.add_argument("--model", default="unitree_go1", help="Menagerie name or MJCF path")
-    parser.add_argument("--feet", default="", help="comma-separated feet (unknown robots)")
-    parser.add_argument("--controllers", default="lqr,qp", help="comma-separated controllers")
-    parser.add_argument("--seeds", type=int, default=2, help="seeds per scenario")
-    parser.add_argument("--duration", type=float, default=5.0, help="seconds per run")
-    parser.add_argument(
-        "--push", type=float, default=0.0, help="forward push (N); default: 30 %% of the weight"
-    )
-    parser.add_argument(
-        "--largest-push",
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help="bisect the largest forward push (0.1 s, no noise)",
-    )
-    parser.add_argument("--workers", type=int, default=1, help="worker processes")
-    args = parser.parse_args(argv)
-    try:
-        feet = [f for f in args.feet.split(",") if f] or None
-        problem = QuadrupedStand(model_source(args.model), feet=feet)
-        weight = float(problem.model.body_subtreemass[problem.root_id]) * 9.81
-        force = args.push or round(0.3 * weight)
-        push = Push(force=(force, 0.0, 0.0), start=1.0, duration=0.1, body=problem.root)
-        scenarios = [
-            Scenario(name="noise", duration=args.duration),
-            Scenario(name=f"noise + {force:g} N push", duration=args.duration, pushes=(push,)),
-        ]
-        tests = (
-            [PushTest(body=problem.root, settle=2.0, tolerance=5.0, max_force=20 * weight)]
-            if args.largest_push
-            else []
-        )
-        result = compare(
-            problem,
-            args.controllers.split(","),
-            scenarios,
-            args.seeds,
-            push_tests=tests,
-            workers=args.workers,
-            progress=False,
-        )
-    except MpcboxError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    print(f"{problem!r}: feet {', '.join(problem.contacts)}, root {problem.root!r}\n")
-    print(result.to_markdown())
-    return 0
+    """Run the comparison on the Go1 (``argv`` defaults to the command line)."""
+    return go2_main(argv, default_model="unitree_go1", prog="go1_stand.py")
 
 
 if __name__ == "__main__":

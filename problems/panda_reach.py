@@ -20,24 +20,16 @@ from __future__ import annotations
 import argparse
 import sys
 import warnings
-from pathlib import Path
 
 import numpy as np
 
 import mpcbox
 from mpcbox.config import config_options
 from mpcbox.controllers.ilqr.controller import ILQR
-from mpcbox.core.menagerie import MissingMeshWarning
+from mpcbox.core.menagerie import MissingMeshWarning, model_source
 from mpcbox.registry import make_controller
 from mpcbox.tasks.reach import ArmReach
 from mpcbox.tasks.reach_measures import arrival
-
-
-def model_source(name: str) -> str:
-    """An MJCF path as given, a Menagerie robot name as ``"menagerie:NAME"``."""
-    if name.startswith("menagerie:") or Path(name).suffix == ".xml":
-        return name
-    return f"menagerie:{name}"
 
 
 def offline_row(problem: ArmReach, horizon_s: float, iterations: int) -> dict[str, str]:

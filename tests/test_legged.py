@@ -318,3 +318,43 @@ def test_biped_stand_names_the_feet_it_needs():
 
     with pytest.raises(InvalidArgumentError, match="feet"):
         BipedStand(str(scene_path("humanoid.xml")))
+
+
+def test_balance_suite_pushes_the_root_with_a_fraction_of_the_weight(quad) -> None:
+    from mpcbox.comparison.balance_suite import balance_suite
+
+    weight = float(quad.model.body_subtreemass[quad.root_id]) * 9.81
+    suite = balance_suite(quad, duration=3.0, weight_fraction=0.3, max_force_weights=5)
+    assert suite.force == round(0.3 * weight)
+    noise, pushed = suite.scenarios
+    assert (noise.name, noise.duration, noise.pushes) == ("noise", 3.0, ())
+    (push,) = pushed.pushes
+    assert push.body == quad.root and tuple(push.force) == (suite.force, 0.0, 0.0)
+    (test,) = suite.push_tests
+    assert test.body == quad.root and test.max_force == pytest.approx(5 * weight)
+    given = balance_suite(quad, duration=1.0, weight_fraction=0.3, max_force_weights=5, force=42)
+    assert (
+        given.force == 42.0
+        and not balance_suite(
+            quad, duration=1.0, weight_fraction=0.3, max_force_weights=5, largest_push=False
+        ).push_tests
+    )
+
+
+def test_balance_suite_needs_a_root_body_and_names_bad_options(quad) -> None:
+    from mpcbox.comparison.balance_suite import balance_suite
+    from mpcbox.tasks.swingup.presets import PendulumSwingup
+
+    with pytest.raises(InvalidArgumentError, match="root body"):
+        balance_suite(PendulumSwingup(), duration=1.0, weight_fraction=0.3, max_force_weights=5)
+    with pytest.raises(InvalidArgumentError, match="duration"):
+        balance_suite(quad, duration=0.0, weight_fraction=0.3, max_force_weights=5)
+
+
+def test_model_source_prefixes_bare_menagerie_names_only() -> None:
+    from mpcbox.core.menagerie import model_source
+
+    assert model_source("unitree_g1") == "menagerie:unitree_g1"
+    assert model_source("menagerie:unitree_go2") == "menagerie:unitree_go2"
+    assert model_source("robots/g1.xml") == "robots/g1.xml"
+    assert model_source("scene.xml") == "scene.xml"

@@ -29,6 +29,15 @@ from mpcbox.errors import (
 PREFIX = "menagerie:"
 
 
+def model_source(model: str) -> str:
+    """A command-line model argument as a model source: a bare Menagerie name
+    (``"unitree_g1"``) becomes ``"menagerie:unitree_g1"``; an MJCF path (containing ``/`` or
+    ending in ``.xml``) or an already prefixed name stays as given."""
+    if model.startswith(PREFIX) or "/" in model or model.endswith(".xml"):
+        return model
+    return PREFIX + model
+
+
 class MissingMeshWarning(UserWarning):
     """A visual-only geom was dropped because its mesh file is missing."""
 

@@ -119,6 +119,10 @@ class QPMPCConfig:
             (:class:`~mpcbox.controllers.qp_mpc.prediction.SoftStance`); ``"rigid"``:
             contact-free prediction with the stance feet held still
             (:class:`~mpcbox.controllers.qp_mpc.prediction.RigidStance`).
+        scale_controls: Solve for the controls scaled by their cost, :math:`\delta u_j
+            \sqrt{R_{jj}}` (:func:`~mpcbox.controllers.qp_mpc.formulation.control_scale`),
+            so that the QP does not depend on the control units; ``False``: in control units
+            (as before; an exported QP is in the units used).
         osqp_settings: OSQP settings overriding
             :data:`~mpcbox.controllers.qp_mpc.solvers.OSQP_DEFAULTS`.
         export_dir: When set, every tick's QP is written there as ``tick_00000.npz`` ...
@@ -154,6 +158,7 @@ class QPMPCConfig:
     fd_centered: bool = False
     substeps: int | None = None
     stance_model: StanceModelName = "soft"
+    scale_controls: bool = True
     osqp_settings: Mapping[str, Any] | None = None
     export_dir: str | Path | None = None
     fallback: Fallback = "lqr"
@@ -212,7 +217,14 @@ class QPMPCConfig:
         one_of("fallback", self.fallback, FALLBACKS)
         one_of("lifted_points", self.lifted_points, LIFTED_POINTS)
         one_of("lifted_force_law", self.lifted_force_law, LIFTED_FORCE_LAWS)
-        for name in ("relinearize", "joint_limits", "cost_gradient", "warm_start", "fd_centered"):
+        for name in (
+            "relinearize",
+            "joint_limits",
+            "cost_gradient",
+            "warm_start",
+            "fd_centered",
+            "scale_controls",
+        ):
             put(name, boolean(name, getattr(self, name)))
         if self.osqp_settings is not None:
             _check_osqp_settings(self.osqp_settings)

@@ -27,6 +27,7 @@ from mpcbox.controllers.qp_mpc.config import QPMPCConfig
 from mpcbox.controllers.qp_mpc.dynamics import ContactDynamics, prediction_models
 from mpcbox.controllers.qp_mpc.formulation import (
     QPFormulation,
+    control_scale,
     joint_limits,
     quadratic_cost,
 )
@@ -239,6 +240,7 @@ class QPMPC(Controller):
             self.state_ref,
             self.ctrl_ref,
             cfg.stance_weight,
+            control_scale(self.R, cfg.scale_controls),
         )
         self.formulation.update_matrix(self.linearization)
         self.backend = make_backend(cfg.solver, dict(cfg.osqp_settings or {}))
@@ -357,7 +359,7 @@ class QPMPC(Controller):
         self._prev_z, self._prev_y = z, (np.zeros(self.ncon) if y is None else y)
         N, nx, nu = L.horizon, L.nx, L.nu
         dx = np.vstack([p.state_difference(state, lin.state), z[: N * nx].reshape(N, nx)])
-        ctrls = lin.ctrl + z[L.ou : L.ou + N * nu].reshape(N, nu)
+        ctrls = lin.ctrl + z[L.ou : L.ou + N * nu].reshape(N, nu) * self.formulation.ctrl_scale
         raw = z[L.of : L.osl].reshape(N, L.points, 3) * self.body_weight
         active, _ = self.dynamics.activity(state)
         raw_active = raw.copy()

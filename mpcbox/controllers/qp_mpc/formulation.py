@@ -18,6 +18,18 @@ model's force cost and ``stance_weight`` on the slacks.
 The constraint matrix keeps one sparsity pattern: :class:`QPFormulation` builds it once, with
 the permutation that maps the values (listed block by block) to CSC order, and relinearizing
 only rewrites ``A.data``.
+
+Control variables are scaled by their cost (:func:`control_scale`): the QP's variable for
+stage ``i`` is :math:`\tilde u_i = S^{-1} \delta u_i` with :math:`S = \mathrm{diag}(s)`, so
+:math:`P`, the columns of :math:`A` and :math:`q` of the control block are multiplied by
+:math:`s`. A motor's control in newton metres and a servo's set-point in radians then reach the
+solver in the same units (one unit of :math:`\tilde u` costs one unit of objective); the
+solution is the same. On Menagerie's Go2 (motors, ``R`` about 2e-3 per (N m)^2) under the
+noise recipe with :data:`~mpcbox.controllers.qp_mpc.solvers.OSQP_DEFAULTS` at 50 Hz (2 seeds
+x 5 s), 409 of 460 solves failed unscaled and 84 of 397 scaled, and with the quadrupeds'
+OSQP settings (:class:`~mpcbox.tasks.legged.quadruped.QuadrupedStand`) 30 of 314; on the
+Go1 (servos, ``R`` about 18 per rad^2) none failed either way, at 43 and 44 iterations
+(``benchmarks/results/go2_stand.json``, ``qp_settings``).
 """
 
 from __future__ import annotations
@@ -104,6 +116,24 @@ def joint_limits(model: mujoco.MjModel, enabled: bool) -> JointLimits:
     )
 
 
+def control_scale(R: np.ndarray, enabled: bool = True) -> np.ndarray:
+    r"""Scale :math:`s_j = 1 / \sqrt{R_{jj}}` of each control variable ``(nu,)``.
+
+    Controls without a cost (:math:`R_{jj} \le 0`) and all controls when not ``enabled``
+    keep :math:`s_j = 1`.
+
+    Args:
+        R: Control weight ``(nu, nu)``.
+        enabled: Whether to scale at all.
+    """
+    d = np.diag(R).astype(float)
+    scale = np.ones_like(d)
+    if enabled:
+        pos = d > 0
+        scale[pos] = 1.0 / np.sqrt(d[pos])
+    return scale
+
+
 class QPFormulation:
     """Builds the QP's matrices once and its vectors every tick.
 
@@ -119,10 +149,14 @@ class QPFormulation:
         state_ref: Reference state.
         ctrl_ref: Reference control ``(nu,)``.
         stance_weight: Weight of the stance slacks (``None``: no slacks).
+        ctrl_scale: Scale :math:`s` of the control variables ``(nu,)`` (see the module
+            docstring; default ones).
 
     Attributes:
         A: Constraint matrix ``(m, n)`` CSC; its values follow :meth:`update_matrix`.
         P: Upper triangle of the Hessian ``(n, n)`` CSC (constant).
+        ctrl_scale: :math:`s` ``(nu,)``; a solution's controls are ``ctrl_scale * z_u``.
+        scale: The variables' scale ``(n,)`` (:math:`s` on the control blocks, else 1).
     """
 
     def __init__(
@@ -138,6 +172,7 @@ class QPFormulation:
         state_ref: np.ndarray,
         ctrl_ref: np.ndarray,
         stance_weight: float | None,
+        ctrl_scale: np.ndarray | None = None,
     ) -> None:
         self.problem = problem
         self.layout = layout
@@ -149,7 +184,13 @@ class QPFormulation:
         self.fn_max = fn_max
         self.state_ref = state_ref
         self.ctrl_ref = ctrl_ref
+        L = layout
+        self.ctrl_scale = np.ones(L.nu) if ctrl_scale is None else np.asarray(ctrl_scale, float)
+        self.scale = np.ones(L.nvar)
+        self.scale[L.ou : L.ou + L.horizon * L.nu] = np.tile(self.ctrl_scale, L.horizon)
         self.A, self._perm = self._constraint_pattern()
+        # The scale of each stored entry of A (CSC order): that of its column.
+        self._col_scale = np.repeat(self.scale, np.diff(self.A.indptr))
         self.P = self._hessian(stance_weight)
 
     # ------------------------------------------------------------------ matrices
@@ -203,7 +244,8 @@ class QPFormulation:
             hp[fs : fs + nf, fs : fs + nf] = wf * np.eye(nf)
         if L.nsl:
             hp[L.osl :, L.osl :] = stance_weight * sp.eye(L.nsl)
-        P = sp.csc_matrix(hp)
+        D = sp.diags(self.scale)
+        P = sp.csc_matrix(D @ sp.csc_matrix(hp) @ D)
         P.eliminate_zeros()
         P.sort_indices()
         return P
@@ -225,7 +267,7 @@ class QPFormulation:
 
     def update_matrix(self, lin: Linearization) -> None:
         """Write the values of ``A`` for the linearization ``lin`` (pattern unchanged)."""
-        self.A.data[:] = self._matrix_values(lin)[self._perm]
+        self.A.data[:] = self._matrix_values(lin)[self._perm] * self._col_scale
 
     # ------------------------------------------------------------------ vectors
     def vectors(
@@ -272,7 +314,7 @@ class QPFormulation:
             ql = lin.state[self.limits.qpos]
             lo[L.r_lim :] = np.tile(self.limits.low - ql, N)
             hi[L.r_lim :] = np.tile(self.limits.high - ql, N)
-        return q, lo, hi
+        return q * self.scale, lo, hi
 
     # ------------------------------------------------------------------ warm start
     def shifted(self, z: np.ndarray, y: np.ndarray, shift: int) -> tuple[np.ndarray, np.ndarray]:

@@ -14,7 +14,7 @@ from mpcbox.controllers.qp_mpc.config import QPMPCConfig
 from mpcbox.core.model import ModelSource
 from mpcbox.core.posture import StancePosture, stance_posture
 from mpcbox.errors import InvalidArgumentError
-from mpcbox.tasks.legged.balance import LeggedBalance
+from mpcbox.tasks.legged.balance import QP_OSQP_SETTINGS, LeggedBalance
 from mpcbox.tasks.legged.feet import find_feet
 from mpcbox.validation import one_of, positive
 
@@ -79,7 +79,7 @@ class BipedStand(LeggedBalance):
     #: at 0.005 s with the LQR terminal value it falls within 2.5 s without noise.
     controller_configs: ClassVar[dict[str, Any]] = {
         "lqr": LQRConfig(),
-        "qp": QPMPCConfig(period=0.02, stance_weight=1e5),
+        "qp": QPMPCConfig(period=0.02, stance_weight=1e5, osqp_settings=QP_OSQP_SETTINGS),
         "ilqr": ILQRConfig(
             horizon=50,
             replan_period=0.02,
