@@ -166,16 +166,26 @@ def _largest_miss(problem: Problem, states: np.ndarray, ctrls: np.ndarray) -> fl
     return miss
 
 
-def riccati_gains(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.ndarray:
+def riccati_gains(
+    A: np.ndarray,
+    B: np.ndarray,
+    Q: np.ndarray,
+    R: np.ndarray,
+    terminal: np.ndarray | None = None,
+) -> np.ndarray:
     """Time-varying LQR gains ``(K, nu, nx)`` by the backward recursion (module docstring).
 
     Args:
         A: State Jacobians ``(K, nx, nx)``.
         B: Control Jacobians ``(K, nx, nu)``.
-        Q: State weight ``(nx, nx)``, also the terminal one.
+        Q: State weight ``(nx, nx)``.
         R: Control weight ``(nu, nu)``, positive definite.
+        terminal: Terminal weight :math:`P_K` ``(nx, nx)`` (default ``Q``). The
+            infinite-horizon LQR value matrix of the final knot makes the last gain that
+            LQR's gain when the reference ends at rest there, so a tracker holding the final
+            knot hands over to LQR without a jump.
     """
-    P = Q.copy()
+    P = Q.copy() if terminal is None else finite_array("terminal", terminal, Q.shape).copy()
     gains = np.empty((A.shape[0], B.shape[2], A.shape[1]))
     for k in range(A.shape[0] - 1, -1, -1):
         BtP = B[k].T @ P
