@@ -22,6 +22,14 @@ The tracker is simulated (``mpcbox.simulate``, MuJoCo's RK4) for ``--sim`` s fro
 hanging rest plus uniform start perturbations (each of ``--perturb``: rad on each angle, rad/s on
 each speed) for ``--seeds`` seeds. Recorded per run: the time the tip first gets and stays
 within 0.2 m of the target (``settle_s``), the final tip distance, and the task's outcome.
+Both plans are tracked: the IPOPT guess itself and the iLQR plan.
+
+Recorded (defaults, seeds 200-209; weights chosen on seeds 0-4 and the iLQR control
+weight on 100-109): the iLQR plan ends 1.6 mm from the target; tracked from starts within
++-0.02 it holds the upright in 10/10 runs, the tip inside 0.2 m for good from 5.50 s at
+the latest and 0.043 m away at 10 s; from +-0.05 only 3/10 (the plan has the elbow at its
+limit 42 % of the time, leaving the feedback little authority). The IPOPT plan: 10/10 and
+4/10. The tip enters the 0.2 m ball at 5.48 s on this 6.5 s plan.
 
     nice -n 5 python benchmarks/dm_acrobot_track.py
 
@@ -177,14 +185,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=6.5)
     parser.add_argument("--knots", type=int, default=162)
-    parser.add_argument("--ilqr-iterations", type=int, default=20)
-    parser.add_argument("--ilqr-ctrl-weight", type=float, default=1.0)
+    parser.add_argument("--ilqr-iterations", type=int, default=50)
+    parser.add_argument("--ilqr-ctrl-weight", type=float, default=0.1)
     parser.add_argument("--position-weight", type=float, default=100.0)
     parser.add_argument("--velocity-weight", type=float, default=30.0)
     parser.add_argument("--torque-weight", type=float, default=1.0)
     parser.add_argument("--sim", type=float, default=10.0)
     parser.add_argument("--seeds", type=int, default=10)
-    parser.add_argument("--first-seed", type=int, default=100)
+    parser.add_argument("--first-seed", type=int, default=200)
     parser.add_argument("--perturb", default="0.02,0.05", help="comma-separated sizes")
     parser.add_argument("--radius", type=float, default=0.2)
     args = parser.parse_args()
