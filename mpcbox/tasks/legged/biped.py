@@ -76,7 +76,9 @@ class BipedStand(LeggedBalance):
     #: 50 Hz replanning with one iteration and the plan's feedback in between, the LQR value
     #: as terminal cost). On the G1 a coarser planning model does not hold: at 0.015 s (the
     #: humanoid preset's) and 0.01 s the contacts diverge (QACC warnings within 0.2 s), and
-    #: at 0.005 s with the LQR terminal value it falls within 2.5 s without noise.
+    #: at 0.005 s with the LQR terminal value it falls within 2.5 s without noise. This
+    #: iLQR-MPC config is a starting point, not a tuned one: on the G1 it stands 4 s without
+    #: noise but 0 of 5 seeds of 10 s under the noise recipe (results/g1_balance.json).
     controller_configs: ClassVar[dict[str, Any]] = {
         "lqr": LQRConfig(),
         "qp": QPMPCConfig(period=0.02, stance_weight=1e5, osqp_settings=QP_OSQP_SETTINGS),
