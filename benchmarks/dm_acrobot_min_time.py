@@ -45,6 +45,7 @@ import json
 import math
 import os
 import platform
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -54,10 +55,12 @@ import casadi as ca
 import mujoco
 import numpy as np
 
-from mpcbox.controllers.ilqr.solver import ILQRSolver
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import dm_acrobot_reachability as reach  # benchmarks/ is not a package
+
 from mpcbox.errors import PlanningModelWarning
-from mpcbox.tasks.swingup import SwingupWeights
-from mpcbox.tasks.swingup.dm_control import DmAcrobotSwingup, suite_path
+from mpcbox.tasks.swingup.dm_control import suite_path
 
 RESULTS = Path(__file__).parent / "results" / "dm_acrobot_min_time.json"
 
@@ -182,32 +185,10 @@ def random_guess(
     end (multiples of ``2 pi``) are the goal. Returns (ctrl ``(knots,)``, states
     ``(4, knots + 1)``, the raw guess's parameters, goal angles ``(2,)``).
     """
-    weights = SwingupWeights(
-        site=0.0,
-        velocity=0.001,
-        ctrl=0.01,
-        position=0.0,
-        angle=0.0,
-        terminal_site=1000.0,
-        terminal_velocity=100.0,
-        terminal_position=0.0,
-        terminal_angle=0.0,
+    problem, solver = reach.end_cost_solver(
+        duration, iterations, planning_timestep=duration / knots, plan_rk4=True
     )
-    problem = DmAcrobotSwingup(
-        planning_timestep=duration / knots, plan_rk4=True, threads=1, weights=weights
-    )
-    steps = knots
-    solver = ILQRSolver(
-        problem,
-        horizon=steps,
-        max_iterations=iterations,
-        tolerance=1e-9,
-        regularization_schedule="tassa",
-        regularization_factor=1.6,
-        regularization_min=1e-6,
-        regularization=1.0,
-        threads=1,
-    )
+    steps = solver.horizon
     t = problem.dt * np.arange(steps)
     waves = [(1.0, *(wave or (rng.uniform(2.2, 3.4), rng.uniform(0, 2 * np.pi))))]
     ctrl = np.clip(sum(a * np.cos(w * t + f) for a, w, f in waves), -1, 1)

@@ -56,11 +56,13 @@ def energy_needed(problem: DmAcrobotSwingup) -> dict:
     }
 
 
-def solve_horizon(seconds: float, rest: bool, iterations: int) -> dict:
-    weights = SwingupWeights(
+def end_weights(rest: bool = True, ctrl: float = 0.01) -> SwingupWeights:
+    """The end-only cost: tip weight 1000 and (``rest``) velocity weight 100 at the end;
+    small running velocity (0.001) and control (``ctrl``) weights."""
+    return SwingupWeights(
         site=0.0,
         velocity=0.001,
-        ctrl=0.01,
+        ctrl=ctrl,
         position=0.0,
         angle=0.0,
         terminal_site=1000.0,
@@ -68,11 +70,17 @@ def solve_horizon(seconds: float, rest: bool, iterations: int) -> dict:
         terminal_position=0.0,
         terminal_angle=0.0,
     )
-    problem = DmAcrobotSwingup(planning_timestep=0.02, threads=1, weights=weights)
-    horizon = round(seconds / problem.dt)
+
+
+def end_cost_solver(
+    seconds: float, iterations: int, rest: bool = True, **options
+) -> tuple[DmAcrobotSwingup, ILQRSolver]:
+    """The acrobot under :func:`end_weights` (``options``: e.g. ``planning_timestep``,
+    ``plan_rk4``) and an iLQR solver over ``seconds`` on Tassa's regularization schedule."""
+    problem = DmAcrobotSwingup(threads=1, weights=end_weights(rest), **options)
     solver = ILQRSolver(
         problem,
-        horizon=horizon,
+        horizon=round(seconds / problem.dt),
         max_iterations=iterations,
         tolerance=1e-9,
         regularization_schedule="tassa",
@@ -81,6 +89,12 @@ def solve_horizon(seconds: float, rest: bool, iterations: int) -> dict:
         regularization=1.0,
         threads=1,
     )
+    return problem, solver
+
+
+def solve_horizon(seconds: float, rest: bool, iterations: int) -> dict:
+    problem, solver = end_cost_solver(seconds, iterations, rest, planning_timestep=0.02)
+    horizon = solver.horizon
     t = problem.dt * np.arange(horizon)
     restarts = []
     for w, phi in GUESSES:

@@ -55,13 +55,13 @@ import scipy.linalg
 sys.path.insert(0, str(Path(__file__).parent))
 
 import dm_acrobot_min_time as mt
+import dm_acrobot_reachability as reach
 
 from mpcbox import simulate
 from mpcbox.controllers.ilqr.solver import ILQRSolver
 from mpcbox.controllers.trajectory import TrajectoryTracker
 from mpcbox.controllers.trajectory.reference import TrackingReference, riccati_gains
 from mpcbox.errors import PlanningModelWarning
-from mpcbox.tasks.swingup import SwingupWeights
 from mpcbox.tasks.swingup.dm_control import DmAcrobotSwingup, suite_path
 
 RESULTS = Path(__file__).parent / "results" / "dm_acrobot_track.json"
@@ -209,17 +209,7 @@ def main() -> None:
 
     # 2. iLQR by multiple shooting, shifted by whole turns to end at the model's upright.
     shift = np.r_[-guess["goal"], 0.0, 0.0]
-    weights = SwingupWeights(
-        site=0.0,
-        velocity=0.001,
-        ctrl=args.ilqr_ctrl_weight,
-        position=0.0,
-        angle=0.0,
-        terminal_site=1000.0,
-        terminal_velocity=100.0,
-        terminal_position=0.0,
-        terminal_angle=0.0,
-    )
+    weights = reach.end_weights(ctrl=args.ilqr_ctrl_weight)
     problem = DmAcrobotSwingup(plan_rk4=True, threads=1, weights=weights)
     steps = guess["ctrl"].size
     solver = ILQRSolver(
