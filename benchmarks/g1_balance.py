@@ -35,12 +35,16 @@ import os
 import platform
 import sys
 import time
+from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
 
-from mpcbox.comparison.report import Comparison
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from quadruped_stand import controller_summary  # benchmarks/ is not a package
+
 from mpcbox.comparison.runner import compare
 from mpcbox.comparison.scenario import PushTest, Scenario
 from mpcbox.core.actuator_scales import actuator_scales
@@ -49,39 +53,6 @@ from mpcbox.sim.simulation import simulate
 from mpcbox.tasks.legged.biped import BipedStand
 
 MODEL = "menagerie:unitree_g1"
-
-
-def summary(result: Comparison, name: str) -> dict:
-    """One controller's noise runs and push limit, JSON-ready."""
-    runs = result.runs_of(name, 0)
-    metrics = [r.metrics for r in runs]
-    out: dict = {}
-    if metrics:
-        solves = sum(m.solve_ticks for m in metrics)
-        fallbacks = sum(m.fallbacks for m in metrics)
-        out = {
-            "success": sum(m.success for m in metrics),
-            "runs": len(metrics),
-            "failed_seeds": [r.seed for r in runs if not r.metrics.success],
-            "failures": sorted({r.failure for r in runs if r.failure}),
-            "solves": solves,
-            "fallbacks": fallbacks,
-            "fallback_fraction": round(fallbacks / solves, 5) if solves else None,
-            "tick_median_ms": round(float(np.median([m.compute_p50_ms for m in metrics])), 3),
-            "tick_p99_ms": round(float(np.max([m.compute_p99_ms for m in metrics])), 3),
-            "period_ms": round(1000 * metrics[0].period_s, 2),
-            "tilt_rms_deg": round(float(np.mean([m.measures["tilt_rms_deg"] for m in metrics])), 3),
-            "com_deviation_rms_cm": round(
-                100 * float(np.mean([m.measures["com_deviation_rms_m"] for m in metrics])), 3
-            ),
-        }
-    for label, limit in result.push_limits.get(name, {}).items():
-        out[f"largest_push_{label}"] = {
-            "force_N": round(limit.force, 1),
-            "smallest_failed_N": round(limit.smallest_failed, 1),
-            "simulations": limit.simulations,
-        }
-    return out
 
 
 def reference(problem: BipedStand) -> dict:
@@ -149,14 +120,14 @@ def main(argv: list[str] | None = None) -> int:
         common = dict(problem_options=options, workers=args.workers or None, progress=False)
         t1 = time.perf_counter()
         lqr = compare("biped_stand", ["lqr"], noise, range(args.seeds), push_tests=[test], **common)
-        entry["controllers"]["lqr"] = summary(lqr, "lqr")
+        entry["controllers"]["lqr"] = controller_summary(lqr, "lqr")
         if stance == "two" and mpcs:
             mpc = compare(
                 "biped_stand", mpcs, noise, range(args.mpc_seeds), push_tests=[test], **common
             )
             base = entry["controllers"]["lqr"]["largest_push_forward"]["force_N"]
             for name in mpcs:
-                entry["controllers"][name] = summary(mpc, name)
+                entry["controllers"][name] = controller_summary(mpc, name)
                 force = entry["controllers"][name]["largest_push_forward"]["force_N"]
                 entry["controllers"][name]["push_ratio_to_lqr"] = round(force / base, 3)
         entry["wall_time_s"] = round(time.perf_counter() - t1, 1)

@@ -34,11 +34,46 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
 
+from mpcbox.comparison.report import Comparison
 from mpcbox.comparison.runner import compare
 from mpcbox.comparison.scenario import PushTest, Scenario
 from mpcbox.tasks.legged.quadruped import QuadrupedStand
 
 ROBOTS = ("unitree_go1", "unitree_a1", "anybotics_anymal_c")
+
+
+def controller_summary(result: Comparison, name: str) -> dict:
+    """One controller's runs of the first scenario and its push limits, JSON-ready."""
+    runs = result.runs_of(name, 0)
+    metrics = [r.metrics for r in runs]
+    out: dict = {}
+    if metrics:
+        solves = sum(m.solve_ticks for m in metrics)
+        fallbacks = sum(m.fallbacks for m in metrics)
+        out = {
+            "success": sum(m.success for m in metrics),
+            "runs": len(metrics),
+            "outcomes": sorted({m.outcome for m in metrics}),
+            "failed_seeds": [r.seed for r in runs if not r.metrics.success],
+            "failures": sorted({r.failure for r in runs if r.failure}),
+            "solves": solves,
+            "fallbacks": fallbacks,
+            "fallback_fraction": round(fallbacks / solves, 5) if solves else None,
+            "tick_median_ms": round(float(np.median([m.compute_p50_ms for m in metrics])), 3),
+            "tick_p99_ms": round(float(np.max([m.compute_p99_ms for m in metrics])), 3),
+            "period_ms": round(1000 * metrics[0].period_s, 2),
+            "tilt_rms_deg": round(float(np.mean([m.measures["tilt_rms_deg"] for m in metrics])), 3),
+            "com_deviation_rms_cm": round(
+                100 * float(np.mean([m.measures["com_deviation_rms_m"] for m in metrics])), 3
+            ),
+        }
+    for label, limit in result.push_limits.get(name, {}).items():
+        out[f"largest_push_{label}"] = {
+            "force_N": round(limit.force, 1),
+            "smallest_failed_N": round(limit.smallest_failed, 1),
+            "simulations": limit.simulations,
+        }
+    return out
 
 
 def evaluate(robot: str, args: argparse.Namespace) -> dict:
@@ -78,33 +113,7 @@ def evaluate(robot: str, args: argparse.Namespace) -> dict:
         "wall_time_s": round(time.perf_counter() - t0, 1),
     }
     for name in args.controllers.split(","):
-        runs = result.runs_of(name, 0)
-        metrics = [r.metrics for r in runs]
-        solves = sum(m.solve_ticks for m in metrics)
-        fallbacks = sum(m.fallbacks for m in metrics)
-        entry = {
-            "success": sum(m.success for m in metrics),
-            "runs": len(metrics),
-            "outcomes": sorted({m.outcome for m in metrics}),
-            "failed_seeds": [r.seed for r in runs if not r.metrics.success],
-            "solves": solves,
-            "fallbacks": fallbacks,
-            "fallback_fraction": round(fallbacks / solves, 5) if solves else None,
-            "tick_median_ms": round(float(np.median([m.compute_p50_ms for m in metrics])), 3),
-            "tick_p99_ms": round(float(np.max([m.compute_p99_ms for m in metrics])), 3),
-            "period_ms": round(1000 * metrics[0].period_s, 2),
-            "tilt_rms_deg": round(float(np.mean([m.measures["tilt_rms_deg"] for m in metrics])), 3),
-            "com_deviation_rms_cm": round(
-                100 * float(np.mean([m.measures["com_deviation_rms_m"] for m in metrics])), 3
-            ),
-        }
-        for label, limit in result.push_limits.get(name, {}).items():
-            entry[f"largest_push_{label}"] = {
-                "force_N": round(limit.force, 1),
-                "smallest_failed_N": round(limit.smallest_failed, 1),
-                "simulations": limit.simulations,
-            }
-        out["controllers"][name] = entry
+        out["controllers"][name] = controller_summary(result, name)
     probe.close()
     return out
 
