@@ -84,8 +84,6 @@ def run_watched(
     from mpcbox.cli.outputs import check_single_run_flags
     from mpcbox.comparison.runner import resolve_controllers
     from mpcbox.registry import make_controller, task_class
-    from mpcbox.sim.realtime import simulate_realtime
-    from mpcbox.sim.simulation import simulate
 
     out = check_output_folder(args.out)
     check_arguments(args)
@@ -105,18 +103,7 @@ def run_watched(
     problem = task_class(task)(**task_options)
     controller = make_controller(name, problem, **options)
     scenario = scenarios_from_args(args)[0]
-    loop, extra = (simulate_realtime, {"speed": args.speed}) if args.realtime else (simulate, {})
-    result = loop(
-        problem,
-        controller,
-        scenario.duration,
-        noise=scenario.resolve_noise(problem),
-        pushes=scenario.pushes,
-        mismatch=scenario.mismatch,
-        seed=args.seed,
-        viewer=viewer,
-        **extra,
-    )
+    result = scenario.run(problem, controller, args.seed, viewer=viewer)
     m = result.metrics
     print(
         f"{task}, {name}, seed {args.seed}: {m.outcome}, cost {m.cost:.4g}, "

@@ -27,8 +27,7 @@ from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
 from mpcbox.registry import make_controller, task_class
 from mpcbox.sim.measures import Measure
-from mpcbox.sim.realtime import simulate_realtime
-from mpcbox.sim.simulation import Metrics, simulate
+from mpcbox.sim.simulation import Metrics
 
 
 @dataclass(frozen=True)
@@ -180,20 +179,7 @@ class Worker:
         try:
             problem, controller = self.problem, self.controller(job.controller)
             measures = tuple(problem.measures())
-            scenario = self.setup.scenarios[job.scenario]
-            loop, extra = simulate, {}
-            if scenario.realtime:  # the asynchronous loop (mpcbox.sim.realtime)
-                loop, extra = simulate_realtime, {"speed": scenario.speed}
-            res = loop(
-                problem,
-                controller,
-                scenario.duration,
-                noise=scenario.resolve_noise(problem),
-                pushes=scenario.pushes,
-                mismatch=scenario.mismatch,
-                seed=job.seed,
-                **extra,
-            )
+            res = self.setup.scenarios[job.scenario].run(problem, controller, job.seed)
         except Exception as exc:  # one broken run must not end the sweep
             return Done(job, failed_run(job, exc), (), _where())
         trace = None

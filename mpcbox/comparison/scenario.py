@@ -8,9 +8,12 @@ from typing import Any
 
 import numpy as np
 
+from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError
 from mpcbox.sim.disturbances import MAX_FORCE, ActuatorNoise, ModelMismatch, Push
+from mpcbox.sim.realtime import simulate_realtime
+from mpcbox.sim.simulation import SimulationResult, simulate
 from mpcbox.validation import (
     boolean,
     checked_options,
@@ -129,6 +132,35 @@ class Scenario:
         if self.noise is not None:
             return replace(self.noise, scale=self.noise.scale * self.noise_scale)
         return task_noise(problem, self.noise_scale)
+
+    def run(
+        self, problem: Problem, controller: Controller, seed: int, **options: Any
+    ) -> SimulationResult:
+        """Simulate ``controller`` on ``problem`` under this scenario's disturbances.
+
+        Lock-step (:func:`~mpcbox.sim.simulation.simulate`), or with :attr:`realtime` the
+        asynchronous loop (:func:`~mpcbox.sim.realtime.simulate_realtime`) at :attr:`speed`.
+
+        Args:
+            problem: The task.
+            controller: The controller.
+            seed: Seed of the noise.
+            **options: Passed to the loop (e.g. ``viewer``).
+        """
+        loop, extra = simulate, {}
+        if self.realtime:
+            loop, extra = simulate_realtime, {"speed": self.speed}
+        return loop(
+            problem,
+            controller,
+            self.duration,
+            noise=self.resolve_noise(problem),
+            pushes=self.pushes,
+            mismatch=self.mismatch,
+            seed=seed,
+            **extra,
+            **options,
+        )
 
     @classmethod
     def noise_sweep(cls, scales: Sequence[float], **kwargs: Any) -> list[Scenario]:
