@@ -44,7 +44,8 @@ from quadruped_stand import evaluate  # benchmarks/ is not a package
 from mpcbox.controllers.qp_mpc.config import QPMPCConfig
 from mpcbox.controllers.qp_mpc.controller import QPMPC
 from mpcbox.sim.simulation import simulate
-from mpcbox.tasks.legged.quadruped import QP_OSQP_SETTINGS, QuadrupedStand
+from mpcbox.tasks.legged.balance import QP_OSQP_SETTINGS
+from mpcbox.tasks.legged.quadruped import QuadrupedStand
 
 #: QP-MPC settings compared in ``qp_settings`` (``None``: the task's own).
 VARIANTS: dict[str, QPMPCConfig | None] = {

@@ -113,6 +113,28 @@ def test_lqr_keeps_the_dm_control_quadruped_up_under_the_generic_noise(quad) -> 
     assert not res.survived and "fell" in res.failure
 
 
+def test_qp_replans_faster_only_where_no_actuator_holds_a_position(quad) -> None:
+    from mpcbox.tasks.humanoid.two_feet import HumanoidTwoFeet
+    from mpcbox.tasks.legged.balance import QP_OSQP_SETTINGS, TORQUE_QP_PERIOD
+
+    # dm_control's quadruped has position-feedback actuators: the QP keeps 50 Hz.
+    assert quad.controller_configs["qp"].period == pytest.approx(0.02)
+    assert dict(quad.controller_configs["qp"].osqp_settings) == dict(QP_OSQP_SETTINGS)
+    # The same robot with its actuators' bias removed is driven by force alone.
+    spec = dm_quadruped()
+    for actuator in spec.actuators:
+        actuator.biastype = mujoco.mjtBias.mjBIAS_NONE
+        actuator.biasprm = np.zeros(10)
+    feet = tuple(f"site:toe_{toe}" for toe in TOES)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", mpcbox.errors.EquilibriumWarning)
+        motors = LeggedBalance(spec, feet=feet, threads=1)
+    assert motors.controller_configs["qp"].period == pytest.approx(TORQUE_QP_PERIOD)
+    assert type(motors).controller_configs["qp"].period == pytest.approx(0.02)  # class intact
+    # The humanoid presets keep their measured 50 Hz on their torque motors.
+    assert HumanoidTwoFeet(threads=1).controller_configs["qp"].period == pytest.approx(0.02)
+
+
 def test_unknown_names_list_what_exists() -> None:
     spec = dm_quadruped()
     with pytest.raises(UnknownNameError, match="toe_front_left") as err:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import ClassVar
 
 import mujoco
 import numpy as np
@@ -27,6 +28,8 @@ class HumanoidProblem(LeggedBalance):
 
     #: Stance leg whose joints get the low noise of the published recipe.
     noise_stance: str = "left"
+    #: The presets' QP-MPC keeps its measured 50 Hz on the torque-driven humanoid.
+    torque_qp_period: ClassVar[float | None] = None
 
     def add_sole_sites(self, spec: mujoco.MjSpec, base: mujoco.MjModel) -> tuple[str, ...]:
         """No sites added: a foot is the site ``foot_<leg>``, or the body of that name in

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from types import MappingProxyType
 from typing import Any, ClassVar
@@ -77,7 +78,7 @@ def _unique_name(
     return candidate
 
 
-#: OSQP settings of the quadruped and biped presets' QP-MPC (over
+#: OSQP settings of LeggedBalance's QP-MPC and of its quadruped and biped presets (over
 #: :data:`~mpcbox.controllers.qp_mpc.solvers.OSQP_DEFAULTS`, which the humanoid presets keep).
 #: With the duality-gap test on, solves went on for a hundred iterations after their
 #: residuals were below 1e-5; with it off and ``rho = 0.3`` the mean iterations under the
@@ -86,6 +87,16 @@ def _unique_name(
 QP_OSQP_SETTINGS: MappingProxyType[str, Any] = MappingProxyType(
     {"rho": 0.3, "check_dualgap": False}
 )
+
+#: QP-MPC's replanning period (s) on a robot driven by torque alone (see
+#: :class:`LeggedBalance`).
+TORQUE_QP_PERIOD = 0.004
+
+
+def position_feedback(model: mujoco.MjModel) -> bool:
+    """Whether any actuator's force depends on its length (a bias on it, such as a position
+    servo's :math:`-k_p`), so that it holds a position between two controller calls."""
+    return bool(np.any(model.actuator_biasprm[:, 1] != 0))
 
 
 class LeggedBalance(Problem):
@@ -149,6 +160,18 @@ class LeggedBalance(Problem):
             reference tilt for good. ``None`` leaves it out.
         **kwargs: Passed to :class:`~mpcbox.Problem` (``planning_timestep``, ``qpos_ref``...).
 
+    QP-MPC runs with OSQP at ``rho = 0.3`` and without OSQP 1.x's duality-gap test
+    (:data:`QP_OSQP_SETTINGS`). It replans at 50 Hz on robots whose actuators hold a
+    position between two ticks (position servos: Go1, A1, ANYmal C) and at 250 Hz
+    (:data:`TORQUE_QP_PERIOD`) on robots driven by torque alone (motors: the Go2), which get
+    no feedback in between. On the Go2 under the noise recipe, at 50 Hz one of two 3 s runs
+    fell (the root height swinging by 8 cm, the knee torques at their limits); at 100 Hz
+    over 15 steps 2 of 20 seeds of 10 s fell, over 20, 25 or 30 steps seeds 17 or 19 still
+    did; at 250 Hz (two 0.002 s physics steps) over 10 steps none of seeds 0, 17 and 19
+    did, at a median 2.7-3.0 ms a tick (``benchmarks/results/go2_stand.json`` for all 20).
+
+    The humanoid presets keep their own measured QP settings.
+
     Raises:
         UnknownNameError: If a foot, the root or the keyframe does not exist (lists those
             that do).
@@ -157,11 +180,16 @@ class LeggedBalance(Problem):
     """
 
     name = "legged_balance"
-    #: LQR, and QP-MPC with friction cones at the task's :attr:`contacts`.
+    #: LQR, and QP-MPC with friction cones at the task's :attr:`contacts` (50 Hz, OSQP at
+    #: :data:`QP_OSQP_SETTINGS`; an instance whose actuators have no position feedback
+    #: replans every :attr:`torque_qp_period` s).
     controller_configs: ClassVar[dict[str, Any]] = {
         "lqr": LQRConfig(),
-        "qp": QPMPCConfig(period=0.02, stance_weight=1e5),
+        "qp": QPMPCConfig(period=0.02, stance_weight=1e5, osqp_settings=QP_OSQP_SETTINGS),
     }
+    #: QP-MPC's replanning period on a robot driven by torque alone (no actuator holds a
+    #: position between two ticks, :func:`position_feedback`); ``None`` keeps the config's.
+    torque_qp_period: ClassVar[float | None] = TORQUE_QP_PERIOD
     equilibrium: Equilibrium | None = None
 
     def __init__(
@@ -221,6 +249,13 @@ class LeggedBalance(Problem):
         self.contacts = self._contacts() if contacts is None else tuple(contacts)
         self.support_points = self._add_support(spec, base, qpos)
         super().__init__(spec, keyframe=key, **kwargs)
+        qp = type(self).controller_configs.get("qp")
+        period = type(self).torque_qp_period
+        if isinstance(qp, QPMPCConfig) and period and not position_feedback(self.model):
+            self.controller_configs = {
+                **type(self).controller_configs,
+                "qp": dataclasses.replace(qp, period=period),
+            }
 
     # ------------------------------------------------------------------ construction
     def add_sole_sites(self, spec: mujoco.MjSpec, base: mujoco.MjModel) -> tuple[str, ...]:

@@ -2,21 +2,17 @@
 
 from __future__ import annotations
 
-import dataclasses
 import importlib.util
 from collections.abc import Sequence
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any, ClassVar
+from typing import Any
 
 import mujoco
-import numpy as np
 
-from mpcbox.controllers.lqr import LQRConfig
-from mpcbox.controllers.qp_mpc.config import QPMPCConfig
 from mpcbox.core.model import ModelSource
 from mpcbox.errors import InvalidArgumentError, ModelNotFoundError
-from mpcbox.tasks.legged.balance import QP_OSQP_SETTINGS, LeggedBalance
+from mpcbox.tasks.legged.balance import LeggedBalance
 
 #: The four feet of Menagerie quadrupeds, by robot name (``"menagerie:NAME"``). The Go1 has
 #: a site and a geom called ``FR``; its sphere geoms are the feet. The A1's and ANYmal C's
@@ -44,16 +40,6 @@ DM_CONTROL_FEET: tuple[str, ...] = (
     "toe_back_right",
     "toe_back_left",
 )
-
-
-#: QP-MPC's replanning period (s) on a robot driven by torque alone (see QuadrupedStand).
-TORQUE_QP_PERIOD = 0.004
-
-
-def position_feedback(model: mujoco.MjModel) -> bool:
-    """Whether any actuator's force depends on its length (a bias on it, such as a position
-    servo's :math:`-k_p`), so that it holds a position between two controller calls."""
-    return bool(np.any(model.actuator_biasprm[:, 1] != 0))
 
 
 def dm_control_quadruped() -> mujoco.MjSpec:
@@ -99,15 +85,9 @@ class QuadrupedStand(LeggedBalance):
         feet: Its feet (default: from :data:`MENAGERIE_FEET`).
         **kwargs: Passed to :class:`~mpcbox.tasks.legged.balance.LeggedBalance`.
 
-    QP-MPC runs with OSQP at ``rho = 0.3`` and without OSQP 1.x's duality-gap test
-    (:data:`QP_OSQP_SETTINGS`). It replans at 50 Hz on robots whose actuators hold a
-    position between two ticks (position servos: Go1, A1, ANYmal C) and at 250 Hz
-    (:data:`TORQUE_QP_PERIOD`) on robots driven by torque alone (motors: the Go2), which get
-    no feedback in between. On the Go2 under the noise recipe, at 50 Hz one of two 3 s runs
-    fell (the root height swinging by 8 cm, the knee torques at their limits); at 100 Hz
-    over 15 steps 2 of 20 seeds of 10 s fell, over 20, 25 or 30 steps seeds 17 or 19 still
-    did; at 250 Hz (two 0.002 s physics steps) over 10 steps none of seeds 0, 17 and 19
-    did, at a median 2.7-3.0 ms a tick (``benchmarks/results/go2_stand.json`` for all 20).
+    QP-MPC runs with :class:`~mpcbox.tasks.legged.balance.LeggedBalance`'s settings: OSQP
+    at ``rho = 0.3`` without the duality-gap test, 50 Hz on robots with position servos
+    (Go1, A1, ANYmal C) and 250 Hz on robots driven by torque alone (the Go2).
 
     Raises:
         InvalidArgumentError: If ``feet`` is omitted for a robot not in
@@ -115,12 +95,6 @@ class QuadrupedStand(LeggedBalance):
     """
 
     name = "quadruped_stand"
-    #: LQR, and QP-MPC with friction cones at the four feet (50 Hz; an instance whose
-    #: actuators have no position feedback replans every :data:`TORQUE_QP_PERIOD` s).
-    controller_configs: ClassVar[dict[str, Any]] = {
-        "lqr": LQRConfig(),
-        "qp": QPMPCConfig(period=0.02, stance_weight=1e5, osqp_settings=QP_OSQP_SETTINGS),
-    }
 
     def __init__(
         self,
@@ -137,9 +111,3 @@ class QuadrupedStand(LeggedBalance):
                 "known only for " + ", ".join(f"'menagerie:{n}'" for n in MENAGERIE_FEET)
             )
         super().__init__(model, feet=feet, **kwargs)
-        qp = type(self).controller_configs.get("qp")
-        if isinstance(qp, QPMPCConfig) and not position_feedback(self.model):
-            self.controller_configs = {
-                **type(self).controller_configs,
-                "qp": dataclasses.replace(qp, period=TORQUE_QP_PERIOD),
-            }
