@@ -28,6 +28,9 @@ pelvis)" is checked against the physics and against QP-MPC's options. Three part
 * ``traces``: what happens at each controller's smallest failed push and at its largest
   survived one, over the push and the second after it (heel lift as the foot's pitch, when
   the center of pressure reaches the toe, saturated actuators, time in the air, fallbacks).
+* ``tick_serial``: QP-MPC's tick at the preset's 50 Hz and at 100 Hz, one ``--tick-seconds``
+  run under the noise recipe (seed 0) each, in this process (one thread; other jobs on the
+  machine still count): whether a faster replanning fits its period.
 
 Needs ``MENAGERIE_ROOT``::
 
@@ -229,6 +232,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--push-tolerance", type=float, default=5.0, help="bisection (N)")
     parser.add_argument("--variants", default=",".join(VARIANTS), help="QP-MPC variants")
     parser.add_argument("--ratio", type=float, default=1.3, help="target push ratio to LQR")
+    parser.add_argument("--tick-seconds", type=float, default=5.0, help="QP tick runs (s)")
     parser.add_argument("--json", default="", help="also write the JSON here")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
@@ -269,6 +273,18 @@ def main(argv: list[str] | None = None) -> int:
                 trace(problem, qp, f, test) for f in (found.force, found.smallest_failed)
             ]
         print(name, out["searches"][f"qp:{name}"], file=sys.stderr, flush=True)
+    if args.tick_seconds > 0:
+        out["tick_serial"] = {}
+        for period in (0.02, 0.01):
+            qp = make_controller("qp", problem, period=period)
+            run = simulate(problem, qp, args.tick_seconds, noise=problem.noise(), seed=0)
+            out["tick_serial"][f"period_{period}"] = {
+                "success": bool(run.metrics.success),
+                "solves": run.metrics.solve_ticks,
+                "fallbacks": run.metrics.fallbacks,
+                "tick_median_ms": round(run.metrics.compute_p50_ms, 2),
+                "tick_p99_ms": round(run.metrics.compute_p99_ms, 2),
+            }
     problem.close()
     out["wall_time_s"] = round(time.perf_counter() - t0, 1)
     out["machine"] = "2-core sandbox CPU, shared"
