@@ -25,6 +25,14 @@ Also records a hold check: each controller started at the upright with the elbow
 
     nice -n 5 python benchmarks/dm_acrobot_dm_starts.py [--seeds 0-11] [--duration 10]
     nice -n 5 python benchmarks/dm_acrobot_dm_starts.py --hold-only
+    nice -n 5 python benchmarks/dm_acrobot_dm_starts.py --controllers ilqr --plan-rk4 \
+        --overrides '{"warm_start_states": true}' \
+        --oracle-from benchmarks/results/dm_acrobot_dm_starts.json \
+        --out benchmarks/results/dm_acrobot_dm_starts_ilqr_rk4_ms.json
+
+``--plan-rk4`` and ``--overrides`` (JSON config fields) change every controller run;
+``--oracle-from`` copies the per-start oracle of an earlier results file instead of
+solving it again.
 
 Prints JSON lines as it goes and writes ``benchmarks/results/dm_acrobot_dm_starts.json``.
 """
@@ -183,21 +191,34 @@ def main() -> None:
     parser.add_argument("--oracle-iterations", type=int, default=60)
     parser.add_argument("--hold-offset", type=float, default=0.05)
     parser.add_argument("--hold-only", action="store_true")
+    parser.add_argument("--plan-rk4", action="store_true", help="plan in RK4 (plan_rk4=True)")
+    parser.add_argument(
+        "--overrides", default="{}", help="JSON config fields replacing the tuned ones"
+    )
+    parser.add_argument("--oracle-from", default=None, help="reuse the oracle of this results JSON")
     parser.add_argument("--out", default=str(RESULTS))
     args = parser.parse_args()
     warnings.simplefilter("ignore", PlanningModelWarning)
     controllers = args.controllers.split(",")
+    overrides = json.loads(args.overrides)
+    reused = {}
+    if args.oracle_from:
+        reused = {r["seed"]: r for r in json.loads(Path(args.oracle_from).read_text())["runs"]}
     if args.hold_only:
         hold_only(args)
         return
 
     hold = {}
     for name in controllers:
-        hold[name] = closed_loop(name, np.array([0.0, args.hold_offset, 0.0, 0.0]), 3.0)
+        hold[name] = closed_loop(
+            name, np.array([0.0, args.hold_offset, 0.0, 0.0]), 3.0, args.plan_rk4, **overrides
+        )
         print(json.dumps({"hold": name, **hold[name]}), flush=True)
     hanging = {}
     for name in controllers:
-        hanging[name] = closed_loop(name, DmAcrobotSwingup(threads=1).initial_state(), 10.0)
+        hanging[name] = closed_loop(
+            name, DmAcrobotSwingup(threads=1).initial_state(), 10.0, args.plan_rk4, **overrides
+        )
         print(json.dumps({"hanging": name, **hanging[name]}), flush=True)
 
     runs = []
@@ -207,10 +228,14 @@ def main() -> None:
             "seed": seed,
             "start_qpos": state[:2].round(4).tolist(),
             "energy_deficit_J": round(energy_deficit(state), 2),
-            **oracle(state, args.oracle_horizon, args.oracle_iterations),
+            **(
+                {k: v for k, v in reused[seed].items() if k.startswith("oracle")}
+                if seed in reused
+                else oracle(state, args.oracle_horizon, args.oracle_iterations)
+            ),
         }
         for name in controllers:
-            row[name] = closed_loop(name, state, args.duration)
+            row[name] = closed_loop(name, state, args.duration, args.plan_rk4, **overrides)
         runs.append(row)
         print(json.dumps(row), flush=True)
 
