@@ -29,6 +29,20 @@ Also records a hold check: each controller started at the upright with the elbow
         --overrides '{"warm_start_states": true}' \
         --oracle-from benchmarks/results/dm_acrobot_dm_starts.json \
         --out benchmarks/results/dm_acrobot_dm_starts_ilqr_rk4_ms.json
+    nice -n 5 python benchmarks/dm_acrobot_dm_starts.py --controllers ilqr --plan-rk4 \
+        --overrides '{"warm_start_states": true, "mpc_iterations": 3}' \
+        --oracle-from benchmarks/results/dm_acrobot_dm_starts.json \
+        --out benchmarks/results/dm_acrobot_dm_starts_ilqr_rk4_ms3.json
+
+Recorded (seeds 0-11): the oracle reaches the ball within 5 s from 5/12 starts. The
+task's tuned iLQR-MPC and MPPI: 0/12 (neither even holds the upright from the 0.05 rad
+hold check). iLQR-MPC planned in RK4 with multiple-shooting warm starts and 3 iterations per
+replan (``..._ilqr_rk4_ms3.json``; the two changes chosen because they pass the hold check,
+the iteration count on dev starts 103, 105, 107, never on these): 2/12 within 5 s and held
+(2.50 s, 2.69 s), 5/12 held at the end; of its 10 misses 3 are from starts the oracle
+reaches (controller misses) and 7 from starts it does not. Its median tick is 55-84 ms,
+slower than its 20 ms replan period on the shared 2-core CPU. With 1 iteration per replan
+(``..._ilqr_rk4_ms.json``): 1/12.
 
 ``--plan-rk4`` and ``--overrides`` (JSON config fields) change every controller run;
 ``--oracle-from`` copies the per-start oracle of an earlier results file instead of
