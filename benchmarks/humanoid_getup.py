@@ -4,13 +4,19 @@
         --variants "base;nobal:task.balance_cost=0" --final-seeds 10
 
 Each variant (``task.<kwarg>=v`` for :class:`~mpcbox.tasks.humanoid.getup.HumanoidGetup`,
-``<field>=v`` for the controller config) runs every controller for ``--seeds`` seeds of
+``<field>=v`` for the controller config; ``hand.stand=C`` and optionally
+``hand.transfer=false`` and ``stand.<field>=v`` build the task-stage hand-over of
+:meth:`~mpcbox.tasks.humanoid.getup.HumanoidGetup.handover_controller` instead, ``C`` the
+standing stage's controller) runs every controller for ``--seeds`` seeds of
 ``--duration`` s in :func:`~mpcbox.sim.realtime.simulate_realtime` (seed ``s``: joint angles
 of the lying start perturbed by N(0, 0.05) rad after the settle, controller seed ``s``).
 Reported per run: outcome, the time it got up for good (``getup_time``), the highest torso
 height, tick p50/p99 and whether the planner kept up. With ``--final-seeds`` the best
 (variant, controller) of that screen (most successes, then highest mean torso height) is
-run again over that many seeds, fixed before those runs.
+run again over that many seeds (100, 101, ...), fixed before those runs; with ``--seeds 0``
+the screen is skipped and the first variant and controller are the final ones.
+Also per run: when the torso was first up (``first_up_s``, :meth:`HumanoidGetup.is_up`) and
+the hand-over's switches.
 """
 
 from __future__ import annotations
@@ -34,24 +40,41 @@ def _value(text: str):
         return text
 
 
-def parse_variants(text: str) -> dict[str, tuple[dict, dict]]:
+def parse_variants(text: str) -> dict[str, tuple[dict, dict, dict]]:
     out = {}
     for item in filter(None, text.split(";")):
         name, _, rest = item.partition(":")
-        task, ctrl = {}, {}
+        task, ctrl, hand = {}, {}, {}
         for pair in filter(None, rest.split(",")):
             key, _, val = pair.partition("=")
             key = key.strip()
             if key.startswith("task."):
                 task[key[5:]] = _value(val)
+            elif key.startswith("hand."):
+                hand[key[5:]] = _value(val)
+            elif key.startswith("stand."):
+                hand.setdefault("stand_options", {})[key[6:]] = _value(val)
             else:
                 ctrl[key] = _value(val)
-        out[name.strip()] = (task, ctrl)
+        out[name.strip()] = (task, ctrl, hand)
     return out
 
 
-def run(problem, name, ctrl_opts, seed, duration, backend) -> dict:
-    ctrl = mpcbox.make_controller(name, problem, backend=backend, seed=seed, **ctrl_opts)
+def build(problem, name, ctrl_opts, hand, seed, backend):
+    if hand:
+        return problem.handover_controller(name, backend=backend, seed=seed, **hand, **ctrl_opts)
+    return mpcbox.make_controller(name, problem, backend=backend, seed=seed, **ctrl_opts)
+
+
+def first_up(problem, time, states) -> float:
+    for t, x in zip(time, states):
+        if problem.is_up(x):
+            return float(t)
+    return float("nan")
+
+
+def run(problem, name, ctrl_opts, hand, seed, duration, backend) -> dict:
+    ctrl = build(problem, name, ctrl_opts, hand, seed, backend)
     init = problem.initial_state()
     if seed:
         rng = np.random.default_rng(seed)
@@ -59,6 +82,7 @@ def run(problem, name, ctrl_opts, seed, duration, backend) -> dict:
     res = simulate_realtime(problem, ctrl, duration, initial_state=init, stop_on_failure=False)
     heights = problem.torso_heights(res.states)
     rt = res.realtime
+    stats = ctrl.stats
     if hasattr(ctrl, "close"):
         ctrl.close()
     return {
@@ -71,6 +95,9 @@ def run(problem, name, ctrl_opts, seed, duration, backend) -> dict:
         "tick_p99_ms": rt.latency_p99_ms,
         "kept_up": rt.kept_up,
         "over_period_share": rt.over_period_share,
+        "first_up_s": first_up(problem, res.time, res.states),
+        "switches": stats.get("switches"),
+        "prime_ms": rt.prime_ms,
     }
 
 
@@ -113,19 +140,26 @@ def main() -> None:
 
     best, best_key = None, None
     variants = parse_variants(args.variants)
-    for vname, (task_kw, ctrl_kw) in variants.items():
+    if args.seeds == 0:
+        best = (next(iter(variants)), args.controllers.split(",")[0])
+    for vname, (task_kw, ctrl_kw, hand) in variants.items():
+        if args.seeds == 0:
+            break
         problem = HumanoidGetup(**task_kw)
         for name in args.controllers.split(","):
             rows = []
             for seed in range(args.seeds):
                 try:
-                    rows.append(run(problem, name, ctrl_kw, seed, args.duration, args.backend))
+                    rows.append(
+                        run(problem, name, ctrl_kw, hand, seed, args.duration, args.backend)
+                    )
                 except Exception as exc:
                     failed = {"seed": seed, "error": repr(exc), "outcome": "error"}
                     failed.update(max_torso_m=0.0, kept_up=False, tick_p99_ms=np.nan)
                     rows.append(failed)
                 print(json.dumps({vname: {name: rows[-1]}}), flush=True)
-            entry = {"task_options": task_kw, "controller_options": ctrl_kw, "runs": rows}
+            entry = {"task_options": task_kw, "controller_options": ctrl_kw, "handover": hand}
+            entry["runs"] = rows
             entry["summary"] = summary(rows)
             report["screen"][f"{vname}/{name}"] = entry
             key = (entry["summary"]["successes"], entry["summary"]["mean_max_torso_m"])
@@ -134,13 +168,15 @@ def main() -> None:
             save()
     if args.final_seeds and best is not None:
         vname, name = best
-        task_kw, ctrl_kw = variants[vname]
+        task_kw, ctrl_kw, hand = variants[vname]
         problem = HumanoidGetup(**task_kw)
         rows = []
         for seed in range(100, 100 + args.final_seeds):
-            rows.append(run(problem, name, ctrl_kw, seed, args.duration, args.backend))
+            rows.append(run(problem, name, ctrl_kw, hand, seed, args.duration, args.backend))
             print(json.dumps({"final": rows[-1]}), flush=True)
             report["final"] = {"variant": vname, "controller": name, "runs": rows}
+            report["final"].update(task_options=task_kw, controller_options=ctrl_kw)
+            report["final"]["handover"] = hand
             save()
         report["final"]["summary"] = summary(rows)
         save()
