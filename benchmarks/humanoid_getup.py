@@ -5,7 +5,8 @@
 
 Each variant (``task.<kwarg>=v`` for :class:`~mpcbox.tasks.humanoid.getup.HumanoidGetup`,
 ``<field>=v`` for the controller config; ``hand.stand=C`` and optionally
-``hand.transfer=false`` and ``stand.<field>=v`` build the task-stage hand-over of
+``hand.transfer=false``, ``stand.<field>=v`` (its config) and ``standtask.<kwarg>=v`` (its
+:class:`~mpcbox.tasks.humanoid.stand.HumanoidStand`) build the task-stage hand-over of
 :meth:`~mpcbox.tasks.humanoid.getup.HumanoidGetup.handover_controller` instead, ``C`` the
 standing stage's controller) runs every controller for ``--seeds`` seeds of
 ``--duration`` s in :func:`~mpcbox.sim.realtime.simulate_realtime` (seed ``s``: joint angles
@@ -15,8 +16,8 @@ height, tick p50/p99 and whether the planner kept up. With ``--final-seeds`` the
 (variant, controller) of that screen (most successes, then highest mean torso height) is
 run again over that many seeds (100, 101, ...), fixed before those runs; with ``--seeds 0``
 the screen is skipped and the first variant and controller are the final ones.
-Also per run: when the torso was first up (``first_up_s``, :meth:`HumanoidGetup.is_up`) and
-the hand-over's switches.
+Also per run: when the torso was first up (``first_up_s``, :meth:`HumanoidGetup.is_up`), the
+hand-over's switches and their times, and the torso height every 0.1 s.
 """
 
 from __future__ import annotations
@@ -54,6 +55,8 @@ def parse_variants(text: str) -> dict[str, tuple[dict, dict, dict]]:
                 hand[key[5:]] = _value(val)
             elif key.startswith("stand."):
                 hand.setdefault("stand_options", {})[key[6:]] = _value(val)
+            elif key.startswith("standtask."):
+                hand.setdefault("stand_task", {})[key[10:]] = _value(val)
             else:
                 ctrl[key] = _value(val)
         out[name.strip()] = (task, ctrl, hand)
@@ -81,6 +84,7 @@ def run(problem, name, ctrl_opts, hand, seed, duration, backend) -> dict:
         init[7 : problem.nq] += rng.normal(0, 0.05, problem.nq - 7)
     res = simulate_realtime(problem, ctrl, duration, initial_state=init, stop_on_failure=False)
     heights = problem.torso_heights(res.states)
+    dt = float(np.median(np.diff(res.time))) if len(res.time) > 1 else 0.1
     rt = res.realtime
     stats = ctrl.stats
     if hasattr(ctrl, "close"):
@@ -97,6 +101,8 @@ def run(problem, name, ctrl_opts, hand, seed, duration, backend) -> dict:
         "over_period_share": rt.over_period_share,
         "first_up_s": first_up(problem, res.time, res.states),
         "switches": stats.get("switches"),
+        "switch_times_s": getattr(ctrl, "switch_times", None),
+        "torso_every_0.1s": [round(float(z), 3) for z in heights[:: max(1, round(0.1 / dt))]],
         "prime_ms": rt.prime_ms,
     }
 

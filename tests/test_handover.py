@@ -44,6 +44,7 @@ def test_delegates_by_phase_with_hysteresis_and_counts_switches():
     out = [ctrl(np.array([x, 0.0]), 0.02 * i)[0] for i, x in enumerate(path)]
     assert out == [1.0, 2.0, 2.0, 2.0, 1.0, 1.0]
     assert ctrl.switches == 2 and ctrl.phase == 0
+    assert ctrl.switch_times == pytest.approx([0.02, 0.08])
     assert (a.calls, b.calls) == (3, 3)
     stats = ctrl.stats
     assert stats["switches"] == 2 and stats["first_calls"] == 3 and stats["second_calls"] == 3
@@ -136,3 +137,5 @@ def test_getup_stages_hand_over_to_the_standing_task_and_back():
     assert ctrl.switches == 2
     with pytest.raises(mpcbox.InvalidArgumentError, match="release_height"):
         HumanoidGetup(release_height=1.2)
+    with pytest.raises(mpcbox.InvalidArgumentError, match="release_height"):
+        HumanoidGetup(handover_height=0.8)

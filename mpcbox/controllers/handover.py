@@ -56,6 +56,7 @@ class HandOver(Controller):
         controllers: ``(first, second)``.
         phase: Index of the active controller (0 or 1).
         switches: Switches since :meth:`reset`.
+        switch_times: Simulated time of each of those switches (s).
 
     Raises:
         InvalidTypeError: If a controller is not a Controller or a predicate not callable.
@@ -117,6 +118,7 @@ class HandOver(Controller):
             ctrl.reset()
         self.phase = 0
         self.switches = 0
+        self.switch_times: list[float] = []
         self.phase_calls = [0, 0]
         self._primed = not self.prime
         self.last_call = "solve"
@@ -142,6 +144,7 @@ class HandOver(Controller):
         _warm_start(incoming, knots, time)
         self.phase = 1 - self.phase
         self.switches += 1
+        self.switch_times.append(float(time))
 
     @property
     def stats(self) -> dict[str, float]:

@@ -77,6 +77,8 @@ class HumanoidGetup(Problem):
         stand_height: Torso height that counts as standing (m).
         hold: Seconds the torso must stay at ``stand_height`` at the end of a run.
         settle: Seconds the lying body settles before the run starts.
+        handover_height: Torso height at or above which :meth:`is_up` holds (m; default
+            ``stand_height``).
         handover_tilt: Largest tilt of the torso's z axis from vertical (rad) at which
             :meth:`is_up` holds.
         release_height: Torso height below which :meth:`is_down` holds (m).
@@ -105,6 +107,7 @@ class HumanoidGetup(Problem):
         stand_height: float = 1.1,
         hold: float = 0.5,
         settle: float = 1.0,
+        handover_height: float | None = None,
         handover_tilt: float = 0.5,
         release_height: float = 0.9,
         **kwargs: Any,
@@ -121,12 +124,15 @@ class HumanoidGetup(Problem):
         self.stand_height = positive("stand_height", stand_height)
         self.hold = non_negative("hold", hold)
         self.settle = non_negative("settle", settle)
+        self.handover_height = self.stand_height
+        if handover_height is not None:
+            self.handover_height = positive("handover_height", handover_height)
         self.handover_tilt = positive("handover_tilt", handover_tilt)
         self.release_height = positive("release_height", release_height)
-        if self.release_height >= self.stand_height:
+        if self.release_height >= self.handover_height:
             raise InvalidArgumentError(
-                f"release_height must be below stand_height ({self.stand_height:g} m) for "
-                f"hysteresis, got {release_height}"
+                f"release_height must be below handover_height ({self.handover_height:g} m) "
+                f"for hysteresis, got {release_height}"
             )
         self._model_source = model
         kwargs.setdefault("keyframe", "stand")
@@ -232,10 +238,10 @@ class HumanoidGetup(Problem):
         return float(data.xpos[self.torso_id, 2]), float(data.xmat[self.torso_id, 8])
 
     def is_up(self, state: np.ndarray) -> bool:
-        """The torso is at least ``stand_height`` high and tilted at most ``handover_tilt``
-        from vertical, for a state ``(nstate,)``."""
+        """The torso is at least ``handover_height`` high and tilted at most
+        ``handover_tilt`` from vertical, for a state ``(nstate,)``."""
         height, up = self._torso(state)
-        return height >= self.stand_height and up >= np.cos(self.handover_tilt)
+        return height >= self.handover_height and up >= np.cos(self.handover_tilt)
 
     def is_down(self, state: np.ndarray) -> bool:
         """The torso is lower than ``release_height``, for a state ``(nstate,)``."""
@@ -258,6 +264,7 @@ class HumanoidGetup(Problem):
         stand: str | None = None,
         transfer: bool = True,
         stand_options: dict[str, Any] | None = None,
+        stand_task: dict[str, Any] | None = None,
         **overrides: Any,
     ) -> HandOver:
         """Get-up controller ``name`` until :meth:`is_up`, then the standing stage's tuned
@@ -271,6 +278,7 @@ class HumanoidGetup(Problem):
             transfer: Warm-start each incoming planner with the outgoing plan (else a cold
                 start from its reference control).
             stand_options: Overrides of the standing controller's config.
+            stand_task: Options of :meth:`stand_problem` (the standing costs).
             **overrides: Overrides of the get-up controller's config; ``backend``,
                 ``device`` and ``seed`` apply to both.
         """
@@ -278,7 +286,9 @@ class HumanoidGetup(Problem):
         getup = make_controller(name, self, **overrides)
         stand_name = name if stand is None else stand
         keeper = make_controller(
-            stand_name, self.stand_problem(), **{**shared, **(stand_options or {})}
+            stand_name,
+            self.stand_problem(**(stand_task or {})),
+            **{**shared, **(stand_options or {})},
         )
         return HandOver(
             getup,
