@@ -271,6 +271,12 @@ class HumanoidGetup(Problem):
         controller ``stand`` until :meth:`is_down`, and so on
         (:class:`~mpcbox.controllers.handover.HandOver`).
 
+        Measured on an H100 in the real-time loop (issue #17,
+        ``benchmarks/results/humanoid_getup_handover_*_h100.json``) it is not better than
+        the get-up planner alone: the stand controller too lets the body fall after 1-3 s
+        up (best variant 1/10 over seeds 100-109, the plain PS 3/10), so
+        :func:`mpcbox.make_controller` keeps the plain planner.
+
         Args:
             name: The get-up controller (a key of :attr:`controller_configs`).
             stand: The standing controller (a key of ``HumanoidStand.controller_configs``;
