@@ -4,13 +4,21 @@
         --variants "base;nobal:task.balance_cost=0" --final-seeds 10
 
 Each variant (``task.<kwarg>=v`` for :class:`~mpcbox.tasks.humanoid.getup.HumanoidGetup`,
-``<field>=v`` for the controller config) runs every controller for ``--seeds`` seeds of
-``--duration`` s in :func:`~mpcbox.sim.realtime.simulate_realtime` (seed ``s``: joint angles
+``<field>=v`` for the controller config; ``hand.stand=C`` and optionally
+``hand.transfer=false``, ``stand.<field>=v`` (its config) and ``standtask.<kwarg>=v`` (its
+:class:`~mpcbox.tasks.humanoid.stand.HumanoidStand`) build the task-stage hand-over of
+:meth:`~mpcbox.tasks.humanoid.getup.HumanoidGetup.handover_controller` instead, ``C`` the
+standing stage's controller) runs every controller for ``--seeds`` seeds of
+``--duration`` s in :func:`~mpcbox.sim.realtime.simulate_realtime` (``--loop lockstep``:
+:func:`mpcbox.simulate`, the world waits for the planner) (seed ``s``: joint angles
 of the lying start perturbed by N(0, 0.05) rad after the settle, controller seed ``s``).
 Reported per run: outcome, the time it got up for good (``getup_time``), the highest torso
 height, tick p50/p99 and whether the planner kept up. With ``--final-seeds`` the best
 (variant, controller) of that screen (most successes, then highest mean torso height) is
-run again over that many seeds, fixed before those runs.
+run again over that many seeds (100, 101, ...), fixed before those runs; with ``--seeds 0``
+the screen is skipped and the first variant and controller are the final ones.
+Also per run: when the torso was first up (``first_up_s``, :meth:`HumanoidGetup.is_up`), the
+hand-over's switches and their times, and the torso height every 0.1 s.
 """
 
 from __future__ import annotations
@@ -34,31 +42,56 @@ def _value(text: str):
         return text
 
 
-def parse_variants(text: str) -> dict[str, tuple[dict, dict]]:
+def parse_variants(text: str) -> dict[str, tuple[dict, dict, dict]]:
     out = {}
     for item in filter(None, text.split(";")):
         name, _, rest = item.partition(":")
-        task, ctrl = {}, {}
+        task, ctrl, hand = {}, {}, {}
         for pair in filter(None, rest.split(",")):
             key, _, val = pair.partition("=")
             key = key.strip()
             if key.startswith("task."):
                 task[key[5:]] = _value(val)
+            elif key.startswith("hand."):
+                hand[key[5:]] = _value(val)
+            elif key.startswith("stand."):
+                hand.setdefault("stand_options", {})[key[6:]] = _value(val)
+            elif key.startswith("standtask."):
+                hand.setdefault("stand_task", {})[key[10:]] = _value(val)
             else:
                 ctrl[key] = _value(val)
-        out[name.strip()] = (task, ctrl)
+        out[name.strip()] = (task, ctrl, hand)
     return out
 
 
-def run(problem, name, ctrl_opts, seed, duration, backend) -> dict:
-    ctrl = mpcbox.make_controller(name, problem, backend=backend, seed=seed, **ctrl_opts)
+def build(problem, name, ctrl_opts, hand, seed, backend):
+    if hand:
+        return problem.handover_controller(name, backend=backend, seed=seed, **hand, **ctrl_opts)
+    return mpcbox.make_controller(name, problem, backend=backend, seed=seed, **ctrl_opts)
+
+
+def first_up(problem, time, states) -> float:
+    for t, x in zip(time, states):
+        if problem.is_up(x):
+            return float(t)
+    return float("nan")
+
+
+def run(problem, name, ctrl_opts, hand, seed, duration, backend, loop="realtime") -> dict:
+    ctrl = build(problem, name, ctrl_opts, hand, seed, backend)
     init = problem.initial_state()
     if seed:
         rng = np.random.default_rng(seed)
         init[7 : problem.nq] += rng.normal(0, 0.05, problem.nq - 7)
-    res = simulate_realtime(problem, ctrl, duration, initial_state=init, stop_on_failure=False)
+    if loop == "lockstep":
+        res = mpcbox.simulate(problem, ctrl, duration, initial_state=init, stop_on_failure=False)
+    else:
+        res = simulate_realtime(problem, ctrl, duration, initial_state=init, stop_on_failure=False)
     heights = problem.torso_heights(res.states)
-    rt = res.realtime
+    dt = float(np.median(np.diff(res.time))) if len(res.time) > 1 else 0.1
+    rt = getattr(res, "realtime", None)
+    ticks_ms = 1e3 * np.asarray(res.compute_times[1:])  # the first (compiling) tick left out
+    stats = ctrl.stats
     if hasattr(ctrl, "close"):
         ctrl.close()
     return {
@@ -67,10 +100,16 @@ def run(problem, name, ctrl_opts, seed, duration, backend) -> dict:
         "getup_time_s": problem.getup_time(res.time, res.states),
         "max_torso_m": float(heights.max()),
         "final_torso_m": float(heights[-1]),
-        "tick_p50_ms": rt.latency_p50_ms,
-        "tick_p99_ms": rt.latency_p99_ms,
-        "kept_up": rt.kept_up,
-        "over_period_share": rt.over_period_share,
+        "loop": loop,
+        "tick_p50_ms": rt.latency_p50_ms if rt else float(np.percentile(ticks_ms, 50)),
+        "tick_p99_ms": rt.latency_p99_ms if rt else float(np.percentile(ticks_ms, 99)),
+        "kept_up": rt.kept_up if rt else None,
+        "over_period_share": rt.over_period_share if rt else None,
+        "first_up_s": first_up(problem, res.time, res.states),
+        "switches": stats.get("switches"),
+        "switch_times_s": getattr(ctrl, "switch_times", None),
+        "torso_every_0.1s": [round(float(z), 3) for z in heights[:: max(1, round(0.1 / dt))]],
+        "prime_ms": rt.prime_ms if rt else None,
     }
 
 
@@ -81,7 +120,7 @@ def summary(rows: list[dict]) -> dict:
         "runs": len(rows),
         "mean_getup_time_s": float(np.mean([r["getup_time_s"] for r in ok])) if ok else None,
         "mean_max_torso_m": float(np.mean([r["max_torso_m"] for r in rows])),
-        "kept_up_rate": float(np.mean([r["kept_up"] for r in rows])),
+        "kept_up_rate": float(np.mean([bool(r["kept_up"]) for r in rows])),
         "tick_p99_ms_max": float(max(r["tick_p99_ms"] for r in rows)),
     }
 
@@ -94,6 +133,7 @@ def main() -> None:
     parser.add_argument("--final-seeds", type=int, default=0)
     parser.add_argument("--duration", type=float, default=5.0)
     parser.add_argument("--backend", default="warp")
+    parser.add_argument("--loop", choices=("realtime", "lockstep"), default="realtime")
     parser.add_argument("--gpu", default=None)
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
@@ -102,6 +142,7 @@ def main() -> None:
         "gpu": args.gpu,
         "platform": platform.platform(),
         "backend": args.backend,
+        "loop": args.loop,
         "duration_s": args.duration,
         "screen": {},
     }
@@ -113,19 +154,35 @@ def main() -> None:
 
     best, best_key = None, None
     variants = parse_variants(args.variants)
-    for vname, (task_kw, ctrl_kw) in variants.items():
+    if args.seeds == 0:
+        best = (next(iter(variants)), args.controllers.split(",")[0])
+    for vname, (task_kw, ctrl_kw, hand) in variants.items():
+        if args.seeds == 0:
+            break
         problem = HumanoidGetup(**task_kw)
         for name in args.controllers.split(","):
             rows = []
             for seed in range(args.seeds):
                 try:
-                    rows.append(run(problem, name, ctrl_kw, seed, args.duration, args.backend))
+                    rows.append(
+                        run(
+                            problem,
+                            name,
+                            ctrl_kw,
+                            hand,
+                            seed,
+                            args.duration,
+                            args.backend,
+                            args.loop,
+                        )
+                    )
                 except Exception as exc:
                     failed = {"seed": seed, "error": repr(exc), "outcome": "error"}
                     failed.update(max_torso_m=0.0, kept_up=False, tick_p99_ms=np.nan)
                     rows.append(failed)
                 print(json.dumps({vname: {name: rows[-1]}}), flush=True)
-            entry = {"task_options": task_kw, "controller_options": ctrl_kw, "runs": rows}
+            entry = {"task_options": task_kw, "controller_options": ctrl_kw, "handover": hand}
+            entry["runs"] = rows
             entry["summary"] = summary(rows)
             report["screen"][f"{vname}/{name}"] = entry
             key = (entry["summary"]["successes"], entry["summary"]["mean_max_torso_m"])
@@ -134,13 +191,17 @@ def main() -> None:
             save()
     if args.final_seeds and best is not None:
         vname, name = best
-        task_kw, ctrl_kw = variants[vname]
+        task_kw, ctrl_kw, hand = variants[vname]
         problem = HumanoidGetup(**task_kw)
         rows = []
         for seed in range(100, 100 + args.final_seeds):
-            rows.append(run(problem, name, ctrl_kw, seed, args.duration, args.backend))
+            rows.append(
+                run(problem, name, ctrl_kw, hand, seed, args.duration, args.backend, args.loop)
+            )
             print(json.dumps({"final": rows[-1]}), flush=True)
             report["final"] = {"variant": vname, "controller": name, "runs": rows}
+            report["final"].update(task_options=task_kw, controller_options=ctrl_kw)
+            report["final"]["handover"] = hand
             save()
         report["final"]["summary"] = summary(rows)
         save()

@@ -13,7 +13,9 @@ which the upright error stays within tolerance), final upright error, and the me
 0.02 s and applies its feedback law in between, MPPI plans every 0.01 s). The target of
 issue #13: upright within 5 s and held. The acrobot's 2 N m elbow does not reach it (0/3
 for both); ``benchmarks/dm_acrobot_min_time.py`` (IPOPT) and
-``benchmarks/dm_acrobot_reachability.py`` (iLQR) show why 5 s from hanging is out of reach.
+``benchmarks/dm_acrobot_reachability.py`` (iLQR) show why 5 s from hanging is out of reach;
+``benchmarks/dm_acrobot_dm_starts.py`` runs 12 fixed dm_control starts against an offline
+5 s oracle per start.
 
     nice -n 5 python benchmarks/swingup_dm_control.py [--seeds 3] [--duration 6]
         [--models cartpole,acrobot] [--controllers ilqr,mppi] [--start hanging|dm]

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import threading
 import time as _time
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -27,11 +27,14 @@ class Plan(NamedTuple):
         time: Simulated time of the state it was planned from (s).
         ctrl: The control the controller returned ``(nu,)``.
         knots: Copy of the controller's spline knots ``(K, nu)``, or ``None`` (hold ``ctrl``).
+        spline: The spline that evaluates ``knots`` (the controller's when the plan was
+            published: a controller that hands over between planners may change it).
     """
 
     time: float
     ctrl: np.ndarray
     knots: np.ndarray | None
+    spline: Any = None
 
 
 class PlannerThread:
@@ -40,7 +43,7 @@ class PlannerThread:
     Args:
         problem: The Problem (control clipping and shapes).
         controller: The controller; a spline plan is used when it has ``spline`` and
-            ``knots`` attributes (the sampling controllers).
+            ``knots`` attributes (the sampling controllers), read at every publication.
         period: Simulated seconds between tick starts.
         max_ticks: Bound on the ticks of one run (the loop is bounded).
 
@@ -58,8 +61,6 @@ class PlannerThread:
         self.controller = controller
         self.period = float(period)
         self.max_ticks = int(max_ticks)
-        spline = getattr(controller, "spline", None)
-        self.spline = spline if hasattr(controller, "knots") else None
         self.latencies: list[float] = []
         self.kinds: list[str] = []
         self.error: str | None = None
@@ -82,10 +83,10 @@ class PlannerThread:
         """The latest plan's control at simulated ``time`` ``(nu,)``."""
         with self._lock:
             plan = self._plan
-        if plan.knots is None or self.spline is None:
+        if plan.knots is None or plan.spline is None:
             return plan.ctrl
         offset = float(time) - plan.time
-        return self.problem.clip_ctrl(self.spline.evaluate(plan.knots, [offset])[0])
+        return self.problem.clip_ctrl(plan.spline.evaluate(plan.knots, [offset])[0])
 
     def prime(self, state: np.ndarray, time: float) -> float:
         """Solve one tick before the clock starts; returns its wall time (s).
@@ -158,10 +159,16 @@ class PlannerThread:
                 f"{bool(np.all(np.isfinite(ctrl)))})"
             )
             return False
-        if self.spline is not None and getattr(self.controller, "last_call", "") == "hold":
+        has_knots = hasattr(self.controller, "knots")
+        spline = getattr(self.controller, "spline", None) if has_knots else None
+        if spline is not None and getattr(self.controller, "last_call", "") == "hold":
             return True  # followed the current plan: keep its knots and plan time
-        knots = getattr(self.controller, "knots", None) if self.spline is not None else None
-        plan = Plan(time, ctrl.copy(), None if knots is None else np.array(knots, copy=True))
+        knots = getattr(self.controller, "knots", None) if spline is not None else None
+        if knots is None:
+            spline = None
+        else:
+            knots = np.array(knots, copy=True)
+        plan = Plan(time, ctrl.copy(), knots, spline)
         with self._lock:
             self._plan = plan
         return True

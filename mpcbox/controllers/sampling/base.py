@@ -229,6 +229,31 @@ class SamplingController(Controller):
         }
         self.reset_algorithm()
 
+    def warm_start(self, knots: np.ndarray | None, time: float) -> None:
+        """Replace the nominal plan, e.g. with one handed over by another controller.
+
+        The algorithm state restarts (:meth:`reset_algorithm`); the random stream and the
+        statistics go on.
+
+        Args:
+            knots: Nominal knots ``(K, nu)`` planned at ``time`` (clamped to the control
+                range), or ``None`` for a cold start from the reference control at the next
+                tick.
+            time: Simulated time the knots start at (s).
+
+        Raises:
+            InvalidArgumentError: If ``knots`` has another shape.
+        """
+        if knots is not None:
+            knots = np.asarray(knots, dtype=np.float64)
+            shape = (self.spline.num_knots, self.problem.nu)
+            if knots.shape != shape:
+                raise InvalidArgumentError(f"knots must have shape {shape}, got {knots.shape}")
+            knots = self.problem.clip_ctrl(knots)
+        self.knots = knots
+        self._plan_time = None if knots is None else float(time)
+        self.reset_algorithm()
+
     def nominal_knots(self) -> np.ndarray:
         """The reference control on every knot ``(K, nu)`` (the cold start)."""
         ref = self.problem.clip_ctrl(self.problem.ctrl_ref)

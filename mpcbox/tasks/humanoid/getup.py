@@ -8,11 +8,15 @@ from typing import Any, ClassVar
 import mujoco
 import numpy as np
 
+from mpcbox.controllers.handover import HandOver
 from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, PredictiveSamplingConfig
 from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, FrameHeight, StateCost, Upright
 from mpcbox.core.model import ModelSource, dof_weights
 from mpcbox.core.problem import Problem
+from mpcbox.errors import InvalidArgumentError
+from mpcbox.registry import make_controller
 from mpcbox.tasks import scene_path
+from mpcbox.tasks.humanoid.stand import HumanoidStand
 from mpcbox.validation import non_negative, non_negative_weights, positive
 
 #: Config shared by the get-up's sampling controllers, the best of a small screen on an
@@ -56,6 +60,11 @@ class HumanoidGetup(Problem):
     Success (:meth:`goal_failure`): the torso is at least ``stand_height`` high for the last
     ``hold`` seconds of the run. :meth:`getup_time` gives when it got up for good.
 
+    Task stages (:meth:`handover_controller`): once up, the standing problem
+    (:meth:`stand_problem`, :class:`~mpcbox.tasks.humanoid.stand.HumanoidStand` on the same
+    model) and its tuned controller take over, and the get-up planner takes back control if
+    the torso drops again (:meth:`is_up`, :meth:`is_down`).
+
     Args:
         model: MJCF of the humanoid (default ``mpcbox/tasks/scenes/humanoid.xml``).
         height_cost: :math:`w_h`.
@@ -68,6 +77,11 @@ class HumanoidGetup(Problem):
         stand_height: Torso height that counts as standing (m).
         hold: Seconds the torso must stay at ``stand_height`` at the end of a run.
         settle: Seconds the lying body settles before the run starts.
+        handover_height: Torso height at or above which :meth:`is_up` holds (m; default
+            ``stand_height``).
+        handover_tilt: Largest tilt of the torso's z axis from vertical (rad) at which
+            :meth:`is_up` holds.
+        release_height: Torso height below which :meth:`is_down` holds (m).
         **kwargs: Passed to :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
     """
 
@@ -93,6 +107,9 @@ class HumanoidGetup(Problem):
         stand_height: float = 1.1,
         hold: float = 0.5,
         settle: float = 1.0,
+        handover_height: float | None = None,
+        handover_tilt: float = 0.5,
+        release_height: float = 0.9,
         **kwargs: Any,
     ) -> None:
         self.getup_weights = non_negative_weights(
@@ -107,6 +124,17 @@ class HumanoidGetup(Problem):
         self.stand_height = positive("stand_height", stand_height)
         self.hold = non_negative("hold", hold)
         self.settle = non_negative("settle", settle)
+        self.handover_height = self.stand_height
+        if handover_height is not None:
+            self.handover_height = positive("handover_height", handover_height)
+        self.handover_tilt = positive("handover_tilt", handover_tilt)
+        self.release_height = positive("release_height", release_height)
+        if self.release_height >= self.handover_height:
+            raise InvalidArgumentError(
+                f"release_height must be below handover_height ({self.handover_height:g} m) "
+                f"for hysteresis, got {release_height}"
+            )
+        self._model_source = model
         kwargs.setdefault("keyframe", "stand")
         super().__init__(scene_path("humanoid.xml") if model is None else model, **kwargs)
         self._lying = self._lying_state()
@@ -118,6 +146,8 @@ class HumanoidGetup(Problem):
         mujoco.mj_kinematics(model, data)
         self.torso_height = float(data.xpos[self.torso_id, 2])
         self.ctrl_ref = np.zeros(model.nu)
+        #: Scratch data of :meth:`is_up` and :meth:`is_down` (kinematics only).
+        self._stage_data = mujoco.MjData(model)
 
     def _terms(self, model: mujoco.MjModel, scale: float, suffix: str) -> list:
         w = self.getup_weights
@@ -198,3 +228,79 @@ class HumanoidGetup(Problem):
                 f"standing is >= {self.stand_height:g} m)"
             )
         return None
+
+    # ------------------------------------------------------------------ task stages
+    def _torso(self, state: np.ndarray) -> tuple[float, float]:
+        """Torso height (m) and the z component of its z axis for one state."""
+        data = self._stage_data
+        data.qpos[:] = np.asarray(state)[: self.nq]
+        mujoco.mj_kinematics(self.model, data)
+        return float(data.xpos[self.torso_id, 2]), float(data.xmat[self.torso_id, 8])
+
+    def is_up(self, state: np.ndarray) -> bool:
+        """The torso is at least ``handover_height`` high and tilted at most
+        ``handover_tilt`` from vertical, for a state ``(nstate,)``."""
+        height, up = self._torso(state)
+        return height >= self.handover_height and up >= np.cos(self.handover_tilt)
+
+    def is_down(self, state: np.ndarray) -> bool:
+        """The torso is lower than ``release_height``, for a state ``(nstate,)``."""
+        return self._torso(state)[0] < self.release_height
+
+    def stand_problem(self, **kwargs: Any) -> HumanoidStand:
+        """The standing stage: :class:`~mpcbox.tasks.humanoid.stand.HumanoidStand` (its own
+        costs and tuned controller configs) on this task's model.
+
+        Args:
+            **kwargs: Passed to :class:`~mpcbox.tasks.humanoid.stand.HumanoidStand`.
+        """
+        kwargs.setdefault("model", self._model_source)
+        return HumanoidStand(**kwargs)
+
+    def handover_controller(
+        self,
+        name: str,
+        *,
+        stand: str | None = None,
+        transfer: bool = True,
+        stand_options: dict[str, Any] | None = None,
+        stand_task: dict[str, Any] | None = None,
+        **overrides: Any,
+    ) -> HandOver:
+        """Get-up controller ``name`` until :meth:`is_up`, then the standing stage's tuned
+        controller ``stand`` until :meth:`is_down`, and so on
+        (:class:`~mpcbox.controllers.handover.HandOver`).
+
+        Measured on an H100 in the real-time loop (issue #17,
+        ``benchmarks/results/humanoid_getup_handover_*_h100.json``) it is not better than
+        the get-up planner alone: the stand controller too lets the body fall after 1-3 s
+        up (best variant 1/10 over seeds 100-109, the plain PS 3/10), so
+        :func:`mpcbox.make_controller` keeps the plain planner.
+
+        Args:
+            name: The get-up controller (a key of :attr:`controller_configs`).
+            stand: The standing controller (a key of ``HumanoidStand.controller_configs``;
+                default ``name``).
+            transfer: Warm-start each incoming planner with the outgoing plan (else a cold
+                start from its reference control).
+            stand_options: Overrides of the standing controller's config.
+            stand_task: Options of :meth:`stand_problem` (the standing costs).
+            **overrides: Overrides of the get-up controller's config; ``backend``,
+                ``device`` and ``seed`` apply to both.
+        """
+        shared = {k: overrides[k] for k in ("backend", "device", "seed") if k in overrides}
+        getup = make_controller(name, self, **overrides)
+        stand_name = name if stand is None else stand
+        keeper = make_controller(
+            stand_name,
+            self.stand_problem(**(stand_task or {})),
+            **{**shared, **(stand_options or {})},
+        )
+        return HandOver(
+            getup,
+            keeper,
+            engage=self.is_up,
+            release=self.is_down,
+            transfer=transfer,
+            name=f"{name}+{stand_name}",
+        )
