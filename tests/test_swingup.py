@@ -214,7 +214,7 @@ def test_dm_acrobot_default_ilqr_holds_the_upright_from_an_elbow_offset() -> Non
 
     start = np.array([0.0, 0.05, 0.0, 0.0])  # upright, elbow 0.05 rad off, at rest
     problem = DmAcrobotSwingup(initial=start, threads=1)
-    result = mpcbox.simulate(problem, mpcbox.make_controller("ilqr", problem), 1.5)
+    result = mpcbox.simulate(problem, mpcbox.make_controller("ilqr", problem), 3.0)
     errors = problem.upright_errors(result.states)
     assert result.failure is None
     # Without control the chain falls: the tip leaves the 0.2 m ball within 1.5 s.
@@ -225,7 +225,9 @@ def test_dm_acrobot_default_ilqr_holds_the_upright_from_an_elbow_offset() -> Non
         mujoco.mj_step(problem.model, data)
         idle.append(np.concatenate([data.qpos, data.qvel]))
     assert problem.upright_errors(np.array(idle)).max() > 0.2
-    assert errors.max() < 0.2 and errors[-1] < 0.05
+    # Caught and settled: inside the 0.2 m ball throughout, within 5 cm over the last second.
+    assert errors.max() < 0.2
+    assert errors[result.time >= 2.0].max() < 0.05
 
 
 def test_acrobot_offline_ilqr_reaches_upright_and_stays_within_tolerance() -> None:
