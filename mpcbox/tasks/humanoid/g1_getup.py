@@ -7,10 +7,11 @@ from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any, ClassVar
 
+import mujoco
 import numpy as np
 
 from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, PredictiveSamplingConfig
-from mpcbox.core.model import ModelSource
+from mpcbox.core.model import ModelSource, load_spec
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.tasks.humanoid.getup import HumanoidGetup
 from mpcbox.validation import positive
@@ -28,8 +29,27 @@ G1_SAMPLING: dict[str, Any] = dict(
     planning_integrator="implicitfast",
     solver_iterations=2,
     period=0.02,
-    headroom=4.0,
+    headroom=8.0,
 )
+
+
+def floor_only_meshes(source: ModelSource) -> mujoco.MjSpec:
+    """A spec of ``source`` whose colliding mesh geoms touch only the others (the floor, the
+    feet's spheres) and not each other.
+
+    Each colliding mesh geom gets ``contype=0, conaffinity=1``: MuJoCo's rule
+    (``contype_a & conaffinity_b`` or ``contype_b & conaffinity_a``) then keeps a mesh's
+    contacts with any geom of ``contype`` 1 and drops mesh-mesh pairs, whose convex
+    collision (GJK/EPA) dominates an MJWarp step of the G1.
+
+    Args:
+        source: The robot (a ``ModelSource`` that is not a compiled model).
+    """
+    spec = load_spec(source)
+    for geom in spec.geoms:
+        if geom.type == mujoco.mjtGeom.mjGEOM_MESH and (geom.contype or geom.conaffinity):
+            geom.contype, geom.conaffinity = 0, 1
+    return spec
 
 
 def range_noise(ctrlrange: np.ndarray, fraction: float) -> np.ndarray:
@@ -68,6 +88,9 @@ class G1Getup(HumanoidGetup):
         stand_height: Ditto (default: derived from the keyframe).
         release_height: Ditto (default: derived).
         noise_fraction: Sampling noise as a fraction of each control range.
+        mesh_self_collision: Keep the collisions between mesh geoms in the planning model;
+            by default it drops them (:func:`floor_only_meshes`; the simulated world keeps
+            every contact).
         **kwargs: Passed to :class:`~mpcbox.tasks.humanoid.getup.HumanoidGetup`.
     """
 
@@ -90,8 +113,11 @@ class G1Getup(HumanoidGetup):
         stand_height: float | None = None,
         release_height: float | None = None,
         noise_fraction: float = 0.1,
+        mesh_self_collision: bool = False,
         **kwargs: Any,
     ) -> None:
+        if not mesh_self_collision and not isinstance(model, mujoco.MjModel):
+            kwargs.setdefault("planning_model", floor_only_meshes(model))
         super().__init__(
             model=model,
             torso=torso,
