@@ -79,6 +79,11 @@ class BipedStand(LeggedBalance):
     #: at 0.005 s with the LQR terminal value it falls within 2.5 s without noise. This
     #: iLQR-MPC config is a starting point, not a tuned one: on the G1 it stands 4 s without
     #: noise but 0 of 5 seeds of 10 s under the noise recipe (results/g1_balance.json).
+    #: The QP-MPC's largest forward push on two feet (169 N) and LQR's (172.5 N) are both
+    #: within 4 % of the capture-point bound of the ankle strategy (175.6 N: the G1's
+    #: center of mass is 0.117 m behind its toes), and no single change of the QP options
+    #: (period, step, horizon, terminal, relinearization, friction, slack weight) passed
+    #: 172.5 N (``benchmarks/g1_push_limit.py``, results/g1_push_limit.json).
     controller_configs: ClassVar[dict[str, Any]] = {
         "lqr": LQRConfig(),
         "qp": QPMPCConfig(period=0.02, stance_weight=1e5, osqp_settings=QP_OSQP_SETTINGS),
