@@ -17,6 +17,8 @@ height, tick p50/p99 and whether the planner kept up. With ``--final-seeds`` the
 (variant, controller) of that screen (most successes, then highest mean torso height) is
 run again over that many seeds (100, 101, ...), fixed before those runs; with ``--seeds 0``
 the screen is skipped and the first variant and controller are the final ones.
+``--task g1_getup`` (or any registered get-up task) runs the same on that task, e.g.
+Unitree's G1 (:class:`~mpcbox.tasks.humanoid.g1_getup.G1Getup`, needs ``MENAGERIE_ROOT``).
 Also per run: when the torso was first up (``first_up_s``, :meth:`HumanoidGetup.is_up`), the
 hand-over's switches and their times, and the torso height every 0.1 s.
 """
@@ -31,8 +33,8 @@ from pathlib import Path
 import numpy as np
 
 import mpcbox
+from mpcbox.registry import task_class
 from mpcbox.sim.realtime import simulate_realtime
-from mpcbox.tasks.humanoid.getup import HumanoidGetup
 
 
 def _value(text: str):
@@ -127,6 +129,7 @@ def summary(rows: list[dict]) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--task", default="humanoid_getup")
     parser.add_argument("--controllers", default="ps,mppi,cem")
     parser.add_argument("--variants", default="base")
     parser.add_argument("--seeds", type=int, default=2)
@@ -138,7 +141,7 @@ def main() -> None:
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     report: dict = {
-        "task": "humanoid_getup",
+        "task": args.task,
         "gpu": args.gpu,
         "platform": platform.platform(),
         "backend": args.backend,
@@ -159,7 +162,7 @@ def main() -> None:
     for vname, (task_kw, ctrl_kw, hand) in variants.items():
         if args.seeds == 0:
             break
-        problem = HumanoidGetup(**task_kw)
+        problem = task_class(args.task)(**task_kw)
         for name in args.controllers.split(","):
             rows = []
             for seed in range(args.seeds):
@@ -192,7 +195,7 @@ def main() -> None:
     if args.final_seeds and best is not None:
         vname, name = best
         task_kw, ctrl_kw, hand = variants[vname]
-        problem = HumanoidGetup(**task_kw)
+        problem = task_class(args.task)(**task_kw)
         rows = []
         for seed in range(100, 100 + args.final_seeds):
             rows.append(

@@ -34,6 +34,7 @@ TASKS: dict[str, str] = {
     "dm_acrobot_swingup": "mpcbox.tasks.swingup.dm_control:DmAcrobotSwingup",
     "humanoid_stand": "mpcbox.tasks.humanoid.stand:HumanoidStand",
     "humanoid_getup": "mpcbox.tasks.humanoid.getup:HumanoidGetup",
+    "g1_getup": "mpcbox.tasks.humanoid.g1_getup:G1Getup",
     "humanoid_two_feet": "mpcbox.tasks.humanoid.two_feet:HumanoidTwoFeet",
     "quadruped_stand": "mpcbox.tasks.legged.quadruped:QuadrupedStand",
     "quadruped_walk": "mpcbox.tasks.legged.walk:QuadrupedWalk",

@@ -1,8 +1,10 @@
 r"""Humanoid get-up: from lying on its back on the floor to standing (the showcase of
-MJPC and hydrax), on the humanoid scene shipped with mpcbox."""
+MJPC and hydrax), on the humanoid scene shipped with mpcbox or any humanoid named by its
+torso, feet and standing keyframe."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import mujoco
@@ -11,13 +13,13 @@ import numpy as np
 from mpcbox.controllers.handover import HandOver
 from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, PredictiveSamplingConfig
 from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, FrameHeight, StateCost, Upright
-from mpcbox.core.model import ModelSource, dof_weights
+from mpcbox.core.model import ModelSource, dof_weights, frame_object, object_id
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError
 from mpcbox.registry import make_controller
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.stand import HumanoidStand
-from mpcbox.validation import non_negative, non_negative_weights, positive
+from mpcbox.validation import in_range, non_negative, non_negative_weights, positive
 
 #: Config shared by the get-up's sampling controllers, the best of a small screen on an
 #: H100 (benchmarks/humanoid_getup.py; results/rt17_h100_run2_getup_screen.json): 1024
@@ -41,21 +43,30 @@ _COMMON: dict[str, Any] = dict(
 class HumanoidGetup(Problem):
     r"""Get the humanoid up from lying on its back to standing, and keep it standing.
 
-    The run starts from the humanoid lying supine on the floor (the ``stand`` keyframe's
-    joint angles, the torso rotated to face up, dropped and settled for ``settle`` seconds
-    without control). The reference posture is the ``stand`` keyframe. The running cost
+    The run starts from the humanoid lying supine on the floor (the keyframe's joint
+    angles, the root rotated by -90 degrees about its y axis so that a robot facing +x
+    faces up, dropped from 0.3 m and settled for ``settle`` seconds at the keyframe's
+    control: no control on the classic torque-driven humanoid, the keyframe's joint
+    targets on position servos). The reference posture and control are the keyframe's
+    (default ``stand``; ``keyframe=...`` picks another). The running cost
     (``terminal_scale`` times heavier at the end of the horizon) is
 
     .. math::
         \tfrac12 w_h (z_{torso} - z_{stand})^2 + \tfrac12 w_u \|e_{z,xy}\|^2
         + \tfrac12 w_b \sum_f \|c_{xy} - p_{f,xy}\|^2
         + \tfrac12 w_q \|q_j - q_{j,ref}\|^2 + \tfrac12 w_v \|v\|^2
-        + \tfrac12 w_c \|u\|^2 ,
+        + \tfrac12 w_c \|u - u_{ref}\|^2 ,
 
     with :math:`z_{stand}` the torso height of the keyframe, :math:`e_{z,xy}` the horizontal
-    part of the torso's z axis, :math:`c` the whole-body centre of mass and :math:`p_f` the
-    feet (pulling the feet under the body is the first move of getting up), :math:`q_j` the
-    joint angles only (not the root).
+    part of the torso's z axis, :math:`c` the centre of mass of the ``root``'s subtree (the
+    whole body) and :math:`p_f` the feet (pulling the feet under the body is the first move
+    of getting up), :math:`q_j` the joint angles only (not the root), :math:`u_{ref}` the
+    keyframe's control in :math:`w_c \|u - u_{ref}\|^2`.
+
+    Any humanoid works by name: ``torso`` (the body whose height and tilt count),
+    ``root`` (the floating base whose subtree's centre of mass is balanced) and ``feet``
+    (site or body names); the defaults are the classic humanoid's. See
+    :class:`~mpcbox.tasks.humanoid.g1_getup.G1Getup` for Unitree's G1.
 
     Success (:meth:`goal_failure`): the torso is at least ``stand_height`` high for the last
     ``hold`` seconds of the run. :meth:`getup_time` gives when it got up for good.
@@ -67,6 +78,10 @@ class HumanoidGetup(Problem):
 
     Args:
         model: MJCF of the humanoid (default ``mpcbox/tasks/scenes/humanoid.xml``).
+        torso: Body whose height and uprightness are costed and measured.
+        root: Body whose subtree's centre of mass is held over the feet (default
+            ``torso``; the floating base when the torso is not the root).
+        feet: The (left, right) feet: site or body names.
         height_cost: :math:`w_h`.
         upright_cost: :math:`w_u`.
         balance_cost: :math:`w_b`.
@@ -74,15 +89,26 @@ class HumanoidGetup(Problem):
         velocity_cost: :math:`w_v`.
         ctrl_cost: :math:`w_c`.
         terminal_scale: Multiplier of the terminal cost.
-        stand_height: Torso height that counts as standing (m).
+        stand_height: Torso height that counts as standing (m); ``None``: ``stand_fraction``
+            of the keyframe's torso height.
+        stand_fraction: See ``stand_height``, in ``(0, 1]``.
         hold: Seconds the torso must stay at ``stand_height`` at the end of a run.
         settle: Seconds the lying body settles before the run starts.
         handover_height: Torso height at or above which :meth:`is_up` holds (m; default
             ``stand_height``).
         handover_tilt: Largest tilt of the torso's z axis from vertical (rad) at which
             :meth:`is_up` holds.
-        release_height: Torso height below which :meth:`is_down` holds (m).
-        **kwargs: Passed to :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
+        release_height: Torso height below which :meth:`is_down` holds (m); ``None``:
+            ``release_fraction`` of the standing height.
+        release_fraction: See ``release_height``, in ``(0, 1)``.
+        **kwargs: Passed to :class:`~mpcbox.Problem` (e.g. ``planning_timestep``,
+            ``keyframe``, default ``"stand"``).
+
+    Raises:
+        UnknownNameError: If ``torso``, ``root``, a foot or the keyframe is not in the
+            model (lists the names that are).
+        InvalidArgumentError: For a non-positive height, ``feet`` not naming two feet, or
+            ``release_height`` not below ``handover_height``.
     """
 
     name = "humanoid_getup"
@@ -97,6 +123,9 @@ class HumanoidGetup(Problem):
         self,
         *,
         model: ModelSource | None = None,
+        torso: str = "torso",
+        root: str | None = None,
+        feet: Sequence[str] = ("foot_left", "foot_right"),
         height_cost: float = 100.0,
         upright_cost: float = 30.0,
         balance_cost: float = 100.0,
@@ -104,12 +133,14 @@ class HumanoidGetup(Problem):
         velocity_cost: float = 0.01,
         ctrl_cost: float = 0.1,
         terminal_scale: float = 5.0,
-        stand_height: float = 1.1,
+        stand_height: float | None = 1.1,
+        stand_fraction: float = 0.8,
         hold: float = 0.5,
         settle: float = 1.0,
         handover_height: float | None = None,
         handover_tilt: float = 0.5,
-        release_height: float = 0.9,
+        release_height: float | None = 0.9,
+        release_fraction: float = 0.8,
         **kwargs: Any,
     ) -> None:
         self.getup_weights = non_negative_weights(
@@ -121,31 +152,57 @@ class HumanoidGetup(Problem):
             ctrl_cost=ctrl_cost,
             terminal_scale=terminal_scale,
         )
-        self.stand_height = positive("stand_height", stand_height)
+        for label, value in (("torso", torso), ("root", root)):
+            if value is not None and not isinstance(value, str):
+                raise InvalidTypeError(f"{label} must be a body name, got {value!r}")
+        if isinstance(feet, str) or len(feet) != 2 or not all(isinstance(f, str) for f in feet):
+            raise InvalidArgumentError(f"feet must name the (left, right) feet, got {feet!r}")
+        self.torso, self.root = torso, torso if root is None else root
+        self.feet = tuple(feet)
+        self._heights = {
+            "stand_height": None
+            if stand_height is None
+            else positive("stand_height", stand_height),
+            "stand_fraction": in_range(
+                "stand_fraction", stand_fraction, 0.0, 1.0, low_open=True, high_open=False
+            ),
+            "handover_height": None
+            if handover_height is None
+            else positive("handover_height", handover_height),
+            "release_height": None
+            if release_height is None
+            else positive("release_height", release_height),
+            "release_fraction": in_range(
+                "release_fraction", release_fraction, 0.0, 1.0, low_open=True, high_open=True
+            ),
+        }
         self.hold = non_negative("hold", hold)
         self.settle = non_negative("settle", settle)
-        self.handover_height = self.stand_height
-        if handover_height is not None:
-            self.handover_height = positive("handover_height", handover_height)
         self.handover_tilt = positive("handover_tilt", handover_tilt)
-        self.release_height = positive("release_height", release_height)
-        if self.release_height >= self.handover_height:
-            raise InvalidArgumentError(
-                f"release_height must be below handover_height ({self.handover_height:g} m) "
-                f"for hysteresis, got {release_height}"
-            )
         self._model_source = model
         kwargs.setdefault("keyframe", "stand")
         super().__init__(scene_path("humanoid.xml") if model is None else model, **kwargs)
+        if self.release_height >= self.handover_height:
+            raise InvalidArgumentError(
+                f"release_height must be below handover_height ({self.handover_height:g} m) "
+                f"for hysteresis, got {self.release_height:g}"
+            )
         self._lying = self._lying_state()
 
     def prepare(self, model: mujoco.MjModel) -> None:
-        self.torso_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "torso")
+        """Check the names, take the keyframe's torso height and derive the heights."""
+        self.torso_id = object_id(model, "body", self.torso, "torso")
+        object_id(model, "body", self.root, "root")
+        for foot in self.feet:
+            frame_object(model, foot, "feet")
         data = mujoco.MjData(model)
         data.qpos[:] = self.qpos_ref
         mujoco.mj_kinematics(model, data)
         self.torso_height = float(data.xpos[self.torso_id, 2])
-        self.ctrl_ref = np.zeros(model.nu)
+        h = self._heights
+        self.stand_height = h["stand_height"] or h["stand_fraction"] * self.torso_height
+        self.handover_height = h["handover_height"] or self.stand_height
+        self.release_height = h["release_height"] or h["release_fraction"] * self.stand_height
         #: Scratch data of :meth:`is_up` and :meth:`is_down` (kinematics only).
         self._stage_data = mujoco.MjData(model)
 
@@ -155,17 +212,17 @@ class HumanoidGetup(Problem):
         return [
             *(
                 ComOverSupport(
-                    f"foot_{side}",
+                    foot,
                     weight=scale * w["balance"],
-                    root="torso",
+                    root=self.root,
                     name=f"com_{side}{suffix}",
                 )
-                for side in ("left", "right")
+                for side, foot in zip(("left", "right"), self.feet)
             ),
             FrameHeight(
-                "torso", self.torso_height, weight=scale * w["height"], name="height" + suffix
+                self.torso, self.torso_height, weight=scale * w["height"], name="height" + suffix
             ),
-            Upright("torso", weight=scale * w["upright"], name="upright" + suffix),
+            Upright(self.torso, weight=scale * w["upright"], name="upright" + suffix),
             StateCost(
                 self.qpos_ref,
                 weight_qpos=scale * wq,
@@ -180,9 +237,11 @@ class HumanoidGetup(Problem):
         return Cost(running, self._terms(model, self.getup_weights["terminal"], "_terminal"))
 
     def _lying_state(self) -> np.ndarray:
-        """The keyframe's joints, torso facing up just above the floor, settled passively."""
+        """The keyframe's joints, torso facing up just above the floor, settled at the
+        keyframe's control."""
         model = self.model
         data = mujoco.MjData(model)
+        data.ctrl[:] = self.clip_ctrl(self.ctrl_ref)
         data.qpos[:] = self.qpos_ref
         data.qpos[:3] = [0.0, 0.0, 0.3]
         half = -np.pi / 4  # -90 deg about y: the chest faces up, the head points to -x

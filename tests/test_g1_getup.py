@@ -1,0 +1,103 @@
+"""The get-up by name: HumanoidGetup's names checked, and the G1 preset (Menagerie)."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from mpcbox.errors import InvalidArgumentError, UnknownNameError
+from mpcbox.registry import make_controller, task_class
+from mpcbox.tasks.humanoid.g1_getup import G1Getup, range_noise
+from mpcbox.tasks.humanoid.getup import HumanoidGetup
+
+
+@pytest.mark.parametrize(
+    ("options", "listed"),
+    [
+        ({"torso": "chest"}, "torso"),
+        ({"root": "base_link"}, "torso"),
+        ({"feet": ("foot_left", "left_sole")}, "foot_right"),
+        ({"keyframe": "crouch"}, "stand"),
+    ],
+)
+def test_unknown_names_are_rejected_listing_what_exists(options, listed) -> None:
+    bad = (
+        next(v for v in options.values() if isinstance(v, str))
+        if "feet" not in options
+        else "left_sole"
+    )
+    with pytest.raises(UnknownNameError, match=listed) as info:
+        HumanoidGetup(settle=0.0, **options)
+    assert bad in str(info.value)
+
+
+def test_feet_must_name_two_feet() -> None:
+    with pytest.raises(InvalidArgumentError, match="feet"):
+        HumanoidGetup(settle=0.0, feet=("foot_left",))
+
+
+def test_stand_height_derived_from_the_keyframe_when_omitted() -> None:
+    task = HumanoidGetup(settle=0.0, stand_height=None, stand_fraction=0.5, release_height=None)
+    assert task.stand_height == pytest.approx(0.5 * task.torso_height)
+    assert task.release_height == pytest.approx(0.8 * task.stand_height)
+    assert task.handover_height == task.stand_height
+
+
+def test_range_noise_is_a_fraction_of_each_control_range() -> None:
+    ranges = np.array([[-1.0, 1.0], [0.0, 0.5]])
+    np.testing.assert_allclose(range_noise(ranges, 0.1), [0.2, 0.05])
+    with pytest.raises(InvalidArgumentError, match="noise_fraction"):
+        range_noise(ranges, 0.0)
+
+
+@pytest.fixture(scope="module")
+def g1():
+    return task_class("g1_getup")(settle=0.5)
+
+
+def _torso(task, state):
+    data = mujoco.MjData(task.model)
+    data.qpos[:] = state[: task.nq]
+    mujoco.mj_forward(task.model, data)
+    return data
+
+
+@pytest.mark.menagerie
+def test_g1_getup_builds_by_name_with_noise_in_radians(g1) -> None:
+    assert isinstance(g1, G1Getup) and g1.nu == 29
+    width = np.diff(g1.model.actuator_ctrlrange, axis=1)[:, 0]
+    ctrl = make_controller("ps", g1, num_samples=8)
+    np.testing.assert_allclose(ctrl.noise_scale, g1.noise_fraction * width)
+    # Position servos: the reference control is the keyframe's joint targets.
+    np.testing.assert_allclose(g1.ctrl_ref, g1.model.key_ctrl[g1.keyframe])
+    assert 0.5 < g1.stand_height < g1.torso_height
+
+
+@pytest.mark.menagerie
+def test_g1_lying_start_is_on_the_floor_on_its_back(g1) -> None:
+    data = _torso(g1, g1.initial_state())
+    torso = data.xmat[g1.torso_id].reshape(3, 3)
+    assert data.xpos[g1.torso_id, 2] < 0.2
+    assert abs(torso[2, 2]) < 0.3  # the long axis lies horizontal
+    assert torso[2, 0] > 0.7  # the chest faces up
+    floor = mujoco.mj_name2id(g1.model, mujoco.mjtObj.mjOBJ_GEOM, "floor")
+    touching = [c for c in data.contact[: data.ncon] if floor in (c.geom1, c.geom2)]
+    assert len(touching) >= 3 and min(c.dist for c in touching) > -0.01
+
+
+@pytest.mark.menagerie
+def test_g1_cost_decreases_towards_the_standing_keyframe(g1) -> None:
+    lying, standing = g1.initial_state(), g1.reference_state()
+    turn = np.zeros(3)  # the root's rotation from lying to standing
+    mujoco.mju_subQuat(turn, standing[3:7], lying[3:7])
+    costs = []
+    for s in np.linspace(0.0, 1.0, 6):
+        x = (1 - s) * lying + s * standing
+        x[3:7] = lying[3:7]
+        mujoco.mju_quatIntegrate(x[3:7], turn, s)
+        costs.append(g1.running_cost(x, g1.ctrl_ref))
+    assert np.all(np.diff(costs) < 0), costs
+    time = np.linspace(0.0, g1.hold, 6)  # the last ``hold`` seconds
+    assert g1.goal_failure(time, np.tile(standing, (6, 1))) is None
+    assert g1.goal_failure(time, np.tile(lying, (6, 1))) is not None
