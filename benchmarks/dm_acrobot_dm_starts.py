@@ -25,28 +25,30 @@ Also records a hold check: each controller started at the upright with the elbow
 
     nice -n 5 python benchmarks/dm_acrobot_dm_starts.py [--seeds 0-11] [--duration 10]
     nice -n 5 python benchmarks/dm_acrobot_dm_starts.py --hold-only
-    nice -n 5 python benchmarks/dm_acrobot_dm_starts.py --controllers ilqr --plan-rk4 \
-        --overrides '{"warm_start_states": true}' \
+    nice -n 5 python benchmarks/dm_acrobot_dm_starts.py --controllers ilqr \
         --oracle-from benchmarks/results/dm_acrobot_dm_starts.json \
-        --out benchmarks/results/dm_acrobot_dm_starts_ilqr_rk4_ms.json
-    nice -n 5 python benchmarks/dm_acrobot_dm_starts.py --controllers ilqr --plan-rk4 \
-        --overrides '{"warm_start_states": true, "mpc_iterations": 3}' \
-        --oracle-from benchmarks/results/dm_acrobot_dm_starts.json \
-        --out benchmarks/results/dm_acrobot_dm_starts_ilqr_rk4_ms3.json
+        --out benchmarks/results/dm_acrobot_dm_starts_ilqr_default.json
 
 Recorded (seeds 0-11): the oracle reaches the ball within 5 s from 5/12 starts. The
-task's tuned iLQR-MPC and MPPI: 0/12 (neither even holds the upright from the 0.05 rad
-hold check). iLQR-MPC planned in RK4 with multiple-shooting warm starts and 3 iterations per
-replan (``..._ilqr_rk4_ms3.json``; the two changes chosen because they pass the hold check,
-the iteration count on dev starts 103, 105, 107, never on these): 2/12 within 5 s and held
-(2.50 s, 2.69 s), 5/12 held at the end; of its 10 misses 3 are from starts the oracle
-reaches (controller misses) and 7 from starts it does not. Its median tick is 55-84 ms,
-slower than its 20 ms replan period on the shared 2-core CPU. With 1 iteration per replan
-(``..._ilqr_rk4_ms.json``): 1/12.
+task's iLQR-MPC, planned in RK4 (the task's ``plan_rk4=True``) with multiple-shooting warm
+starts and 3 iterations per replan (its default since issue #13; chosen because it passes
+the hold check, the iteration count on dev starts 103, 105, 107, never on these;
+``..._ilqr_default.json``, and before it became the default ``..._ilqr_rk4_ms3.json``):
+2/12 within 5 s and held (2.50 s, 2.69 s), 5/12 held at the end; of its 10 misses 3 are
+from starts the oracle reaches (controller misses) and 7 from starts it does not. Its
+median tick is 55-84 ms, slower than its 20 ms replan period on the shared 2-core CPU.
+With 1 iteration per replan (``..._ilqr_rk4_ms.json``): 1/12. The earlier iLQR defaults
+(implicitfast planning, single shooting, 1 iteration; ``dm_acrobot_dm_starts.json``) and
+the task's MPPI: 0/12, and neither holds the upright from the 0.05 rad hold check. The
+earlier runs were made with ``--plan-rk4`` and ``--overrides`` before those became the
+defaults; with the current defaults they read ``--plan-rk4 false --overrides
+'{"warm_start_states": false, "mpc_iterations": 1}'`` (earlier iLQR defaults, with
+``--controllers ilqr``) and
+``--overrides '{"mpc_iterations": 1}'`` (1 iteration).
 
-``--plan-rk4`` and ``--overrides`` (JSON config fields) change every controller run;
-``--oracle-from`` copies the per-start oracle of an earlier results file instead of
-solving it again.
+``--plan-rk4 true|false`` replaces the task's ``plan_rk4`` and ``--overrides`` (JSON config
+fields) the tuned config fields in every controller run; ``--oracle-from`` copies the
+per-start oracle of an earlier results file instead of solving it again.
 
 Prints JSON lines as it goes and writes ``benchmarks/results/dm_acrobot_dm_starts.json``.
 """
@@ -76,15 +78,19 @@ from mpcbox.tasks.swingup.dm_control import DmAcrobotSwingup
 RESULTS = Path(__file__).parent / "results" / "dm_acrobot_dm_starts.json"
 TARGET_S = 5.0
 TOLERANCE = 0.2
-#: iLQR variants of the hold check: (label, plan_rk4, config overrides).
-HOLD_VARIANTS: list[tuple[str, bool, dict]] = [
-    ("tuned", False, {}),
-    ("tuned, RK4 planning", True, {}),
-    ("RK4 planning, multiple-shooting warm starts", True, {"warm_start_states": True}),
+#: The task's iLQR defaults before issue #13's change (with ``plan_rk4=False``).
+OLD_ILQR: dict = {"warm_start_states": False, "mpc_iterations": 1}
+#: iLQR variants of the hold check: (label, plan_rk4 or None for the task's default, config
+#: overrides).
+HOLD_VARIANTS: list[tuple[str, bool | None, dict]] = [
+    ("earlier default (implicitfast planning)", False, OLD_ILQR),
+    ("earlier default, RK4 planning", True, OLD_ILQR),
+    ("RK4 planning, multiple-shooting warm starts", True, {"mpc_iterations": 1}),
+    ("default (RK4, multiple shooting, 3 iterations)", None, {}),
     (
         "RK4 planning, 0.5 s horizon, LQR terminal value",
         True,
-        {"horizon": 25, "terminal_value": "lqr"},
+        {**OLD_ILQR, "horizon": 25, "terminal_value": "lqr"},
     ),
 ]
 
@@ -137,12 +143,13 @@ def closed_loop(
     controller: str,
     state: np.ndarray,
     duration: float,
-    plan_rk4: bool = False,
+    plan_rk4: bool | None = None,
     **overrides: object,
 ) -> dict:
     """The task's tuned ``controller`` (config fields replaced by ``overrides``) from
-    ``state`` over ``duration`` s."""
-    problem = DmAcrobotSwingup(initial=state, threads=1, plan_rk4=plan_rk4)
+    ``state`` over ``duration`` s; ``plan_rk4`` replaces the task's default when given."""
+    options = {} if plan_rk4 is None else {"plan_rk4": plan_rk4}
+    problem = DmAcrobotSwingup(initial=state, threads=1, **options)
     ctrl = mpcbox.make_controller(controller, problem, **overrides)
     wall = time.perf_counter()
     result = mpcbox.simulate(problem, ctrl, duration)
@@ -205,7 +212,12 @@ def main() -> None:
     parser.add_argument("--oracle-iterations", type=int, default=60)
     parser.add_argument("--hold-offset", type=float, default=0.05)
     parser.add_argument("--hold-only", action="store_true")
-    parser.add_argument("--plan-rk4", action="store_true", help="plan in RK4 (plan_rk4=True)")
+    parser.add_argument(
+        "--plan-rk4",
+        type=lambda text: {"true": True, "false": False}[text.lower()],
+        default=None,
+        help="true/false: replace the task's plan_rk4 (default: the task's, True)",
+    )
     parser.add_argument(
         "--overrides", default="{}", help="JSON config fields replacing the tuned ones"
     )

@@ -93,7 +93,10 @@ def end_cost_solver(
 
 
 def solve_horizon(seconds: float, rest: bool, iterations: int) -> dict:
-    problem, solver = end_cost_solver(seconds, iterations, rest, planning_timestep=0.02)
+    # Recorded on the implicitfast copy, before the task planned in RK4 by default.
+    problem, solver = end_cost_solver(
+        seconds, iterations, rest, planning_timestep=0.02, plan_rk4=False
+    )
     horizon = solver.horizon
     t = problem.dt * np.arange(horizon)
     restarts = []

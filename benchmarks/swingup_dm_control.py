@@ -12,8 +12,10 @@ which the upright error stays within tolerance), final upright error, and the me
 99th percentile of the controller's compute time per tick (all ticks: iLQR replans every
 0.02 s and applies its feedback law in between, MPPI plans every 0.01 s). The target of
 issue #13: upright within 5 s and held. The acrobot's 2 N m elbow does not reach it (0/3
-for both); ``benchmarks/dm_acrobot_min_time.py`` (IPOPT) and
-``benchmarks/dm_acrobot_reachability.py`` (iLQR) show why 5 s from hanging is out of reach;
+for both; recorded with the acrobot's earlier iLQR defaults, before it planned in RK4 with
+multiple-shooting warm starts and 3 iterations per replan);
+``benchmarks/dm_acrobot_min_time.py`` (IPOPT) and ``benchmarks/dm_acrobot_reachability.py``
+(iLQR) show why 5 s from hanging is out of reach;
 ``benchmarks/dm_acrobot_dm_starts.py`` runs 12 fixed dm_control starts against an offline
 5 s oracle per start.
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import warnings
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -189,6 +190,44 @@ def test_dm_control_cartpole_swings_up_by_ilqr_within_3s_and_holds() -> None:
     # Without control the pole stays down: the outcome is the controller's.
     idle = np.tile(problem.initial_state(), (3, 1))
     assert "not upright" in problem.goal_failure(np.array([0.0, 3.0, 6.0]), idle)
+
+
+def test_dm_acrobot_plans_in_rk4_and_its_mppi_on_an_implicitfast_copy() -> None:
+    pytest.importorskip("dm_control")
+    from mpcbox.controllers.sampling.planning import planning_problem
+    from mpcbox.tasks.swingup.dm_control import DmAcrobotSwingup
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PlanningModelWarning)  # RK4 kept: no replacement
+        problem = DmAcrobotSwingup(threads=1)
+    rk4, implicitfast = mujoco.mjtIntegrator.mjINT_RK4, mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    assert problem.planning_model.opt.integrator == rk4
+    mppi = planning_problem(problem, problem.controller_configs["mppi"])
+    assert mppi.planning_model.opt.integrator == implicitfast
+    assert mppi.dt == pytest.approx(0.02)
+    assert problem.planning_model.opt.integrator == rk4  # the task's own model is unchanged
+
+
+def test_dm_acrobot_default_ilqr_holds_the_upright_from_an_elbow_offset() -> None:
+    pytest.importorskip("dm_control")
+    from mpcbox.tasks.swingup.dm_control import DmAcrobotSwingup
+
+    start = np.array([0.0, 0.05, 0.0, 0.0])  # upright, elbow 0.05 rad off, at rest
+    problem = DmAcrobotSwingup(initial=start, threads=1)
+    result = mpcbox.simulate(problem, mpcbox.make_controller("ilqr", problem), 3.0)
+    errors = problem.upright_errors(result.states)
+    assert result.failure is None
+    # Without control the chain falls: the tip leaves the 0.2 m ball within 1.5 s.
+    data = mujoco.MjData(problem.model)
+    data.qpos[:] = start[:2]
+    idle = []
+    for _ in range(round(1.5 / problem.model.opt.timestep)):
+        mujoco.mj_step(problem.model, data)
+        idle.append(np.concatenate([data.qpos, data.qvel]))
+    assert problem.upright_errors(np.array(idle)).max() > 0.2
+    # Caught and settled: inside the 0.2 m ball throughout, within 5 cm over the last second.
+    assert errors.max() < 0.2
+    assert errors[result.time >= 2.0].max() < 0.05
 
 
 def test_acrobot_offline_ilqr_reaches_upright_and_stays_within_tolerance() -> None:

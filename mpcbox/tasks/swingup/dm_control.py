@@ -1,9 +1,10 @@
 """dm_control's suite cart-pole and acrobot as swing-up presets.
 
 The suite's models ship with the ``dm_control`` package (``pip install dm_control``); they
-are read from its folder without importing it. Both integrate with RK4, so the Problem plans
-on an ``implicitfast`` copy (:class:`~mpcbox.errors.PlanningModelWarning`) and simulates in
-RK4. In both, angle 0 is upright: the poles are modelled pointing up.
+are read from its folder without importing it. Both integrate with RK4 and simulate in RK4;
+the cart-pole's Problem plans on an ``implicitfast`` copy
+(:class:`~mpcbox.errors.PlanningModelWarning`), the acrobot's plans in RK4 by default. In
+both, angle 0 is upright: the poles are modelled pointing up.
 """
 
 from __future__ import annotations
@@ -105,24 +106,33 @@ class DmAcrobotSwingup(Swingup):
     plan's elbow is at its limit 42 % of the time). On that plan the tip enters the 0.2 m
     ball at 5.48 s, so the 5.94 s below is a local optimum, not a bound.
 
-    Online: the tuned iLQR-MPC and MPPI pump energy but settle into a local minimum
-    of this cost, one link up and the other down, and do not reach the target within 5 s
-    (``benchmarks/swingup_dm_control.py``); neither holds the upright even from a 0.05 rad
-    elbow offset at rest. From dm_control's own random starts, seeds 0-11
-    (``benchmarks/dm_acrobot_dm_starts.py``): 0/12 for both, while an offline 5 s oracle
-    reaches the target from 5/12. iLQR-MPC with ``plan_rk4=True``,
-    ``warm_start_states=True`` (multiple shooting keeps the unstable hold well
-    conditioned) and ``mpc_iterations=3`` holds that offset and is upright within 5 s and
-    held from 2/12 (5/12 by the end of 10 s). From the hanging rest 5 s is out of reach with
-    this elbow: the elbow gives at most 2 N m and the swing-up must add 39.2 J of potential
-    energy, 19.6 rad of elbow travel at full torque, against a slow hanging mode of period
-    2.36 s. Minimum-time direct multiple shooting (IPOPT, on equations of motion read from
-    this model and equal to MuJoCo's ``qacc`` to 3e-13, ``benchmarks/dm_acrobot_min_time.py``)
-    needs 6.31 s to the upright at rest (re-solved on the simulator's 0.01 s grid: 6.32 s,
-    and replayed in MuJoCo's RK4 it ends 0.5 mm from the target at 0.008 rad/s) and 5.94 s
-    for the tip merely to enter the 0.2 m ball at any speed. These are local optima from
-    one iLQR-seeded guess; IPOPT did not converge from about 14 other random guesses, so
-    this is evidence, not proof.
+    The task plans in RK4 by default (``plan_rk4=True``; pass ``plan_rk4=False`` for the
+    ``implicitfast`` copy): its iLQR-MPC plans on the simulated model, linearized by finite
+    differences of ``mj_step``, warm-starts each replan by multiple shooting
+    (``warm_start_states=True``, which keeps the unstable hold well conditioned) and runs 3
+    iterations per replan. Its MPPI keeps planning on an ``implicitfast`` copy
+    (``planning_integrator="implicitfast"``), as it was measured.
+
+    Online, from dm_control's own random starts, seeds 0-11
+    (``benchmarks/dm_acrobot_dm_starts.py``): an offline 5 s oracle reaches the target from
+    5/12; the default iLQR-MPC is upright within 5 s and held from 2/12 (5/12 by the end of
+    10 s) and holds the upright from a 0.05 rad elbow offset at rest; its tick (55-84 ms
+    median on a shared 2-core CPU) is slower than its 0.02 s replan period. MPPI: 0/12, and
+    it does not hold that offset. The earlier iLQR defaults (implicitfast planning, single
+    shooting, 1 iteration per replan) also scored 0/12 and failed the hold. From the
+    hanging rest no online controller reaches the target: they pump energy but settle into
+    a local minimum of this cost, one link up and the other down
+    (``benchmarks/swingup_dm_control.py``).
+
+    From the hanging rest 5 s is out of reach with this elbow: the elbow gives at most 2 N m
+    and the swing-up must add 39.2 J of potential energy, 19.6 rad of elbow travel at full
+    torque, against a slow hanging mode of period 2.36 s. Minimum-time direct multiple
+    shooting (IPOPT, on equations of motion read from this model and equal to MuJoCo's
+    ``qacc`` to 3e-13, ``benchmarks/dm_acrobot_min_time.py``) needs 6.31 s to the upright
+    at rest (re-solved on the simulator's 0.01 s grid: 6.32 s, and replayed in MuJoCo's RK4
+    it ends 0.5 mm from the target at 0.008 rad/s) and 5.94 s for the tip merely to enter
+    the 0.2 m ball at any speed. These are local optima from one iLQR-seeded guess; IPOPT
+    did not converge from about 14 other random guesses, so this is evidence, not proof.
     Offline iLQR with a terminal-only cost (``benchmarks/dm_acrobot_reachability.py``)
     agrees: 1.13 m from the target after 4.8 s, 0.004 m after 6.5 s. Those plans are
     bang-bang, so box-DDP's feedback gains vanish at their clamped knots. Planned on the
@@ -157,14 +167,20 @@ class DmAcrobotSwingup(Swingup):
         terminal_position=0.0,
         terminal_angle=0.0,
     )
+    #: iLQR over 2 s at a 0.02 s step on the RK4 model (the task's ``plan_rk4=True``),
+    #: multiple-shooting warm starts and 3 iterations per 0.02 s replan (chosen on the
+    #: 0.05 rad hold check and dev starts 103, 105, 107, not on the evaluation seeds 0-11);
+    #: MPPI over 2 s with 128 samples on the CPU backend, planned on an ``implicitfast``
+    #: copy.
     controller_configs: ClassVar[dict[str, Any]] = {
         "ilqr": ILQRConfig(
             horizon=100,
             planning_timestep=0.02,
             first_iterations=50,
-            mpc_iterations=1,
+            mpc_iterations=3,
             replan_period=0.02,
             ctrls_init=np.array([0.5]),
+            warm_start_states=True,
             threads=1,
         ),
         "mppi": MPPIConfig(
@@ -175,10 +191,12 @@ class DmAcrobotSwingup(Swingup):
             noise_scale=0.3,
             temperature=0.1,
             period=0.01,
+            planning_integrator="implicitfast",
         ),
     }
 
     def __init__(self, **kwargs: Any) -> None:
+        kwargs.setdefault("plan_rk4", True)
         kwargs.setdefault("sites", {"tip": np.array([0.0, 0.0, 4.0])})
         kwargs.setdefault("weights", self.WEIGHTS)
         kwargs.setdefault("tolerance", 0.2)
