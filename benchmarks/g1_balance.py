@@ -30,9 +30,7 @@ Needs ``MENAGERIE_ROOT`` (or the mujoco-menagerie package)::
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import platform
 import sys
 import time
 from pathlib import Path
@@ -43,6 +41,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from json_report import finish  # benchmarks/ is not a package
 from quadruped_stand import controller_summary  # benchmarks/ is not a package
 
 from mpcbox.comparison.runner import compare
@@ -162,15 +161,7 @@ def main(argv: list[str] | None = None) -> int:
             else None
         ),
     }
-    out["wall_time_s"] = round(time.perf_counter() - t0, 1)
-    out["machine"] = "2-core sandbox CPU, shared"
-    out["platform"] = f"{platform.machine()}, Python {sys.version.split()[0]}"
-    text = json.dumps(out, indent=2)
-    print(text)
-    if args.json:
-        with open(args.json, "w") as f:
-            f.write(text + "\n")
-    return 0
+    return finish(out, args.json, started=t0)
 
 
 if __name__ == "__main__":

@@ -40,9 +40,7 @@ Needs ``MENAGERIE_ROOT``::
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import platform
 import sys
 import time
 
@@ -50,6 +48,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import mujoco
 import numpy as np
+from json_report import finish  # benchmarks/ is not a package
 
 from mpcbox.comparison.push_limits import largest_push
 from mpcbox.comparison.scenario import PushTest
@@ -286,15 +285,7 @@ def main(argv: list[str] | None = None) -> int:
                 "tick_p99_ms": round(run.metrics.compute_p99_ms, 2),
             }
     problem.close()
-    out["wall_time_s"] = round(time.perf_counter() - t0, 1)
-    out["machine"] = "2-core sandbox CPU, shared"
-    out["platform"] = f"{platform.machine()}, Python {sys.version.split()[0]}"
-    text = json.dumps(out, indent=2)
-    print(text)
-    if args.json:
-        with open(args.json, "w") as f:
-            f.write(text + "\n")
-    return 0
+    return finish(out, args.json, started=t0)
 
 
 if __name__ == "__main__":

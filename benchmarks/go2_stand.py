@@ -25,9 +25,7 @@ the machine is a shared 2-core sandbox, so they include other users' load::
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import platform
 import sys
 import time
 import warnings
@@ -39,6 +37,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from json_report import finish  # benchmarks/ is not a package
 from quadruped_stand import evaluate  # benchmarks/ is not a package
 
 from mpcbox.controllers.qp_mpc.config import QPMPCConfig
@@ -155,17 +154,8 @@ def main(argv: list[str] | None = None) -> int:
             if r
         },
     }
-    out["wall_time_s"] = round(time.perf_counter() - t0, 1)
-    out["machine"] = (
-        f"2-core sandbox CPU, shared with other jobs; one thread, {args.workers} process(es)"
-    )
-    out["platform"] = f"{platform.machine()}, Python {sys.version.split()[0]}"
-    text = json.dumps(out, indent=2)
-    print(text)
-    if args.json:
-        with open(args.json, "w") as f:
-            f.write(text + "\n")
-    return 0
+    machine = f"2-core sandbox CPU, shared with other jobs; one thread, {args.workers} process(es)"
+    return finish(out, args.json, started=t0, machine=machine)
 
 
 if __name__ == "__main__":

@@ -13,13 +13,14 @@ over the trial runs::
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import sys
 import time
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+from json_report import finish  # benchmarks/ is not a package
 
 from mpcbox.comparison.push_limits import largest_push
 from mpcbox.comparison.scenario import PushTest
@@ -65,13 +66,7 @@ def main(argv: list[str] | None = None) -> int:
                 limit = largest_push(task, "qp", test, controller_options=options)
                 out["largest_push_N"][f"{task}/{name}/{law}"] = round(limit.force, 1)
                 print(task, name, law, round(limit.force, 1), file=sys.stderr, flush=True)
-    out["wall_time_s"] = round(time.perf_counter() - t0, 1)
-    text = json.dumps(out, indent=2)
-    print(text)
-    if args.json:
-        with open(args.json, "w") as f:
-            f.write(text + "\n")
-    return 0
+    return finish(out, args.json, started=t0, machine=None)
 
 
 if __name__ == "__main__":

@@ -24,15 +24,14 @@ Needs ``MENAGERIE_ROOT`` (or the mujoco-menagerie package)::
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import platform
 import sys
 import time
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
+from json_report import finish  # benchmarks/ is not a package
 
 from mpcbox.comparison.report import Comparison
 from mpcbox.comparison.runner import compare
@@ -146,16 +145,8 @@ def main(argv: list[str] | None = None) -> int:
         "duration_s": args.duration,
         "push": {"start_s": 1.0, "duration_s": 0.1, "settle_s": 2.0, "noise": 0},
         "robots": {robot: evaluate(robot, args) for robot in args.robots.split(",")},
-        "wall_time_s": round(time.perf_counter() - t0, 1),
-        "machine": "2-core sandbox CPU, shared",
-        "platform": f"{platform.machine()}, Python {sys.version.split()[0]}",
     }
-    text = json.dumps(out, indent=2)
-    print(text)
-    if args.json:
-        with open(args.json, "w") as f:
-            f.write(text + "\n")
-    return 0
+    return finish(out, args.json, started=t0)
 
 
 if __name__ == "__main__":
