@@ -70,6 +70,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 
 import dm_acrobot_reachability as reach
+from swingup_dm_control import perturbed_start, run_swingup
 
 import mpcbox
 from mpcbox.errors import PlanningModelWarning
@@ -97,9 +98,7 @@ HOLD_VARIANTS: list[tuple[str, bool | None, dict]] = [
 
 def dm_start(seed: int) -> np.ndarray:
     """dm_control's swing-up start: both angles uniform in [-pi, pi), at rest ``(4,)``."""
-    state = np.zeros(4)
-    state[:2] = np.random.default_rng(seed).uniform(-np.pi, np.pi, 2)
-    return state
+    return perturbed_start(DmAcrobotSwingup, seed, 0.0, kind="dm")
 
 
 def energy_deficit(state: np.ndarray) -> float:
@@ -151,13 +150,7 @@ def closed_loop(
     options = {} if plan_rk4 is None else {"plan_rk4": plan_rk4}
     problem = DmAcrobotSwingup(initial=state, threads=1, **options)
     ctrl = mpcbox.make_controller(controller, problem, **overrides)
-    wall = time.perf_counter()
-    result = mpcbox.simulate(problem, ctrl, duration)
-    wall = time.perf_counter() - wall
-    errors = problem.upright_errors(result.states)
-    t_up = problem.time_to_upright(result.time, result.states)
-    failure = result.failure or problem.goal_failure(result.time, result.states)
-    ticks = np.asarray(result.compute_times) * 1e3
+    failure, t_up, errors, ticks, wall = run_swingup(problem, ctrl, duration)
     return {
         "success": failure is None,
         "within_5s": bool(failure is None and t_up <= TARGET_S),

@@ -34,6 +34,7 @@ import platform
 import time
 import warnings
 from pathlib import Path
+from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
@@ -61,18 +62,44 @@ def perturbed_start(cls: type, seed: int, scale: float, kind: str = "hanging") -
     return state
 
 
+class SwingupRun(NamedTuple):
+    """One closed-loop swing-up run, measured.
+
+    Attributes:
+        failure: The simulation's or the goal's failure, ``None`` on success.
+        time_to_upright: When it was upright for good (s; NaN if never).
+        errors: Upright error of every recorded state ``(T,)``.
+        ticks: Controller compute time of each tick ``(K,)`` (ms).
+        wall: Wall time of the run (s).
+    """
+
+    failure: str | None
+    time_to_upright: float
+    errors: np.ndarray
+    ticks: np.ndarray
+    wall: float
+
+
+def run_swingup(problem: Any, ctrl: Any, duration: float) -> SwingupRun:
+    """Simulate ``ctrl`` on the swing-up ``problem`` for ``duration`` s and measure it."""
+    wall = time.perf_counter()
+    result = mpcbox.simulate(problem, ctrl, duration)
+    wall = time.perf_counter() - wall
+    return SwingupRun(
+        failure=result.failure or problem.goal_failure(result.time, result.states),
+        time_to_upright=problem.time_to_upright(result.time, result.states),
+        errors=problem.upright_errors(result.states),
+        ticks=np.asarray(result.compute_times) * 1e3,
+        wall=wall,
+    )
+
+
 def run_one(model: str, controller: str, seed: int, args: argparse.Namespace) -> dict:
     cls = task_class(f"dm_{model}_swingup")
     start = perturbed_start(cls, seed, args.perturbation, args.start)
     problem = cls(initial=start, threads=1)
-    ctrl = mpcbox.make_controller(controller, problem)
-    wall = time.perf_counter()
-    result = mpcbox.simulate(problem, ctrl, args.duration)
-    wall = time.perf_counter() - wall
-    errors = problem.upright_errors(result.states)
-    t_up = problem.time_to_upright(result.time, result.states)
-    failure = result.failure or problem.goal_failure(result.time, result.states)
-    ticks = np.asarray(result.compute_times) * 1e3
+    run = run_swingup(problem, mpcbox.make_controller(controller, problem), args.duration)
+    failure, t_up, errors, ticks, wall = run
     return {
         "seed": seed,
         "start_qpos": start[: problem.nq].round(4).tolist(),
