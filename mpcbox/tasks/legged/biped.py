@@ -9,12 +9,10 @@ from typing import Any, ClassVar
 import mujoco
 
 from mpcbox.controllers.ilqr.config import ILQRConfig
-from mpcbox.controllers.lqr import LQRConfig
-from mpcbox.controllers.qp_mpc.config import QPMPCConfig
 from mpcbox.core.model import ModelSource
 from mpcbox.core.posture import StancePosture, stance_posture
 from mpcbox.errors import InvalidArgumentError
-from mpcbox.tasks.legged.balance import QP_OSQP_SETTINGS, LeggedBalance
+from mpcbox.tasks.legged.balance import LeggedBalance
 from mpcbox.tasks.legged.feet import find_feet
 from mpcbox.validation import one_of, positive
 
@@ -71,22 +69,21 @@ class BipedStand(LeggedBalance):
     """
 
     name = "biped_stand"
-    #: LQR; QP-MPC with friction cones at every collision geom of the stance feet; iLQR-MPC
-    #: on the simulation's own step (0.1 s horizon of 50 knots linearized at every fifth,
-    #: 50 Hz replanning with one iteration and the plan's feedback in between, the LQR value
-    #: as terminal cost). On the G1 a coarser planning model does not hold: at 0.015 s (the
-    #: humanoid preset's) and 0.01 s the contacts diverge (QACC warnings within 0.2 s), and
-    #: at 0.005 s with the LQR terminal value it falls within 2.5 s without noise. This
-    #: iLQR-MPC config is a starting point, not a tuned one: on the G1 it stands 4 s without
-    #: noise but 0 of 5 seeds of 10 s under the noise recipe (results/g1_balance.json).
-    #: The QP-MPC's largest forward push on two feet (169 N) and LQR's (172.5 N) are both
-    #: within 4 % of the capture-point bound of the ankle strategy (175.6 N: the G1's
-    #: center of mass is 0.117 m behind its toes), and no single change of the QP options
-    #: (period, step, horizon, terminal, relinearization, friction, slack weight) passed
-    #: 172.5 N (``benchmarks/g1_push_limit.py``, results/g1_push_limit.json).
+    #: LeggedBalance's LQR and QP-MPC (friction cones at every collision geom of the stance
+    #: feet); iLQR-MPC on the simulation's own step (0.1 s horizon of 50 knots linearized at
+    #: every fifth, 50 Hz replanning with one iteration and the plan's feedback in between, the
+    #: LQR value as terminal cost). On the G1 a coarser planning model does not hold: at 0.015 s
+    #: (the humanoid preset's) and 0.01 s the contacts diverge (QACC warnings within 0.2 s), and
+    #: at 0.005 s with the LQR terminal value it falls within 2.5 s without noise. This iLQR-MPC
+    #: config is a starting point, not a tuned one: on the G1 it stands 4 s without noise but 0
+    #: of 5 seeds of 10 s under the noise recipe (results/g1_balance.json). The QP-MPC's largest
+    #: forward push on two feet (169 N) and LQR's (172.5 N) are both within 4 % of the
+    #: capture-point bound of the ankle strategy (175.6 N: the G1's center of mass is 0.117 m
+    #: behind its toes), and no single change of the QP options (period, step, horizon,
+    #: terminal, relinearization, friction, slack weight) passed 172.5 N
+    #: (``benchmarks/g1_push_limit.py``, results/g1_push_limit.json).
     controller_configs: ClassVar[dict[str, Any]] = {
-        "lqr": LQRConfig(),
-        "qp": QPMPCConfig(period=0.02, stance_weight=1e5, osqp_settings=QP_OSQP_SETTINGS),
+        **LeggedBalance.controller_configs,
         "ilqr": ILQRConfig(
             horizon=50,
             replan_period=0.02,
