@@ -145,6 +145,23 @@ def test_warm_start_shifts_the_nominal_spline(cartpole):
     np.testing.assert_allclose(ctrl.knots[:, 0], [0.25, 0.75, 1.0])
 
 
+def test_least_squares_warm_start_refits_the_shifted_nominal(cartpole):
+    ctrl = PredictiveSampling(
+        cartpole, num_samples=1, horizon=1.0, num_knots=5, shift="least_squares"
+    )
+    ctrl.plan(cartpole.initial_state(), 0.0)
+    knots = np.array([[0.0], [0.8], [-0.4], [0.6], [0.2]])
+    ctrl.knots = knots.copy()
+    ctrl.plan(cartpole.initial_state(), 0.1)  # N = 1: only the shifted nominal
+    expected = ctrl.spline.refit(knots, 0.1, ctrl.step_times)
+    np.testing.assert_allclose(ctrl.knots, expected)
+    resampled = ctrl.spline.shift(knots, 0.1)
+    old_rest = ctrl.spline.evaluate(knots, ctrl.step_times + 0.1)
+    assert np.sum((ctrl.weights @ ctrl.knots - old_rest) ** 2) < np.sum(
+        (ctrl.weights @ resampled - old_rest) ** 2
+    )
+
+
 def test_registry_builds_sampling_controllers(cartpole):
     for name, cls in (("ps", PredictiveSampling), ("mppi", MPPI), ("cem", CEM)):
         ctrl = mpcbox.make_controller(name, cartpole)
@@ -163,6 +180,7 @@ def test_registry_builds_sampling_controllers(cartpole):
         (dict(noise_scale=[0.1, 0.2]), "noise_scale"),
         (dict(risk="median"), "risk"),
         (dict(interpolation="quadratic"), "interpolation"),
+        (dict(shift="exact"), r"shift.*least_squares"),
         (dict(num_knots=0), "num_knots"),
         (dict(device="cuda"), "device"),
         (dict(bogus=1), "bogus"),

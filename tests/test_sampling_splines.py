@@ -71,6 +71,26 @@ def test_shift_reevaluates_at_later_times_and_holds_the_end():
     np.testing.assert_allclose(single.evaluate(np.array([[2.0]]), [0.0, 0.7]), [[2.0], [2.0]])
 
 
+def test_refit_is_exact_on_knot_multiples_and_least_squares_in_between():
+    times = np.arange(50) * 0.02
+    rng = np.random.default_rng(0)
+    knots = rng.uniform(-1.0, 1.0, (11, 2))
+    for kind in ("zero", "linear", "cubic", "cubic_c2"):
+        s = Spline(11, 1.0, kind)
+        if kind in ("zero", "linear"):
+            # A shift by one spacing moves every knot one place and holds the last: exact.
+            moved = s.refit(knots, 0.1, times)
+            np.testing.assert_allclose(moved, np.vstack([knots[1:], knots[-1:]]), atol=1e-9)
+        # Off the knot grid: no spline of these knots is closer to the old plan's rest.
+        fit = s.refit(knots, 0.03, times)
+        target = s.evaluate(knots, times + 0.03)
+        best = np.sum((s.evaluate(fit, times) - target) ** 2)
+        for _ in range(20):
+            other = fit + 1e-3 * rng.standard_normal(fit.shape)
+            assert best <= np.sum((s.evaluate(other, times) - target) ** 2)
+        assert best <= np.sum((s.evaluate(s.shift(knots, 0.03), times) - target) ** 2)
+
+
 def test_bad_spline_arguments():
     with pytest.raises(InvalidArgumentError, match="interpolation"):
         Spline(3, 1.0, "quintic")

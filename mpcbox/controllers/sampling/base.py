@@ -127,8 +127,10 @@ class SamplingController(Controller):
         self.iterations = int(config.iterations)
         self.horizon_steps = steps = config.horizon_steps(problem.dt)
         self.spline = Spline(config.num_knots, steps * problem.dt, config.interpolation)
+        #: Start times of the planning steps ``(T,)`` (s).
+        self.step_times = np.arange(steps) * problem.dt
         #: Interpolation matrix ``(T, K)`` from knots to the planning steps.
-        self.weights = self.spline.weights(np.arange(steps) * problem.dt)
+        self.weights = self.spline.weights(self.step_times)
         #: Standard deviation of the knot noise per control ``(nu,)``.
         self.noise_scale = config.noise_scales(problem.nu)
         #: Standard deviation of the noise per knot and control ``(K, nu)``
@@ -296,9 +298,12 @@ class SamplingController(Controller):
         if self.knots is None or self._plan_time is None:
             self.knots = self.nominal_knots()
         else:
-            self.knots = self.problem.clip_ctrl(
-                self.spline.shift(self.knots, time - self._plan_time)
-            )
+            elapsed = time - self._plan_time
+            if self.config.shift == "least_squares":
+                shifted = self.spline.refit(self.knots, elapsed, self.step_times)
+            else:
+                shifted = self.spline.shift(self.knots, elapsed)
+            self.knots = self.problem.clip_ctrl(shifted)
             self.shift(time - self._plan_time)
         self._plan_time = float(time)
         best, nominal, valid = np.nan, np.nan, 0

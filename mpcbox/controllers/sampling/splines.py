@@ -28,6 +28,18 @@ Four schemes (with :math:`s = (t - t_i) / h \in [0, 1)` inside interval ``i``):
   linear.
 
 Times outside ``[0, H]`` are clamped (the first/last knot is held).
+
+A warm start moves the spline ``e`` seconds on. :meth:`Spline.shift` re-evaluates it at the
+shifted knot times, :math:`\tilde u_k = u(t_k + e)`: exact for a zero-order hold only when
+``e`` is a multiple of :math:`h` (otherwise every switch comes ``e`` late), and for the other
+schemes a new interpolant of those samples, not the old curve. :meth:`Spline.refit` instead
+fits the old curve by least squares over query times :math:`\tau_j` (the planning steps),
+
+.. math:: U' = \tilde U + W(\tau)^+ \big( W(\tau + e)\, U - W(\tau)\, \tilde U \big),
+
+the spline closest to the rest of the old plan on the steps a rollout applies (:math:`^+`:
+the pseudo-inverse); of several such fits (a knot no step uses, such as a zero-order hold's
+last), the one closest to the resampled knots :math:`\tilde U`.
 """
 
 from __future__ import annotations
@@ -144,3 +156,23 @@ class Spline:
             Knots ``(..., K, nu)`` at times ``t_k + elapsed`` (the last knot is held beyond ``H``).
         """
         return self.evaluate(knots, self.knot_times + float(elapsed))
+
+    def refit(self, knots: np.ndarray, elapsed: float, times: np.ndarray) -> np.ndarray:
+        """Warm start by least squares: knots whose spline at ``times`` best matches the old
+        spline at ``times + elapsed`` (see the module docstring).
+
+        Args:
+            knots: Knot values ``(..., K, nu)``.
+            elapsed: Seconds since ``knots`` were planned.
+            times: Query times ``(T,)`` the fit is made on, typically the planning steps
+                ``t dt``. Knots the times do not determine keep their resampled values.
+
+        Returns:
+            Knots ``(..., K, nu)``.
+        """
+        times = np.asarray(times, dtype=np.float64).reshape(-1)
+        resampled = self.shift(knots, elapsed)
+        now = self.weights(times)
+        residual = np.einsum("tk,...kj->...tj", self.weights(times + float(elapsed)), knots)
+        residual -= np.einsum("tk,...kj->...tj", now, resampled)
+        return resampled + np.einsum("kt,...tj->...kj", np.linalg.pinv(now), residual)
