@@ -96,6 +96,38 @@ HOLD_VARIANTS: list[tuple[str, bool | None, dict]] = [
 ]
 
 
+#: MPPI variants of ``--mppi-hold`` (label, config overrides): the diagnosis of issue #13's
+#: MPPI hold failure, one change at a time from the task's MPPI config before issue #13's
+#: change (:data:`OLD_MPPI`), and the new default (no overrides).
+OLD_MPPI: dict = {
+    "horizon": 2.0,
+    "num_knots": 10,
+    "planning_integrator": "implicitfast",
+    "terminal_value": None,
+}
+RK4: dict = {**OLD_MPPI, "planning_integrator": None}
+STEP: dict = {**RK4, "period": 0.02}
+MPPI_HOLD_VARIANTS: list[tuple[str, dict]] = [
+    ("earlier default (implicitfast copy, 2 s, 10 knots, 0.01 s period)", OLD_MPPI),
+    ("RK4 planning", RK4),
+    ("RK4, 1 s horizon", {**RK4, "horizon": 1.0}),
+    ("RK4, temperature 0.01", {**RK4, "temperature": 0.01}),
+    ("RK4, linear noise schedule", {**RK4, "noise_schedule": "linear"}),
+    ("RK4, 0.02 s period", STEP),
+    ("RK4, 0.02 s period, least-squares warm start", {**STEP, "shift": "least_squares"}),
+    (
+        "RK4, 0.02 s period, least-squares warm start, 41 knots",
+        {**STEP, "shift": "least_squares", "num_knots": 41},
+    ),
+    ("RK4, 1 s horizon, LQR terminal value", {**RK4, "horizon": 1.0, "terminal_value": "lqr"}),
+    (
+        "RK4, 0.5 s horizon, 6 knots, LQR terminal value",
+        {**RK4, "horizon": 0.5, "num_knots": 6, "terminal_value": "lqr"},
+    ),
+    ("default (RK4, 0.3 s horizon, 4 knots, LQR terminal value)", {}),
+]
+
+
 def dm_start(seed: int) -> np.ndarray:
     """dm_control's swing-up start: both angles uniform in [-pi, pi), at rest ``(4,)``."""
     return perturbed_start(DmAcrobotSwingup, seed, 0.0, kind="dm")
@@ -196,6 +228,64 @@ def hold_only(args: argparse.Namespace) -> None:
     print(json.dumps(out, indent=2))
 
 
+def warm_start_check(seconds: float = 1.0, ticks: int = 40, shift: float = 0.04) -> dict:
+    """Cost of an MPPI plan (RK4, ``seconds`` horizon, converged over ``ticks`` ticks at the
+    0.05 rad hold start) and of its warm starts ``shift`` s later from the state it predicts:
+    the exact rest of the plan, the resampled spline and the least-squares refit."""
+    start = np.array([0.0, 0.05, 0.0, 0.0])
+    problem = DmAcrobotSwingup(initial=start, threads=1)
+    options = {**RK4, "temperature": 0.01, "horizon": seconds}
+    ctrl = mpcbox.make_controller("mppi", problem, **options)
+    for _ in range(ticks):
+        ctrl(start, 0.0)
+    plan = ctrl.problem.rollout(start, (ctrl.weights @ ctrl.knots)[None])
+    steps = round(shift / ctrl.problem.dt)
+    state = plan.states[0, steps]
+    ctrls = ctrl.weights @ ctrl.knots
+    rest = np.vstack([ctrls[steps:], np.repeat(ctrls[-1:], steps, axis=0)])
+    resampled = ctrl.weights @ ctrl.spline.shift(ctrl.knots, shift)
+    refit = ctrl.weights @ ctrl.spline.refit(ctrl.knots, shift, ctrl.step_times)
+
+    def cost(u: np.ndarray) -> float:
+        return round(float(ctrl.problem.rollout_cost(ctrl.problem.rollout(state, u[None]))[0]), 1)
+
+    return {
+        "horizon_s": seconds,
+        "shift_s": shift,
+        "plan_cost": round(float(ctrl.problem.rollout_cost(plan)[0]), 1),
+        "exact_rest_cost": cost(rest),
+        "resampled_cost": cost(resampled),
+        "least_squares_cost": cost(refit),
+    }
+
+
+def mppi_hold(args: argparse.Namespace) -> None:
+    """The hold check for the MPPI variants of :data:`MPPI_HOLD_VARIANTS`."""
+    start = np.array([0.0, args.hold_offset, 0.0, 0.0])
+    rows = [{"warm_start_check": warm_start_check()}]
+    print(json.dumps(rows[-1]), flush=True)
+    for label, overrides in MPPI_HOLD_VARIANTS:
+        rows.append(
+            {
+                "controller": "mppi",
+                "variant": label,
+                "overrides": overrides,
+                **closed_loop("mppi", start, 3.0, **overrides),
+            }
+        )
+        print(json.dumps(rows[-1]), flush=True)
+    out = {
+        "benchmark": "dm_acrobot_mppi_hold",
+        "start": start.tolist(),
+        "duration_s": 3.0,
+        "machine": {"description": "2-core sandbox CPU, shared", "cpus": os.cpu_count()},
+        "runs": rows,
+    }
+    path = RESULTS.with_name("dm_acrobot_mppi_hold.json")
+    path.write_text(json.dumps(out, indent=2) + "\n")
+    print(json.dumps(out, indent=2))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", default="0-11")
@@ -205,6 +295,9 @@ def main() -> None:
     parser.add_argument("--oracle-iterations", type=int, default=60)
     parser.add_argument("--hold-offset", type=float, default=0.05)
     parser.add_argument("--hold-only", action="store_true")
+    parser.add_argument("--mppi-hold", action="store_true", help="MPPI variants' hold check")
+    parser.add_argument("--no-oracle", action="store_true", help="skip the per-start oracle")
+    parser.add_argument("--no-hanging", action="store_true", help="skip the hanging-rest runs")
     parser.add_argument(
         "--plan-rk4",
         type=lambda text: {"true": True, "false": False}[text.lower()],
@@ -226,6 +319,9 @@ def main() -> None:
     if args.hold_only:
         hold_only(args)
         return
+    if args.mppi_hold:
+        mppi_hold(args)
+        return
 
     hold = {}
     for name in controllers:
@@ -234,7 +330,7 @@ def main() -> None:
         )
         print(json.dumps({"hold": name, **hold[name]}), flush=True)
     hanging = {}
-    for name in controllers:
+    for name in [] if args.no_hanging else controllers:
         hanging[name] = closed_loop(
             name, DmAcrobotSwingup(threads=1).initial_state(), 10.0, args.plan_rk4, **overrides
         )
@@ -250,6 +346,8 @@ def main() -> None:
             **(
                 {k: v for k, v in reused[seed].items() if k.startswith("oracle")}
                 if seed in reused
+                else {}
+                if args.no_oracle
                 else oracle(state, args.oracle_horizon, args.oracle_iterations)
             ),
         }
@@ -265,8 +363,10 @@ def main() -> None:
         summary[name] = {
             "within_5s_and_held": f"{len(good)}/{len(runs)}",
             "held_at_end_any_time": f"{sum(r[name]['success'] for r in runs)}/{len(runs)}",
-            "misses_oracle_reaches": sum(r["oracle_reaches"] for r in misses),
-            "misses_oracle_does_not_reach": sum(not r["oracle_reaches"] for r in misses),
+            "misses_oracle_reaches": sum(r.get("oracle_reaches", False) for r in misses),
+            "misses_oracle_does_not_reach": sum(
+                not r["oracle_reaches"] for r in misses if "oracle_reaches" in r
+            ),
         }
     out = {
         "benchmark": "dm_acrobot_dm_starts",
@@ -277,7 +377,7 @@ def main() -> None:
             "python": platform.python_version(),
         },
         "settings": vars(args),
-        "oracle_reaches": f"{sum(r['oracle_reaches'] for r in runs)}/{len(runs)}",
+        "oracle_reaches": f"{sum(r.get('oracle_reaches', False) for r in runs)}/{len(runs)}",
         "summary": summary,
         "hold_check": hold,
         "from_hanging": hanging,

@@ -181,6 +181,7 @@ def test_registry_builds_sampling_controllers(cartpole):
         (dict(risk="median"), "risk"),
         (dict(interpolation="quadratic"), "interpolation"),
         (dict(shift="exact"), r"shift.*least_squares"),
+        (dict(terminal_value="riccati"), r"terminal_value.*lqr"),
         (dict(num_knots=0), "num_knots"),
         (dict(device="cuda"), "device"),
         (dict(bogus=1), "bogus"),

@@ -17,6 +17,7 @@ import scipy.linalg
 
 from mpcbox.config import resolve_config
 from mpcbox.controllers.base import Controller, check_problem
+from mpcbox.core.cost import Cost, QuadraticValue
 from mpcbox.core.problem import Problem
 from mpcbox.errors import CostDefinitionError, NotStabilizableError, ShapeError, SolverError
 from mpcbox.validation import as_array, checked_options
@@ -240,6 +241,21 @@ class LQR(Controller):
         return self.problem.clip_ctrl(self.ctrl0 - self.K @ dx)
 
 
+def with_lqr_terminal_value(problem: Problem) -> Problem:
+    r"""``problem`` with its LQR value function added to the terminal cost.
+
+    The term is :math:`(x \ominus x_{ref})^T P (x \ominus x_{ref})` with the Riccati matrix
+    :math:`P` of :class:`LQR` on ``problem``'s planning model at its reference (made positive
+    semidefinite by :func:`nearest_psd`): the infinite-horizon cost-to-go of the linearized
+    problem, so a short horizon still sees what follows it.
+    """
+    lqr = LQR(problem)
+    value = QuadraticValue(
+        problem.qpos_ref, problem.qvel_ref, P=nearest_psd(lqr.P), name="lqr_value"
+    )
+    return problem.with_cost(Cost(problem.cost.running, [*problem.cost.terminal, value]))
+
+
 __all__ = [
     "LQR",
     "LQRConfig",
@@ -248,4 +264,5 @@ __all__ = [
     "check_weights",
     "dlqr",
     "nearest_psd",
+    "with_lqr_terminal_value",
 ]

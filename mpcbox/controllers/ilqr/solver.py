@@ -24,6 +24,7 @@ from mpcbox.controllers.ilqr.forward_pass import Candidate, ClosedLoopRollout, l
 from mpcbox.controllers.ilqr.multiple_shooting import optimize_multiple_shooting
 from mpcbox.controllers.ilqr.regularization import Regularization
 from mpcbox.controllers.ilqr.result import ILQRResult, StopReason, Timing
+from mpcbox.controllers.lqr import with_lqr_terminal_value
 from mpcbox.core.divergence import check_planning_step
 from mpcbox.core.problem import Linearization, Problem, Quadratization
 from mpcbox.errors import DivergenceError, InvalidArgumentError, SolverError
@@ -76,7 +77,7 @@ class ILQRSolver:
         else:
             check_planning_step(problem)  # the copy above was checked when it was made
         if cfg.terminal_value == "lqr":
-            problem = _with_lqr_terminal_value(problem)
+            problem = with_lqr_terminal_value(problem)
         self.problem = problem
         self.config = cfg
         self.horizon = cfg.horizon
@@ -387,18 +388,6 @@ def _control_bounds(problem: Problem, cfg: ILQRConfig) -> tuple[np.ndarray, np.n
             f"[{problem.ctrl_low}, {problem.ctrl_high}]"
         )
     return low, high
-
-
-def _with_lqr_terminal_value(problem: Problem) -> Problem:
-    """``problem`` with the LQR value function at its reference added to the terminal cost."""
-    from mpcbox.controllers.lqr import LQR, nearest_psd
-    from mpcbox.core.cost import Cost, QuadraticValue
-
-    lqr = LQR(problem)
-    value = QuadraticValue(
-        problem.qpos_ref, problem.qvel_ref, P=nearest_psd(lqr.P), name="lqr_value"
-    )
-    return problem.with_cost(Cost(problem.cost.running, [*problem.cost.terminal, value]))
 
 
 __all__ = ["ILQRSolver"]

@@ -39,6 +39,8 @@ NoiseSchedule = Literal["constant", "linear"]
 NOISE_SCHEDULES: tuple[str, ...] = ("constant", "linear")
 ShiftMode = Literal["resample", "least_squares"]
 SHIFT_MODES: tuple[str, ...] = ("resample", "least_squares")
+TerminalValue = Literal["lqr"]
+TERMINAL_VALUES: tuple[str, ...] = ("lqr",)
 TemperatureMode = Literal["normalized", "absolute"]
 TEMPERATURE_MODES: tuple[str, ...] = ("normalized", "absolute")
 #: MuJoCo integrator names (``mjtIntegrator``) accepted by ``planning_integrator``.
@@ -128,13 +130,19 @@ class SamplingConfig:
             noise on the first knot, which the robot executes next, the full noise on the
             last) or one non-negative value per knot ``(K,)``.
         iterations: Sample/update rounds per control tick.
+        terminal_value: ``"lqr"`` adds the infinite-horizon LQR value function of the planning
+            model at the reference to the terminal cost
+            (:func:`~mpcbox.controllers.lqr.with_lqr_terminal_value`), so a short horizon
+            still sees the cost-to-go; ``None`` (default) keeps the Problem's terminal cost.
+            CPU backend (the warp backend's costs have no such term).
         shift: Warm start of the nominal spline at a tick: ``"resample"`` (default,
             :meth:`~.splines.Spline.shift`: re-evaluated at the shifted knot times) or
             ``"least_squares"`` (:meth:`~.splines.Spline.refit`: the least-squares fit, over
             the planning steps, to the rest of the old plan). On an unstable plant the
             resampled plan is another plan: on dm_control's acrobot near the upright
             (1 s horizon, 10 cubic knots, RK4) a plan of cost 16.9 shifted by 0.04 s costs
-            41.1 resampled and 16.7 refitted (``benchmarks/dm_acrobot_mppi.py``).
+            41.1 resampled and 16.7 refitted (``benchmarks/dm_acrobot_dm_starts.py
+            --mppi-hold``).
         planning_timestep: Plan on a copy of the Problem whose planning model takes steps of
             this many seconds (:meth:`~mpcbox.Problem.with_planning_timestep`); default: the
             Problem's planning timestep. A coarser step buys a longer horizon per rollout.
@@ -182,6 +190,7 @@ class SamplingConfig:
     noise_schedule: NoiseSchedule | Sequence[float] = "constant"
     iterations: int = 1
     shift: ShiftMode = "resample"
+    terminal_value: TerminalValue | None = None
     planning_timestep: float | None = None
     planning_integrator: Integrator | None = None
     planning_disable: Sequence[str] = ()
@@ -221,6 +230,8 @@ class SamplingConfig:
         positive_int("num_samples", self.num_samples)
         positive_int("iterations", self.iterations)
         one_of("shift", self.shift, SHIFT_MODES)
+        if self.terminal_value is not None:
+            one_of("terminal_value", self.terminal_value, TERMINAL_VALUES)
         self.horizon_steps(dt)
         positive_int("num_knots", self.num_knots)
         one_of("interpolation", self.interpolation, INTERPOLATIONS)

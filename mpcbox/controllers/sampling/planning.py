@@ -12,6 +12,7 @@ import copy
 import mujoco
 import numpy as np
 
+from mpcbox.controllers.lqr import with_lqr_terminal_value
 from mpcbox.controllers.sampling.config import (
     INTEGRATORS,
     Randomization,
@@ -27,7 +28,9 @@ def planning_problem(problem: Problem, config: SamplingConfig) -> Problem:
     A copy is made when ``config`` sets ``planning_timestep`` (other than the Problem's),
     ``planning_integrator``, ``planning_disable``, ``solver_tolerance``, or
     ``solver_iterations`` with the warp backend (the CPU backend ignores the cap, see
-    :class:`~mpcbox.controllers.sampling.config.SamplingConfig`). ``problem`` is unchanged.
+    :class:`~mpcbox.controllers.sampling.config.SamplingConfig`); ``terminal_value="lqr"``
+    then adds the LQR value of that planning model to its terminal cost. ``problem`` is
+    unchanged.
 
     Args:
         problem: The Problem.
@@ -51,6 +54,8 @@ def planning_problem(problem: Problem, config: SamplingConfig) -> Problem:
             opt.iterations = cap
         if config.solver_tolerance is not None:
             opt.tolerance = float(config.solver_tolerance)
+    if config.terminal_value == "lqr":
+        problem = with_lqr_terminal_value(problem)
     return problem
 
 

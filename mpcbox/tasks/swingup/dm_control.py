@@ -185,13 +185,13 @@ class DmAcrobotSwingup(Swingup):
         ),
         "mppi": MPPIConfig(
             num_samples=128,
-            horizon=2.0,
+            horizon=0.3,
             planning_timestep=0.02,
-            num_knots=10,
+            num_knots=4,
             noise_scale=0.3,
             temperature=0.1,
             period=0.01,
-            planning_integrator="implicitfast",
+            terminal_value="lqr",
         ),
     }
 
