@@ -291,6 +291,8 @@ SAMPLING = {
     "interpolation": choice,
     "noise_scale": SCALE,
     "iterations": integer,
+    "shift": choice,
+    "terminal_value": opt(choice),
     "planning_timestep": opt(positive),
     "planning_integrator": opt(choice),
     "planning_disable": only(Bad(["bogus_flag"]), Bad(42, True), Bad([3], True)),
