@@ -73,6 +73,7 @@ import dm_acrobot_reachability as reach
 from swingup_dm_control import perturbed_start, run_swingup
 
 import mpcbox
+from mpcbox.controllers.handover import HandOver
 from mpcbox.errors import PlanningModelWarning
 from mpcbox.tasks.swingup.dm_control import DmAcrobotSwingup
 
@@ -170,6 +171,19 @@ def oracle(state: np.ndarray, seconds: float, iterations: int) -> dict:
     }
 
 
+def mppi_handover(problem: DmAcrobotSwingup, **overrides: object) -> HandOver:
+    """``--controllers mppi_handover``: the earlier MPPI config planned in RK4
+    (:data:`RK4`: 2 s, 10 knots) swings up; the task's MPPI (its config fields replaced by
+    ``overrides``) takes over once the tip is inside the 0.2 m tolerance and hands back
+    beyond twice it (both thresholds fixed from the tolerance, not tuned)."""
+    return HandOver(
+        mpcbox.make_controller("mppi", problem, **RK4),
+        mpcbox.make_controller("mppi", problem, **overrides),
+        engage=lambda x: problem.upright_error(x) < TOLERANCE,
+        release=lambda x: problem.upright_error(x) > 2 * TOLERANCE,
+    )
+
+
 def closed_loop(
     controller: str,
     state: np.ndarray,
@@ -181,7 +195,10 @@ def closed_loop(
     ``state`` over ``duration`` s; ``plan_rk4`` replaces the task's default when given."""
     options = {} if plan_rk4 is None else {"plan_rk4": plan_rk4}
     problem = DmAcrobotSwingup(initial=state, threads=1, **options)
-    ctrl = mpcbox.make_controller(controller, problem, **overrides)
+    if controller == "mppi_handover":
+        ctrl = mppi_handover(problem, **overrides)
+    else:
+        ctrl = mpcbox.make_controller(controller, problem, **overrides)
     failure, t_up, errors, ticks, wall = run_swingup(problem, ctrl, duration)
     return {
         "success": failure is None,

@@ -110,16 +110,30 @@ class DmAcrobotSwingup(Swingup):
     ``implicitfast`` copy): its iLQR-MPC plans on the simulated model, linearized by finite
     differences of ``mj_step``, warm-starts each replan by multiple shooting
     (``warm_start_states=True``, which keeps the unstable hold well conditioned) and runs 3
-    iterations per replan. Its MPPI keeps planning on an ``implicitfast`` copy
-    (``planning_integrator="implicitfast"``), as it was measured.
+    iterations per replan. Its MPPI plans 0.3 s ahead in RK4 with the LQR value of the
+    upright as terminal cost (``terminal_value="lqr"``). Why: the upright's unstable
+    eigenvalues are 6.5/s and 2.7/s, so an open-loop plan over a horizon ``H`` amplifies
+    control errors by about ``exp(6.5 H)`` and random knots over the earlier 2 s horizon
+    (``exp(13)``) almost never balance (with 1024 samples it still drifts out of the
+    ball), while this cost needs about 1.5 s of horizon to prefer catching the chain (the
+    iLQR-MPC itself drops it with 0.5 s or 1 s horizons); the LQR value gives a short,
+    well-conditioned horizon the cost-to-go. The earlier ``implicitfast`` copy at 0.02 s
+    also mispredicts: from near the upright the tip is 3.4 cm off RK4's after 0.5 s and
+    18 cm after 1 s (median of 20 random smooth control sequences), RK4 at 0.02 s 0.0.
 
     Online, from dm_control's own random starts, seeds 0-11
     (``benchmarks/dm_acrobot_dm_starts.py``): an offline 5 s oracle reaches the target from
     5/12; the default iLQR-MPC is upright within 5 s and held from 2/12 (5/12 by the end of
     10 s) and holds the upright from a 0.05 rad elbow offset at rest; its tick (55-84 ms
-    median on a shared 2-core CPU) is slower than its 0.02 s replan period. MPPI: 0/12, and
-    it does not hold that offset. The earlier iLQR defaults (implicitfast planning, single
-    shooting, 1 iteration per replan) also scored 0/12 and failed the hold. From the
+    median on a shared 2-core CPU) is slower than its 0.02 s replan period. The default
+    MPPI holds that offset (the tip swings out to about 0.2 m while it catches the chain,
+    then settles within 0.05 m; ``tests/test_swingup.py``,
+    ``benchmarks/results/dm_acrobot_mppi_hold.json``), at a median tick of 14-30 ms
+    (slower than its 0.01 s period on that CPU), but with its 0.3 s horizon it does not
+    swing up: 0/12, never nearer than 0.53 m (``..._mppi_lqr.json``). The earlier MPPI (2
+    s, 10 knots, ``implicitfast``) also scored 0/12, passing within 0.02 m of the target
+    once, and did not hold the offset. The earlier iLQR defaults (implicitfast planning,
+    single shooting, 1 iteration per replan) also scored 0/12 and failed the hold. From the
     hanging rest no online controller reaches the target: they pump energy but settle into
     a local minimum of this cost, one link up and the other down
     (``benchmarks/swingup_dm_control.py``).
@@ -170,8 +184,13 @@ class DmAcrobotSwingup(Swingup):
     #: iLQR over 2 s at a 0.02 s step on the RK4 model (the task's ``plan_rk4=True``),
     #: multiple-shooting warm starts and 3 iterations per 0.02 s replan (chosen on the
     #: 0.05 rad hold check and dev starts 103, 105, 107, not on the evaluation seeds 0-11);
-    #: MPPI over 2 s with 128 samples on the CPU backend, planned on an ``implicitfast``
-    #: copy.
+    #: MPPI over 0.3 s (4 knots, 128 samples, CPU backend) at a 0.02 s step on the RK4
+    #: model with the upright's LQR value as terminal cost: it holds the 0.05 rad hold check,
+    #: which the earlier 2 s ``implicitfast`` config and every 1-2 s variant tried fail
+    #: (``benchmarks/dm_acrobot_dm_starts.py --mppi-hold``,
+    #: ``benchmarks/results/dm_acrobot_mppi_hold.json``); chosen on that check and dev
+    #: starts 20-25 (0/6 swung up, as the earlier config), not on seeds 0-11 (0/12,
+    #: ``dm_acrobot_dm_starts_mppi_lqr.json``).
     controller_configs: ClassVar[dict[str, Any]] = {
         "ilqr": ILQRConfig(
             horizon=100,
