@@ -56,6 +56,7 @@ Prints JSON lines as it goes and writes ``benchmarks/results/dm_acrobot_dm_start
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import os
 import platform
@@ -276,6 +277,44 @@ def warm_start_check(seconds: float = 1.0, ticks: int = 40, shift: float = 0.04)
     }
 
 
+def prediction_check(trials: int = 20, seed: int = 0) -> dict:
+    """Tip error of planning models against the simulation (RK4, 0.01 s) near the upright.
+
+    From ``trials`` states near the upright (angles N(0, 0.05) rad, speeds N(0, 0.2)
+    rad/s), a control that is piecewise linear through 12 knots uniform in [-1, 1] over
+    2 s, held over each 0.02 s (the planning step), is applied for 0.5, 1 and 2 s by the
+    simulated model and by each planning model; the tip distances between the two, median
+    and maximum (m)."""
+    base = DmAcrobotSwingup(threads=1).model
+    rng = np.random.default_rng(seed)
+    models = {"rk4_0.02": (1, 0.02), "implicitfast_0.02": (3, 0.02), "implicitfast_0.01": (3, 0.01)}
+    errors: dict = {f"{name}@{t}s": [] for name in models for t in (0.5, 1.0, 2.0)}
+
+    def run(model: mujoco.MjModel, state: np.ndarray, knots: np.ndarray, seconds: float):
+        data = mujoco.MjData(model)
+        data.qpos[:], data.qvel[:] = state[:2], state[2:]
+        for i in range(round(seconds / model.opt.timestep)):
+            t = np.floor(i * model.opt.timestep / 0.02 + 1e-9) * 0.02
+            data.ctrl[0] = np.interp(t, np.linspace(0.0, 2.0, knots.size), knots)
+            mujoco.mj_step(model, data)
+        return data.site("tip").xpos.copy()
+
+    for _ in range(trials):
+        state = np.concatenate([rng.normal(0.0, 0.05, 2), rng.normal(0.0, 0.2, 2)])
+        knots = rng.uniform(-1.0, 1.0, 12)
+        for seconds in (0.5, 1.0, 2.0):
+            reference = run(base, state, knots, seconds)
+            for name, (integrator, step) in models.items():
+                model = copy.copy(base)
+                model.opt.integrator, model.opt.timestep = integrator, step
+                tip = run(model, state, knots, seconds)
+                errors[f"{name}@{seconds}s"].append(float(np.linalg.norm(tip - reference)))
+    return {
+        k: {"median_m": round(float(np.median(v)), 4), "max_m": round(float(np.max(v)), 3)}
+        for k, v in errors.items()
+    }
+
+
 def mppi_hold(args: argparse.Namespace) -> None:
     """The hold check for the MPPI variants of :data:`MPPI_HOLD_VARIANTS`."""
     start = np.array([0.0, args.hold_offset, 0.0, 0.0])
@@ -313,6 +352,9 @@ def main() -> None:
     parser.add_argument("--hold-offset", type=float, default=0.05)
     parser.add_argument("--hold-only", action="store_true")
     parser.add_argument("--mppi-hold", action="store_true", help="MPPI variants' hold check")
+    parser.add_argument(
+        "--prediction-check", action="store_true", help="planning models' tip error near upright"
+    )
     parser.add_argument("--no-oracle", action="store_true", help="skip the per-start oracle")
     parser.add_argument("--no-hanging", action="store_true", help="skip the hanging-rest runs")
     parser.add_argument(
@@ -338,6 +380,15 @@ def main() -> None:
         return
     if args.mppi_hold:
         mppi_hold(args)
+        return
+    if args.prediction_check:
+        out = {
+            "benchmark": "dm_acrobot_prediction",
+            "machine": {"description": "2-core sandbox CPU, shared", "cpus": os.cpu_count()},
+            "tip_error_vs_simulation": prediction_check(),
+        }
+        RESULTS.with_name("dm_acrobot_prediction.json").write_text(json.dumps(out, indent=2) + "\n")
+        print(json.dumps(out, indent=2))
         return
 
     hold = {}

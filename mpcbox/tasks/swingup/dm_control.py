@@ -118,8 +118,10 @@ class DmAcrobotSwingup(Swingup):
     ball), while this cost needs about 1.5 s of horizon to prefer catching the chain (the
     iLQR-MPC itself drops it with 0.5 s or 1 s horizons); the LQR value gives a short,
     well-conditioned horizon the cost-to-go. The earlier ``implicitfast`` copy at 0.02 s
-    also mispredicts: from near the upright the tip is 3.4 cm off RK4's after 0.5 s and
-    18 cm after 1 s (median of 20 random smooth control sequences), RK4 at 0.02 s 0.0.
+    also mispredicts: from near the upright its tip is 4.1 cm from the simulation's after
+    0.5 s and 14 cm after 1 s (median of 20 random controls), RK4 at 0.02 s 0.1 mm after 1
+    s (``dm_acrobot_dm_starts.py --prediction-check``,
+    ``benchmarks/results/dm_acrobot_prediction.json``).
 
     Online, from dm_control's own random starts, seeds 0-11
     (``benchmarks/dm_acrobot_dm_starts.py``): an offline 5 s oracle reaches the target from
