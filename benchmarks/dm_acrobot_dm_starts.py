@@ -46,6 +46,18 @@ defaults; with the current defaults they read ``--plan-rk4 false --overrides
 ``--controllers ilqr``) and
 ``--overrides '{"mpc_iterations": 1}'`` (1 iteration).
 
+MPPI (issue #13): ``--mppi-hold`` runs the hold check for the MPPI variants of
+:data:`MPPI_HOLD_VARIANTS` (one change at a time from the earlier config, :data:`OLD_MPPI`)
+and a warm-start check, and writes ``benchmarks/results/dm_acrobot_mppi_hold.json``;
+``--prediction-check`` compares planning models with the simulation near the upright
+(``dm_acrobot_prediction.json``). Only the variants with a short horizon and the LQR value
+as terminal cost (``terminal_value="lqr"``) hold; the task's MPPI default since then (0.3
+s, 4 knots, RK4) scores 0/12 here (``..._mppi_lqr.json``, ``--controllers mppi``): it holds
+but does not swing up. ``--controllers mppi_handover`` (:func:`mppi_handover`) swings up
+with the earlier 2 s MPPI planned in RK4 and hands over to the default near the target
+(``..._mppi_handover.json``, ``--no-hanging``). ``dm_acrobot_hold.json``'s MPPI row is the
+earlier config. ``--no-oracle`` skips the oracle (for dev starts).
+
 ``--plan-rk4 true|false`` replaces the task's ``plan_rk4`` and ``--overrides`` (JSON config
 fields) the tuned config fields in every controller run; ``--oracle-from`` copies the
 per-start oracle of an earlier results file instead of solving it again.
