@@ -227,6 +227,25 @@ def test_rescue_backend_solves_what_osqp_fails(one_leg):
         QPMPCConfig(rescue="not-a-solver")
 
 
+def test_time_limit_uses_the_last_iterate(one_leg):
+    """A solve stopped at its time budget is not a failure: its warm-started last iterate is
+    the plan (no fallback) and is counted as truncated; without a budget nothing is."""
+    state = one_leg.reference_state()
+    state[one_leg.nq + 3] = 0.05  # roll rate of the root
+    full = QPMPC(one_leg)
+    full(state, 0.0)
+    cut = QPMPC(one_leg, time_limit=1e-7)
+    u = cut(state, 0.0)
+    assert "time limit" in cut.last_status
+    assert cut.stats["truncated_solves"] == cut.stats["solves"] == 1
+    assert cut.stats["fallbacks"] == 0 and full.stats["truncated_solves"] == 0
+    assert cut.stats["solver_iterations"] < full.stats["solver_iterations"]
+    assert np.all(np.isfinite(u)) and not np.allclose(u, full.last_plan.ctrls[0])
+    res = simulate(one_leg, cut, 0.1)
+    assert res.metrics.fallbacks == 0
+    assert cut.stats["truncated_solves"] == cut.stats["solves"] == res.metrics.solve_ticks
+
+
 @pytest.mark.parametrize("fallback", ["lqr", "plan"])
 def test_fallback_after_failed_solves(one_leg, fallback):
     ctl = QPMPC(one_leg, horizon=10, dt=0.02, period=0.02, fallback=fallback)
@@ -284,6 +303,10 @@ def test_bad_input(one_leg):
         QPMPC(one_leg, facets=3)
     with pytest.raises(InvalidArgumentError, match=r"fallback.*'lqr'"):
         QPMPC(one_leg, fallback="hold")
+    with pytest.raises(InvalidArgumentError, match="time_limit"):
+        QPMPCConfig(time_limit=0.0)
+    with pytest.raises(InvalidArgumentError, match="time_limit.*osqp"):
+        QPMPCConfig(time_limit=0.01, solver="clarabel")
 
 
 @pytest.mark.parametrize("stance_model", ["soft", "rigid"])
