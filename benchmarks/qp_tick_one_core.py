@@ -23,6 +23,7 @@ its own as ``first_tick_ms``.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -46,6 +47,7 @@ ROBOTS: dict[str, tuple[str, dict]] = {
     "g1_one_foot": ("biped_stand", {"model": "menagerie:unitree_g1", "stance": "left"}),
     "go2": ("quadruped_stand", {"model": "menagerie:unitree_go2"}),
     "humanoid_two_feet": ("humanoid_two_feet", {}),
+    "humanoid_one_leg": ("humanoid_balance", {}),
 }
 
 
@@ -84,13 +86,16 @@ def pct(values: np.ndarray, q: float) -> float:
     return round(float(np.percentile(values, q)), 3) if values.size else float("nan")
 
 
-def measure(robot: str, seeds: int, duration: float, limit: str = "config") -> dict:
+def measure(
+    robot: str, seeds: int, duration: float, limit: str = "config", extra: dict | None = None
+) -> dict:
     task, options = ROBOTS[robot]
     problem = task_class(task)(threads=1, **options)
     rows, ticks, vectors, osqp, iters, first = [], [], [], [], [], []
     period = None
     for seed in range(seeds):
         options = {} if limit == "config" else {"time_limit": _limit(limit, problem)}
+        options.update(extra or {})
         qp = make_controller("qp", problem, **options)
         timer = PartTimer(qp)
         period = qp.period
@@ -167,6 +172,7 @@ def main(argv: list[str] | None = None) -> int:
         help="OSQP budget per solve: 'config' (the task's), 'none', seconds, or e.g. "
         "'0.75period' (that fraction of the QP's period)",
     )
+    parser.add_argument("--qp-options", default="{}", help="JSON overrides of the QP config")
     parser.add_argument("--machine", default=None, help="what runs it (e.g. the host's CPU)")
     parser.add_argument("--json", default="")
     args = parser.parse_args(argv)
@@ -184,7 +190,11 @@ def main(argv: list[str] | None = None) -> int:
         "seeds": args.seeds,
         "duration_s": args.duration,
         "time_limit": args.time_limit,
-        "robots": {r: measure(r, args.seeds, args.duration, args.time_limit) for r in robots},
+        "qp_options": json.loads(args.qp_options),
+        "robots": {
+            r: measure(r, args.seeds, args.duration, args.time_limit, json.loads(args.qp_options))
+            for r in robots
+        },
         "load_average_at_end": [round(x, 2) for x in os.getloadavg()],
     }
     cpu = _cpu_model()
