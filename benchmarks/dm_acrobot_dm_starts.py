@@ -55,7 +55,9 @@ as terminal cost (``terminal_value="lqr"``) hold; the task's MPPI default since 
 s, 4 knots, RK4) scores 0/12 here (``..._mppi_lqr.json``, ``--controllers mppi``): it holds
 but does not swing up. ``--controllers mppi_handover`` (:func:`mppi_handover`) swings up
 with the earlier 2 s MPPI planned in RK4 and hands over to the default near the target
-(``..._mppi_handover.json``, ``--no-hanging``). ``dm_acrobot_hold.json``'s MPPI row is the
+(``..._mppi_handover.json``, ``--no-hanging``): it holds the hold check and passes within
+0.01 m of the target from 5/12 starts, but the default does not catch the moving chain:
+0/12 (median tick 81 ms). ``dm_acrobot_hold.json``'s MPPI row is the
 earlier config. ``--no-oracle`` skips the oracle (for dev starts).
 
 ``--plan-rk4 true|false`` replaces the task's ``plan_rk4`` and ``--overrides`` (JSON config
