@@ -169,7 +169,13 @@ def test_the_engage_test_can_ask_for_a_slow_centre_of_mass_over_the_feet():
     assert HumanoidGetup(settle=0.3, handover_speed=1.1).is_up(moving)
     assert not HumanoidGetup(settle=0.3, handover_offset=0.5 * offset).is_up(standing)
     assert HumanoidGetup(settle=0.3, handover_offset=2.0 * offset).is_up(standing)
-    for option in ("handover_speed", "handover_offset"):
+    bent = standing.copy()
+    bent[task.nq - 1] += 0.3  # one elbow
+    assert task.posture_distance(standing) == 0.0
+    assert task.posture_distance(bent) == pytest.approx(0.3, rel=1e-9)
+    assert not HumanoidGetup(settle=0.3, handover_posture=0.2).is_up(bent)
+    assert HumanoidGetup(settle=0.3, handover_posture=0.4).is_up(bent)
+    for option in ("handover_speed", "handover_offset", "handover_posture"):
         with pytest.raises(mpcbox.InvalidArgumentError, match=option):
             HumanoidGetup(settle=0.3, **{option: 0.0})
     with pytest.raises(mpcbox.UnknownNameError, match="controller"):

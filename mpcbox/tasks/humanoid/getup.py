@@ -103,8 +103,12 @@ class HumanoidGetup(Problem):
             which :meth:`is_up` holds; ``None``: any speed.
         handover_offset: Largest horizontal distance :math:`\|c_{xy} - \bar p_{xy}\|` (m)
             of the centre of mass from the feet's midpoint at which :meth:`is_up` holds;
-            ``None``: any. With these two, a local feedback law (LQR, QP-MPC) takes over
-            only near the standing equilibrium it was designed about.
+            ``None``: any.
+        handover_posture: Largest distance :math:`\|q_j \ominus q_{j,ref}\|_2` (rad) of
+            the joint angles (all but the floating root's) from the keyframe's at which
+            :meth:`is_up` holds; ``None``: any. With these three, a local feedback law
+            (LQR, QP-MPC) takes over only near the standing equilibrium it was designed
+            about.
         release_height: Torso height below which :meth:`is_down` holds (m); ``None``:
             ``release_fraction`` of the standing height.
         release_fraction: See ``release_height``, in ``(0, 1)``.
@@ -148,6 +152,7 @@ class HumanoidGetup(Problem):
         handover_tilt: float = 0.5,
         handover_speed: float | None = None,
         handover_offset: float | None = None,
+        handover_posture: float | None = None,
         release_height: float | None = 0.9,
         release_fraction: float = 0.8,
         **kwargs: Any,
@@ -194,6 +199,9 @@ class HumanoidGetup(Problem):
         self.handover_offset = (
             None if handover_offset is None else positive("handover_offset", handover_offset)
         )
+        self.handover_posture = (
+            None if handover_posture is None else positive("handover_posture", handover_posture)
+        )
         self._model_source = model
         kwargs.setdefault("keyframe", "stand")
         super().__init__(scene_path("humanoid.xml") if model is None else model, **kwargs)
@@ -217,6 +225,10 @@ class HumanoidGetup(Problem):
         self.stand_height = h["stand_height"] or h["stand_fraction"] * self.torso_height
         self.handover_height = h["handover_height"] or self.stand_height
         self.release_height = h["release_height"] or h["release_fraction"] * self.stand_height
+        #: Dofs of the joints other than free ones (the posture of :meth:`is_up`).
+        self._joint_dofs = np.flatnonzero(
+            model.jnt_type[model.dof_jntid] != mujoco.mjtJoint.mjJNT_FREE
+        )
         #: Scratch data of :meth:`is_up` and :meth:`is_down` (kinematics only).
         self._stage_data = mujoco.MjData(model)
 
@@ -326,13 +338,23 @@ class HumanoidGetup(Problem):
         speed = float(np.linalg.norm(data.subtree_linvel[self.root_id]))
         return speed, float(np.linalg.norm(offset))
 
+    def posture_distance(self, state: np.ndarray) -> float:
+        r"""Distance :math:`\|q_j \ominus q_{j,ref}\|_2` (rad) of the joint angles of a
+        state ``(nstate,)`` from the keyframe's (the floating root left out)."""
+        dq = self.state_difference(state, self.reference_state())[: self.nv]
+        return float(np.linalg.norm(dq[self._joint_dofs]))
+
     def is_up(self, state: np.ndarray) -> bool:
         """For a state ``(nstate,)``: the torso is at least ``handover_height`` high and
         tilted at most ``handover_tilt`` from vertical, and (when set) the centre of mass
         moves at most ``handover_speed`` and lies at most ``handover_offset`` from the
-        feet's midpoint (:meth:`balance_state`)."""
+        feet's midpoint (:meth:`balance_state`), and the joints are at most
+        ``handover_posture`` from the keyframe's (:meth:`posture_distance`)."""
         height, up = self._torso(state)
         if height < self.handover_height or up < np.cos(self.handover_tilt):
+            return False
+        limit = self.handover_posture
+        if limit is not None and self.posture_distance(state) > limit:
             return False
         if self.handover_speed is None and self.handover_offset is None:
             return True
