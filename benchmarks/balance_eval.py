@@ -13,6 +13,8 @@ Seeds run in parallel worker processes with a progress bar::
     python benchmarks/balance_eval.py                      # LQR, 100 seeds x 60 s
     python benchmarks/balance_eval.py --controllers lqr,ilqr --seeds 20 --duration 20
     python benchmarks/balance_eval.py --json benchmarks/results/balance_eval_lqr.json
+    python benchmarks/balance_eval.py --controllers qp --seeds 20 \
+        --controller-options '{"qp": {"osqp_settings": {"rho": 0.3}}}'
 """
 
 from __future__ import annotations
@@ -69,6 +71,7 @@ def evaluate(args: argparse.Namespace) -> dict:
         range(args.seed, args.seed + args.seeds),
         push_tests=tests if args.push else (),
         problem_options=problem_options(args),
+        controller_options=json.loads(args.controller_options),
         workers=args.workers or None,
         progress=not args.quiet,
     )
@@ -77,6 +80,7 @@ def evaluate(args: argparse.Namespace) -> dict:
         "leg": args.leg,
         "model": args.model or "mpcbox/tasks/scenes/humanoid.xml",
         "cost_weights": json.loads(args.weights),
+        "controller_options": json.loads(args.controller_options),
         "seeds": args.seeds,
         "first_seed": args.seed,
         "duration_s": args.duration,
@@ -123,6 +127,11 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--controllers", default="lqr", help="comma-separated names")
+    parser.add_argument(
+        "--controller-options",
+        default="{}",
+        help='JSON overrides per controller name, e.g. \'{"qp": {"time_limit": 0.015}}\'',
+    )
     parser.add_argument("--seeds", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0, help="first seed")
     parser.add_argument("--duration", type=float, default=60.0, help="seconds per run")

@@ -91,6 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=2, help="worker processes")
     parser.add_argument("--tick-seconds", type=float, default=5.0, help="QP tick run (s)")
     parser.add_argument("--json", default="", help="also write the JSON here")
+    parser.add_argument("--machine", default=None, help="what runs it (default: the sandbox)")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
     mpcs = [m for m in args.mpc.split(",") if m]
@@ -161,6 +162,8 @@ def main(argv: list[str] | None = None) -> int:
             else None
         ),
     }
+    if args.machine:
+        return finish(out, args.json, started=t0, machine=args.machine)
     return finish(out, args.json, started=t0)
 
 

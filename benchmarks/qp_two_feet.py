@@ -9,8 +9,11 @@ counted.
 
 The QP-MPC variants: the task's tuning (soft stance, 10 x 0.02 s, solved at 50 Hz), a 0.6 s
 horizon (15 x 0.04 s), relinearization every tick, the rigid stance with OSQP and with
-Clarabel, and the task's QP (and a 0.4 s horizon) re-solved at LQR's 200 Hz instead of 50 Hz.
-LQR is the peer; iLQR-MPC with the one-leg tuning is the nonlinear reference::
+Clarabel, the task's QP (and a 0.4 s horizon) re-solved at LQR's 200 Hz instead of 50 Hz,
+and the task's QP with the legged presets' OSQP settings
+(:data:`~mpcbox.tasks.legged.balance.QP_OSQP_SETTINGS`), with those and rho 1 (also with a
+15 ms solve budget, ``time_limit``), and with OSQP_DEFAULTS' rho 3. LQR is the peer;
+iLQR-MPC with the one-leg tuning is the nonlinear reference::
 
     python benchmarks/qp_two_feet.py --workers 16 --json benchmarks/results/qp_two_feet.json
     python benchmarks/qp_two_feet.py --variants lqr,qp --directions fwd
@@ -32,6 +35,7 @@ import numpy as np
 from mpcbox.comparison.scenario import PushTest
 from mpcbox.config import config_options
 from mpcbox.tasks.humanoid.balance import HumanoidBalance
+from mpcbox.tasks.legged.balance import QP_OSQP_SETTINGS
 
 #: Controller name and keyword overrides on top of the task's ``controller_configs``. The
 #: nonlinear reference, iLQR-MPC, takes the one-leg task's tuning (0.35 s horizon, 50 Hz).
@@ -45,6 +49,13 @@ VARIANTS: dict[str, tuple[str, dict]] = {
     "qp_rigid_clarabel": ("qp", {"stance_model": "rigid", "solver": "clarabel"}),
     "qp_200hz": ("qp", {"period": 0.005}),
     "qp_h20_200hz": ("qp", {"horizon": 20, "period": 0.005}),
+    "qp_legged_osqp": ("qp", {"osqp_settings": dict(QP_OSQP_SETTINGS)}),
+    "qp_legged_rho1": ("qp", {"osqp_settings": {**QP_OSQP_SETTINGS, "rho": 1.0}}),
+    "qp_rho3": ("qp", {"osqp_settings": {"rho": 3.0}}),
+    "qp_legged_rho1_budget": (
+        "qp",
+        {"osqp_settings": {**QP_OSQP_SETTINGS, "rho": 1.0}, "time_limit": 0.015},
+    ),
 }
 DIRECTIONS = {"fwd": (1.0, 0.0, 0.0), "bwd": (-1.0, 0.0, 0.0), "lat": (0.0, 1.0, 0.0)}
 FORCES = {

@@ -132,6 +132,12 @@ class QPMPCConfig:
             push, ``"plan"`` fell at 97.5 N and 100 N yet survived 105 N, because the
             open-loop replay runs just when the state leaves the plan. ``"lqr"`` survived
             every push up to 100 N (``README.md``).
+        time_limit: Wall-clock budget of one OSQP solve (s; OSQP's ``time_limit``), so that
+            a tick ends within the control period on a real robot: a solve that reaches it
+            returns its last (warm-started) iterate, which is used as the plan and counted
+            in ``stats["truncated_solves"]``, unlike a solve that reaches ``max_iter``,
+            which fails. ``None``: no limit. A budget below one iteration's time leaves
+            OSQP's first iterate (benchmarks/qp_tick_one_core.py measures the effect).
     """
 
     horizon: int = 10
@@ -162,6 +168,7 @@ class QPMPCConfig:
     osqp_settings: Mapping[str, Any] | None = None
     export_dir: str | Path | None = None
     fallback: Fallback = "lqr"
+    time_limit: float | None = None
 
     def __post_init__(self) -> None:
         def put(name: str, value: Any) -> None:
@@ -205,6 +212,13 @@ class QPMPCConfig:
             put("period", positive("period", self.period))
         if self.substeps is not None:
             put("substeps", positive_int("substeps", self.substeps))
+        if self.time_limit is not None:
+            put("time_limit", positive("time_limit", self.time_limit))
+            if self.solver != "osqp":
+                raise InvalidArgumentError(
+                    f"time_limit needs solver='osqp' (OSQP's time limit), got solver="
+                    f"{self.solver!r}"
+                )
         one_of("stance_model", self.stance_model, STANCE_MODELS)
         if self.stance_model == "soft" and self.stance_weight is None:
             raise InvalidArgumentError("stance_model='soft' needs a finite stance_weight")

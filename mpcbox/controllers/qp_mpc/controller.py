@@ -243,7 +243,10 @@ class QPMPC(Controller):
             control_scale(self.R, cfg.scale_controls),
         )
         self.formulation.update_matrix(self.linearization)
-        self.backend = make_backend(cfg.solver, dict(cfg.osqp_settings or {}))
+        settings = dict(cfg.osqp_settings or {})
+        if cfg.time_limit is not None:
+            settings["time_limit"] = cfg.time_limit
+        self.backend = make_backend(cfg.solver, settings)
         self.rescue = None if cfg.rescue is None else make_backend(cfg.rescue)
         # Built now, not on the first failed (already slow) tick.
         self._lqr: LQR | None = LQR(problem) if cfg.fallback == "lqr" else None
@@ -253,6 +256,7 @@ class QPMPC(Controller):
         self._last_ctrl = self.ctrl_ref.copy()
         self._plan_age = self._tick = self._fallbacks = 0
         self._plan_fallbacks = self._inaccurate = self._unsolved = self._rescued = 0
+        self._truncated = 0
         self._violation_max = 0.0
         self._failures: dict[str, int] = {}
         self._iters: list[int] = []
@@ -268,7 +272,7 @@ class QPMPC(Controller):
         self.prediction.reset()
         self._tick = 0
         self._fallbacks = self._plan_fallbacks = self._inaccurate = 0
-        self._unsolved = self._rescued = 0
+        self._unsolved = self._rescued = self._truncated = 0
         self._violation_max = 0.0
         self._failures = {}
         self._iters = []
@@ -288,6 +292,7 @@ class QPMPC(Controller):
           ``fallbacks_lqr`` and ``fallbacks_plan`` split them by what was applied;
         * ``inaccurate_solves``: accepted solves the solver flagged as inaccurate (OSQP's
           ``"solved inaccurate"``);
+        * ``truncated_solves``: solves stopped at ``time_limit`` whose last iterate was used;
         * ``solver_iterations`` (mean; ``iterations`` is the same number) and
           ``solver_iterations_max`` over the accepted solves;
         * ``force_violation_max``: largest friction or bound violation of an accepted raw
@@ -302,6 +307,7 @@ class QPMPC(Controller):
             "failed_solves": self._unsolved,
             "rescued_solves": self._rescued,
             "inaccurate_solves": self._inaccurate,
+            "truncated_solves": self._truncated,
             "solver_iterations": float(np.mean(iters)) if iters else 0.0,
             "solver_iterations_max": float(max(iters)) if iters else 0.0,
             "iterations": float(np.mean(iters)) if iters else 0.0,
@@ -354,6 +360,8 @@ class QPMPC(Controller):
         self._iters.append(sol.iterations)
         if sol.inaccurate:
             self._inaccurate += 1
+        if sol.truncated:
+            self._truncated += 1
         # A rescue backend reports no dual: keep the last one for the next warm start.
         y = sol.y if sol.y is not None else self._prev_y
         self._prev_z, self._prev_y = z, (np.zeros(self.ncon) if y is None else y)

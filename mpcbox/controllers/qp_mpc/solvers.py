@@ -70,6 +70,8 @@ class QPSolution(NamedTuple):
         objective: Objective value (``nan`` when not known).
         inaccurate: The solver accepted ``x`` at a looser tolerance than asked (OSQP's
             ``"solved inaccurate"``).
+        truncated: The solver stopped at its time limit and ``x`` is its last iterate
+            (OSQP's ``"run time limit reached"``).
     """
 
     x: np.ndarray | None
@@ -78,6 +80,7 @@ class QPSolution(NamedTuple):
     iterations: int
     objective: float
     inaccurate: bool = False
+    truncated: bool = False
 
 
 class QPBackend(abc.ABC):
@@ -132,7 +135,9 @@ class OSQPBackend(QPBackend):
         else:
             self._solver.warm_start(x=np.zeros(qp.A.shape[1]), y=np.zeros(qp.A.shape[0]))
         res = self._solver.solve(raise_error=False)
-        ok = res.info.status_val in (
+        status = res.info.status_val
+        truncated = status == osqp.SolverStatus.OSQP_TIME_LIMIT_REACHED
+        ok = truncated or status in (
             osqp.SolverStatus.OSQP_SOLVED,
             osqp.SolverStatus.OSQP_SOLVED_INACCURATE,
         )
@@ -142,7 +147,8 @@ class OSQPBackend(QPBackend):
             str(res.info.status),
             int(res.info.iter),
             float(res.info.obj_val),
-            res.info.status_val == osqp.SolverStatus.OSQP_SOLVED_INACCURATE,
+            status == osqp.SolverStatus.OSQP_SOLVED_INACCURATE,
+            truncated,
         )
 
 

@@ -78,8 +78,8 @@ def _unique_name(
     return candidate
 
 
-#: OSQP settings of LeggedBalance's QP-MPC and of its quadruped and biped presets (over
-#: :data:`~mpcbox.controllers.qp_mpc.solvers.OSQP_DEFAULTS`, which the humanoid presets keep).
+#: OSQP settings of LeggedBalance's QP-MPC and of all its presets, the humanoid ones included
+#: since stop 25 (over :data:`~mpcbox.controllers.qp_mpc.solvers.OSQP_DEFAULTS`).
 #: With the duality-gap test on, solves went on for a hundred iterations after their
 #: residuals were below 1e-5; with it off and ``rho = 0.3`` the mean iterations under the
 #: noise recipe fell from 40 to 25 (Go1), 64 to 25 (A1), 59 to 33 (ANYmal C) and 376 (1 of
@@ -170,7 +170,8 @@ class LeggedBalance(Problem):
     did; at 250 Hz (two 0.002 s physics steps) over 10 steps none of seeds 0, 17 and 19
     did, at a median 2.7-3.0 ms a tick (``benchmarks/results/go2_stand.json`` for all 20).
 
-    The humanoid presets keep their own measured QP settings.
+    The humanoid presets keep their own measured QP settings (50 Hz, their stance weight and
+    lifted-force law) with these OSQP settings.
 
     Raises:
         UnknownNameError: If a foot, the root or the keyframe does not exist (lists those

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from types import MappingProxyType
 from typing import Any, ClassVar
@@ -81,9 +82,16 @@ class BipedStand(LeggedBalance):
     #: capture-point bound of the ankle strategy (175.6 N: the G1's center of mass is 0.117 m
     #: behind its toes), and no single change of the QP options (period, step, horizon,
     #: terminal, relinearization, friction, slack weight) passed 172.5 N
-    #: (``benchmarks/g1_push_limit.py``, results/g1_push_limit.json).
+    #: (``benchmarks/g1_push_limit.py``, results/g1_push_limit.json). QP-MPC's OSQP solve
+    #: has a 15 ms budget (``time_limit``, 75 % of the 20 ms period): without it the G1's
+    #: tick took 11.0 ms median but 37.1 ms p99 and up to 233 ms on one idle Xeon core (a
+    #: few solves need 75-400 iterations where most need 25-30; 5.3 % of ticks overran the
+    #: period); with it 16.9 ms p99, 17.7 ms at most, 10 of 1500 solves truncated, and the
+    #: same 20/20 under noise and 169.3 N push (results/qp_tick_one_core.json,
+    #: results/g1_balance_qp_budget.json).
     controller_configs: ClassVar[dict[str, Any]] = {
         **LeggedBalance.controller_configs,
+        "qp": dataclasses.replace(LeggedBalance.controller_configs["qp"], time_limit=0.015),
         "ilqr": ILQRConfig(
             horizon=50,
             replan_period=0.02,
