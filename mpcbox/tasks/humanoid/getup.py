@@ -404,14 +404,12 @@ class HumanoidGetup(Problem):
         0.005 s model, held 0.02 s, falls from the keyframe at rest). Such a law is local,
         and it does not help this planner (``benchmarks/humanoid_getup_stage_basin.py``,
         ``results/humanoid_getup_stage_basin.json``, CPU, lock-step, seeds 1-3): the
-        planner stands on one leg, its joints 2.7-3.7 rad from the keyframe's, while LQR
-        holds joint offsets of 0.05 rad at rest in 1 of 3 draws and QP-MPC QPMPC_OFFSETS;
-        neither held the torso up for 2 s from any of the planner's standing states
-        (LQR 0/130, QP-MPC QPMPC_STATES), and the hand-over to LQR missed the goal in
-        seeds 1 and 2, which the planner alone met (``results/
-        humanoid_getup_feedback_stage_cpu_lockstep.json``). ``handover_posture``
-        (with ``handover_speed`` and ``handover_offset``) keeps such a stage out unless
-        the body is near the equilibrium it was designed about.
+        planner stands on one leg, its joints 2.7-3.7 rad from the keyframe's, while at
+        rest LQR holds random joint offsets of 0.05 rad in 1 of 3 draws and QP-MPC 0.1 rad
+        in 3 of 3, 0.25 rad in 1 of 3; neither held the torso up for 2 s from any of the
+        planner's standing states (LQR 0/130, QP-MPC 0/44). SCREEN_SUMMARY
+        ``handover_posture`` (with ``handover_speed`` and ``handover_offset``) keeps such a
+        stage out unless the body is near the equilibrium it was designed about.
 
         Args:
             name: The get-up controller (a key of :attr:`controller_configs`).
