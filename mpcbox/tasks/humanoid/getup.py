@@ -407,7 +407,10 @@ class HumanoidGetup(Problem):
         planner stands on one leg, its joints 2.7-3.7 rad from the keyframe's, while at
         rest LQR holds random joint offsets of 0.05 rad in 1 of 3 draws and QP-MPC 0.1 rad
         in 3 of 3, 0.25 rad in 1 of 3; neither held the torso up for 2 s from any of the
-        planner's standing states (LQR 0/130, QP-MPC 0/44). SCREEN_SUMMARY
+        planner's standing states (LQR 0/130, QP-MPC 0/44). In the hand-over each took
+        over and the torso fell below 0.9 m 0.4-0.8 s later: 0 of 2 seeds met the goal
+        with either, against 2 of 2 for the planner alone on the same starts
+        (``results/humanoid_getup_feedback_stage_cpu_lockstep.json``).
         ``handover_posture`` (with ``handover_speed`` and ``handover_offset``) keeps such a
         stage out unless the body is near the equilibrium it was designed about.
 
