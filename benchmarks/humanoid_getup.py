@@ -8,9 +8,10 @@ Each variant (``task.<kwarg>=v`` for :class:`~mpcbox.tasks.humanoid.getup.Humano
 ``hand.transfer=false``, ``stand.<field>=v`` (its config) and ``standtask.<kwarg>=v`` (its
 :class:`~mpcbox.tasks.humanoid.stand.HumanoidStand`) build the task-stage hand-over of
 :meth:`~mpcbox.tasks.humanoid.getup.HumanoidGetup.handover_controller` instead, ``C`` the
-standing stage's controller) runs every controller for ``--seeds`` seeds of
-``--duration`` s in :func:`~mpcbox.sim.realtime.simulate_realtime` (``--loop lockstep``:
-:func:`mpcbox.simulate`, the world waits for the planner) (seed ``s``: joint angles
+standing stage's controller) runs every controller for ``--seeds`` seeds (from
+``--first-seed``, default 0) of ``--duration`` s in
+:func:`~mpcbox.sim.realtime.simulate_realtime` (``--loop lockstep``: :func:`mpcbox.simulate`,
+the world waits for the planner) (seed ``s``: joint angles
 of the lying start perturbed by N(0, 0.05) rad after the settle, controller seed ``s``).
 Reported per run: outcome, the time it got up for good (``getup_time``), the highest torso
 height, tick p50/p99 and whether the planner kept up. With ``--final-seeds`` the best
@@ -133,6 +134,7 @@ def main() -> None:
     parser.add_argument("--controllers", default="ps,mppi,cem")
     parser.add_argument("--variants", default="base")
     parser.add_argument("--seeds", type=int, default=2)
+    parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--final-seeds", type=int, default=0)
     parser.add_argument("--duration", type=float, default=5.0)
     parser.add_argument("--backend", default="warp")
@@ -165,7 +167,7 @@ def main() -> None:
         problem = task_class(args.task)(**task_kw)
         for name in args.controllers.split(","):
             rows = []
-            for seed in range(args.seeds):
+            for seed in range(args.first_seed, args.first_seed + args.seeds):
                 try:
                     rows.append(
                         run(

@@ -139,3 +139,46 @@ def test_getup_stages_hand_over_to_the_standing_task_and_back():
         HumanoidGetup(release_height=1.2)
     with pytest.raises(mpcbox.InvalidArgumentError, match="release_height"):
         HumanoidGetup(handover_height=0.8)
+
+
+@pytest.mark.parametrize("stand", ["lqr", "qp"])
+def test_a_feedback_standing_stage_runs_at_the_getup_period_and_holds_the_stand(stand):
+    task = HumanoidGetup(settle=0.3, handover_speed=0.5, handover_offset=0.1)
+    small = dict(num_samples=4, horizon=0.1, backend="cpu", seed=3)
+    ctrl = task.handover_controller("ps", stand=stand, **small)
+    getup, keeper = ctrl.controllers
+    assert keeper.period == getup.period == 0.02
+    standing = task.stand_problem().reference_state()
+    res = mpcbox.simulate(task, ctrl, 1.0, initial_state=standing, stop_on_failure=False)
+    # It hands over at once and the feedback law keeps the torso within 2 cm of its start.
+    assert ctrl.switch_times == [0.0] and ctrl.phase == 1
+    heights = task.torso_heights(res.states)
+    assert np.abs(heights - heights[0]).max() < 0.02
+
+
+def test_the_engage_test_can_ask_for_a_slow_centre_of_mass_over_the_feet():
+    task = HumanoidGetup(settle=0.3)
+    standing = task.reference_state()
+    speed, offset = task.balance_state(standing)
+    assert speed == 0.0 and offset < 0.05
+    moving = standing.copy()
+    moving[task.nq : task.nq + 3] = [0.6, 0.0, 0.8]  # the whole body translating at 1 m/s
+    assert task.balance_state(moving)[0] == pytest.approx(1.0, rel=1e-9)
+    assert task.is_up(moving)
+    assert not HumanoidGetup(settle=0.3, handover_speed=0.9).is_up(moving)
+    assert HumanoidGetup(settle=0.3, handover_speed=1.1).is_up(moving)
+    assert not HumanoidGetup(settle=0.3, handover_offset=0.5 * offset).is_up(standing)
+    assert HumanoidGetup(settle=0.3, handover_offset=2.0 * offset).is_up(standing)
+    bent = standing.copy()
+    bent[task.nq - 1] += 0.3  # one elbow
+    assert task.posture_distance(standing) == 0.0
+    assert task.posture_distance(bent) == pytest.approx(0.3, rel=1e-9)
+    assert not HumanoidGetup(settle=0.3, handover_posture=0.2).is_up(bent)
+    assert HumanoidGetup(settle=0.3, handover_posture=0.4).is_up(bent)
+    for option in ("handover_speed", "handover_offset", "handover_posture"):
+        with pytest.raises(mpcbox.InvalidArgumentError, match=option):
+            HumanoidGetup(settle=0.3, **{option: 0.0})
+    with pytest.raises(mpcbox.UnknownNameError, match="controller"):
+        task.handover_controller("ps", stand="nope", backend="cpu")
+    with pytest.raises(mpcbox.UnknownOptionError, match="bogus"):
+        task.handover_controller("ps", stand="lqr", stand_options={"bogus": 1}, backend="cpu")

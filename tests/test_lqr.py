@@ -129,3 +129,30 @@ def test_config_object_and_option_errors():
         mpcbox.LQR(cart, weights=1.0)
     with pytest.raises(InvalidTypeError, match="problem"):
         mpcbox.LQR("cartpole.xml")
+
+
+def test_a_held_period_gets_the_gain_of_the_held_step():
+    """At an exact fixed point (the cart-pole upright) the held step is A^n and
+    sum_i A^i B; the gain designed for a hold of 0.16 s keeps the pole up, the one-step gain
+    held as long does not (its closed loop A^n - B_n K has modes outside the unit circle)."""
+    cart = mpcbox.Problem(scene_path("cartpole.xml"), qpos_ref=np.array([0.0, np.pi]))
+    one = mpcbox.LQR(cart)
+    n = 16
+    held = mpcbox.LQR(cart, period=n * cart.dt)
+    assert held.period == pytest.approx(n * cart.dt)
+    A_n = np.linalg.matrix_power(one.A, n)
+    B_n = sum(np.linalg.matrix_power(one.A, i) for i in range(n)) @ one.B
+    np.testing.assert_allclose(held.A, A_n, atol=1e-12)
+    np.testing.assert_allclose(held.B, B_n, atol=1e-12)
+    assert held.spectral_radius < 1.0
+    assert np.abs(np.linalg.eigvals(A_n - B_n @ one.K)).max() > 1.0
+    start = cart.reference_state()
+    start[1] += 0.1
+    one.period = held.period  # the one-step gain, held as long
+    for ctrl, stays_up in ((held, True), (one, False)):
+        res = mpcbox.simulate(cart, ctrl, 3.0, initial_state=start, stop_on_failure=False)
+        assert bool(np.abs(res.states[-50:, 1] - np.pi).max() < 0.01) is stays_up
+    with pytest.raises(mpcbox.InvalidArgumentError, match="period"):
+        mpcbox.LQR(cart, period=1.5 * cart.dt)
+    with pytest.raises(mpcbox.InvalidArgumentError, match="period"):
+        LQRConfig(period=-0.1)

@@ -5,6 +5,20 @@ With the finite-difference model :math:`dx_{t+1} = A\,dx_t + B\,du_t` and the co
 :math:`K = (R + B^T P B)^{-1}(B^T P A + N^T)` with :math:`P` the stabilizing solution of the
 discrete algebraic Riccati equation (:func:`scipy.linalg.solve_discrete_are`), and the
 controller applies :math:`u = u_0 - K\,(x \ominus x_0)`.
+
+Called every ``period`` seconds with the control held in between (as
+:func:`~mpcbox.simulate` and :func:`~mpcbox.sim.realtime.simulate_realtime` do), the gain is
+designed for that hold: over :math:`n = \text{period} / \delta t` planning steps from the
+operating point (states :math:`x_0, x_1 = f(x_0, u_0), \dots`, Jacobians :math:`A_i, B_i` at
+:math:`(x_i, u_0)`) the held step is
+
+.. math::
+    A = A_{n-1} \cdots A_0 , \qquad
+    B = \sum_{i=0}^{n-1} A_{n-1} \cdots A_{i+1} B_i ,
+
+the exact linearization of :math:`n` steps under one held control (at a fixed point
+:math:`A = A_0^n`, :math:`B = \sum_i A_0^i B_0`), with the per-step weights :math:`Q, R`
+(scaling both by :math:`n` leaves :math:`K` unchanged).
 """
 
 from __future__ import annotations
@@ -19,8 +33,14 @@ from mpcbox.config import resolve_config
 from mpcbox.controllers.base import Controller, check_problem
 from mpcbox.core.cost import Cost, QuadraticValue
 from mpcbox.core.problem import Problem
-from mpcbox.errors import CostDefinitionError, NotStabilizableError, ShapeError, SolverError
-from mpcbox.validation import as_array, checked_options
+from mpcbox.errors import (
+    CostDefinitionError,
+    InvalidArgumentError,
+    NotStabilizableError,
+    ShapeError,
+    SolverError,
+)
+from mpcbox.validation import as_array, checked_options, positive
 
 
 def check_symmetric(name: str, mat: np.ndarray, rtol: float = 1e-9) -> None:
@@ -158,6 +178,9 @@ class LQRConfig:
         ctrl: Operating control ``(nu,)`` (default: the Problem's ``ctrl_ref``).
         eps: Finite-difference step for the linearization (default: the Problem's).
         centered: Centered finite differences (default: the Problem's).
+        period: Seconds between calls, a whole number ``n`` of the Problem's planning steps
+            (default: one step); the gain is designed for the control held ``n`` steps (see
+            the module docstring).
     """
 
     Q: np.ndarray | None = None
@@ -166,6 +189,27 @@ class LQRConfig:
     ctrl: np.ndarray | None = None
     eps: float | None = None
     centered: bool | None = None
+    period: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.period is not None:
+            positive("period", self.period)
+
+
+def hold_steps(period: float | None, dt: float) -> int:
+    """Planning steps ``n`` of ``dt`` in ``period`` (1 for ``None``).
+
+    Raises:
+        InvalidArgumentError: If ``period`` is not a whole multiple of ``dt``.
+    """
+    if period is None:
+        return 1
+    n = round(period / dt)
+    if n < 1 or abs(n * dt - period) > 1e-9 * max(1.0, period):
+        raise InvalidArgumentError(
+            f"period must be a whole multiple of the planning timestep {dt:g} s, got {period:g}"
+        )
+    return n
 
 
 class LQR(Controller):
@@ -211,9 +255,8 @@ class LQR(Controller):
             if cfg.ctrl is None
             else as_array("ctrl", cfg.ctrl, (problem.nu,))
         )
-        self.A, self.B = problem.linearize(
-            self.state0, self.ctrl0, eps=cfg.eps, centered=cfg.centered
-        )
+        steps = hold_steps(cfg.period, problem.dt)
+        self.A, self.B = _held_linearization(problem, self.state0, self.ctrl0, steps, cfg)
         Q, R, N = cfg.Q, cfg.R, None
         if Q is None or R is None:
             quad = problem.quadratize(self.state0, self.ctrl0)
@@ -224,7 +267,7 @@ class LQR(Controller):
         self.Q = as_array("Q", Q, (problem.nx, problem.nx))
         self.R = as_array("R", R, (problem.nu, problem.nu))
         self.K, self.P = dlqr(self.A, self.B, self.Q, self.R, N)
-        self.period = problem.dt
+        self.period = steps * problem.dt
 
     @property
     def closed_loop_eigenvalues(self) -> np.ndarray:
@@ -256,6 +299,19 @@ def with_lqr_terminal_value(problem: Problem) -> Problem:
     return problem.with_cost(Cost(problem.cost.running, [*problem.cost.terminal, value]))
 
 
+def _held_linearization(
+    problem: Problem, state: np.ndarray, ctrl: np.ndarray, steps: int, cfg: LQRConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """``A`` ``(nx, nx)`` and ``B`` ``(nx, nu)`` of ``steps`` planning steps under a held
+    ``ctrl`` from ``state`` (the module docstring's products and sums)."""
+    A, B = problem.linearize(state, ctrl, eps=cfg.eps, centered=cfg.centered)
+    for _ in range(steps - 1):
+        state = problem.step(state, ctrl)
+        A_i, B_i = problem.linearize(state, ctrl, eps=cfg.eps, centered=cfg.centered)
+        A, B = A_i @ A, A_i @ B + B_i
+    return np.asarray(A), np.asarray(B)
+
+
 __all__ = [
     "LQR",
     "LQRConfig",
@@ -263,6 +319,7 @@ __all__ = [
     "check_symmetric",
     "check_weights",
     "dlqr",
+    "hold_steps",
     "nearest_psd",
     "with_lqr_terminal_value",
 ]

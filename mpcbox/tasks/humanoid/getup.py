@@ -4,6 +4,7 @@ torso, feet and standing keyframe."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
@@ -16,7 +17,7 @@ from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, FrameHeight, Sta
 from mpcbox.core.model import ModelSource, dof_weights, frame_object, object_id
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError
-from mpcbox.registry import make_controller
+from mpcbox.registry import controller_class, make_controller
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.stand import HumanoidStand
 from mpcbox.validation import in_range, non_negative, non_negative_weights, positive
@@ -98,6 +99,16 @@ class HumanoidGetup(Problem):
             ``stand_height``).
         handover_tilt: Largest tilt of the torso's z axis from vertical (rad) at which
             :meth:`is_up` holds.
+        handover_speed: Largest speed :math:`\|\dot c\|` of the centre of mass (m/s) at
+            which :meth:`is_up` holds; ``None``: any speed.
+        handover_offset: Largest horizontal distance :math:`\|c_{xy} - \bar p_{xy}\|` (m)
+            of the centre of mass from the feet's midpoint at which :meth:`is_up` holds;
+            ``None``: any.
+        handover_posture: Largest distance :math:`\|q_j \ominus q_{j,ref}\|_2` (rad) of
+            the joint angles (all but the floating root's) from the keyframe's at which
+            :meth:`is_up` holds; ``None``: any. With these three, a local feedback law
+            (LQR, QP-MPC) takes over only near the standing equilibrium it was designed
+            about.
         release_height: Torso height below which :meth:`is_down` holds (m); ``None``:
             ``release_fraction`` of the standing height.
         release_fraction: See ``release_height``, in ``(0, 1)``.
@@ -139,6 +150,9 @@ class HumanoidGetup(Problem):
         settle: float = 1.0,
         handover_height: float | None = None,
         handover_tilt: float = 0.5,
+        handover_speed: float | None = None,
+        handover_offset: float | None = None,
+        handover_posture: float | None = None,
         release_height: float | None = 0.9,
         release_fraction: float = 0.8,
         **kwargs: Any,
@@ -179,6 +193,15 @@ class HumanoidGetup(Problem):
         self.hold = non_negative("hold", hold)
         self.settle = non_negative("settle", settle)
         self.handover_tilt = positive("handover_tilt", handover_tilt)
+        self.handover_speed = (
+            None if handover_speed is None else positive("handover_speed", handover_speed)
+        )
+        self.handover_offset = (
+            None if handover_offset is None else positive("handover_offset", handover_offset)
+        )
+        self.handover_posture = (
+            None if handover_posture is None else positive("handover_posture", handover_posture)
+        )
         self._model_source = model
         kwargs.setdefault("keyframe", "stand")
         super().__init__(scene_path("humanoid.xml") if model is None else model, **kwargs)
@@ -192,9 +215,8 @@ class HumanoidGetup(Problem):
     def prepare(self, model: mujoco.MjModel) -> None:
         """Check the names, take the keyframe's torso height and derive the heights."""
         self.torso_id = object_id(model, "body", self.torso, "torso")
-        object_id(model, "body", self.root, "root")
-        for foot in self.feet:
-            frame_object(model, foot, "feet")
+        self.root_id = object_id(model, "body", self.root, "root")
+        self._feet = [frame_object(model, foot, "feet") for foot in self.feet]
         data = mujoco.MjData(model)
         data.qpos[:] = self.qpos_ref
         mujoco.mj_kinematics(model, data)
@@ -203,6 +225,10 @@ class HumanoidGetup(Problem):
         self.stand_height = h["stand_height"] or h["stand_fraction"] * self.torso_height
         self.handover_height = h["handover_height"] or self.stand_height
         self.release_height = h["release_height"] or h["release_fraction"] * self.stand_height
+        #: Dofs of the joints other than free ones (the posture of :meth:`is_up`).
+        self._joint_dofs = np.flatnonzero(
+            model.jnt_type[model.dof_jntid] != mujoco.mjtJoint.mjJNT_FREE
+        )
         #: Scratch data of :meth:`is_up` and :meth:`is_down` (kinematics only).
         self._stage_data = mujoco.MjData(model)
 
@@ -296,11 +322,46 @@ class HumanoidGetup(Problem):
         mujoco.mj_kinematics(self.model, data)
         return float(data.xpos[self.torso_id, 2]), float(data.xmat[self.torso_id, 8])
 
+    def balance_state(self, state: np.ndarray) -> tuple[float, float]:
+        r"""Speed :math:`\|\dot c\|` (m/s) of the centre of mass of the ``root``'s subtree
+        and the horizontal distance :math:`\|c_{xy} - \bar p_{xy}\|` (m) of :math:`c` from
+        the midpoint :math:`\bar p` of the feet, for a state ``(nstate,)``."""
+        model, data = self.model, self._stage_data
+        data.qpos[:] = np.asarray(state)[: self.nq]
+        data.qvel[:] = np.asarray(state)[self.nq : self.nq + self.nv]
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        mujoco.mj_comVel(model, data)
+        mujoco.mj_subtreeVel(model, data)
+        feet = [(data.site_xpos if kind == "site" else data.xpos)[i] for kind, i in self._feet]
+        offset = data.subtree_com[self.root_id, :2] - 0.5 * (feet[0][:2] + feet[1][:2])
+        speed = float(np.linalg.norm(data.subtree_linvel[self.root_id]))
+        return speed, float(np.linalg.norm(offset))
+
+    def posture_distance(self, state: np.ndarray) -> float:
+        r"""Distance :math:`\|q_j \ominus q_{j,ref}\|_2` (rad) of the joint angles of a
+        state ``(nstate,)`` from the keyframe's (the floating root left out)."""
+        dq = self.state_difference(state, self.reference_state())[: self.nv]
+        return float(np.linalg.norm(dq[self._joint_dofs]))
+
     def is_up(self, state: np.ndarray) -> bool:
-        """The torso is at least ``handover_height`` high and tilted at most
-        ``handover_tilt`` from vertical, for a state ``(nstate,)``."""
+        """For a state ``(nstate,)``: the torso is at least ``handover_height`` high and
+        tilted at most ``handover_tilt`` from vertical, and (when set) the centre of mass
+        moves at most ``handover_speed`` and lies at most ``handover_offset`` from the
+        feet's midpoint (:meth:`balance_state`), and the joints are at most
+        ``handover_posture`` from the keyframe's (:meth:`posture_distance`)."""
         height, up = self._torso(state)
-        return height >= self.handover_height and up >= np.cos(self.handover_tilt)
+        if height < self.handover_height or up < np.cos(self.handover_tilt):
+            return False
+        limit = self.handover_posture
+        if limit is not None and self.posture_distance(state) > limit:
+            return False
+        if self.handover_speed is None and self.handover_offset is None:
+            return True
+        speed, offset = self.balance_state(state)
+        return (self.handover_speed is None or speed <= self.handover_speed) and (
+            self.handover_offset is None or offset <= self.handover_offset
+        )
 
     def is_down(self, state: np.ndarray) -> bool:
         """The torso is lower than ``release_height``, for a state ``(nstate,)``."""
@@ -332,9 +393,26 @@ class HumanoidGetup(Problem):
 
         Measured on an H100 in the real-time loop (issue #17,
         ``benchmarks/results/humanoid_getup_handover_*_h100.json``) it is not better than
-        the get-up planner alone: the stand controller too lets the body fall after 1-3 s
-        up (best variant 1/10 over seeds 100-109, the plain PS 3/10), so
-        :func:`mpcbox.make_controller` keeps the plain planner.
+        the get-up planner alone with a sampling standing stage: the stand controller too
+        lets the body fall after 1-3 s up (best variant 1/10 over seeds 100-109, the plain
+        PS 3/10), so :func:`mpcbox.make_controller` keeps the plain planner.
+
+        The standing stage may be a feedback law (``"lqr"``, ``"qp"``): it runs at the
+        get-up controller's period (:class:`~mpcbox.controllers.handover.HandOver` needs
+        one period), its control held between calls, and LQR designs its gain for that hold
+        (:class:`~mpcbox.controllers.lqr.LQRConfig` ``period``; the one-step gain of the
+        0.005 s model, held 0.02 s, falls from the keyframe at rest). Such a law is local,
+        and it does not help this planner (``benchmarks/humanoid_getup_stage_basin.py``,
+        ``results/humanoid_getup_stage_basin.json``, CPU, lock-step, seeds 1-3): the
+        planner stands on one leg, its joints 2.7-3.7 rad from the keyframe's, while at
+        rest LQR holds random joint offsets of 0.05 rad in 1 of 3 draws and QP-MPC 0.1 rad
+        in 3 of 3, 0.25 rad in 1 of 3; neither held the torso up for 2 s from any of the
+        planner's standing states (LQR 0/130, QP-MPC 0/44). In the hand-over each took
+        over and the torso fell below 0.9 m 0.4-0.8 s later: 0 of 2 seeds met the goal
+        with either, against 2 of 2 for the planner alone on the same starts
+        (``results/humanoid_getup_feedback_stage_cpu_lockstep.json``).
+        ``handover_posture`` (with ``handover_speed`` and ``handover_offset``) keeps such a
+        stage out unless the body is near the equilibrium it was designed about.
 
         Args:
             name: The get-up controller (a key of :attr:`controller_configs`).
@@ -342,18 +420,28 @@ class HumanoidGetup(Problem):
                 default ``name``).
             transfer: Warm-start each incoming planner with the outgoing plan (else a cold
                 start from its reference control).
-            stand_options: Overrides of the standing controller's config.
+            stand_options: Overrides of the standing controller's config (its ``period``
+                defaults to the get-up controller's).
             stand_task: Options of :meth:`stand_problem` (the standing costs).
             **overrides: Overrides of the get-up controller's config; ``backend``,
-                ``device`` and ``seed`` apply to both.
+                ``device`` and ``seed`` apply to both when the standing controller has
+                them (LQR and QP-MPC have none).
+
+        Raises:
+            UnknownNameError: If ``name`` or ``stand`` is not a registered controller.
+            UnknownOptionError: For an option that its controller does not have.
         """
-        shared = {k: overrides[k] for k in ("backend", "device", "seed") if k in overrides}
         getup = make_controller(name, self, **overrides)
         stand_name = name if stand is None else stand
+        fields = _config_fields(controller_class(stand_name))
+        options = {k: overrides[k] for k in ("backend", "device", "seed") if k in overrides}
+        options = {k: v for k, v in options.items() if k in fields}
+        if "period" in fields:
+            options["period"] = getup.period
         keeper = make_controller(
             stand_name,
             self.stand_problem(**(stand_task or {})),
-            **{**shared, **(stand_options or {})},
+            **{**options, **(stand_options or {})},
         )
         return HandOver(
             getup,
@@ -363,3 +451,9 @@ class HumanoidGetup(Problem):
             transfer=transfer,
             name=f"{name}+{stand_name}",
         )
+
+
+def _config_fields(cls: type) -> set[str]:
+    """Option names of a controller class's config dataclass (empty without one)."""
+    config = getattr(cls, "config_class", None)
+    return {f.name for f in dataclasses.fields(config)} if config is not None else set()
