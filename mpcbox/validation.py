@@ -103,6 +103,11 @@ def positive(name: str, value: object) -> float:
     return val
 
 
+def optional_positive(name: str, value: object) -> float | None:
+    """``None`` for ``None``, else :func:`positive`."""
+    return None if value is None else positive(name, value)
+
+
 def non_negative(name: str, value: object) -> float:
     """Check ``0 <= value < inf`` and return it as float."""
     val = number(name, value)

@@ -33,7 +33,7 @@ from mpcbox.controllers.base import Controller
 from mpcbox.controllers.sampling.traces import PlannerTrace
 from mpcbox.core.problem import Problem
 from mpcbox.sim.trace_geoms import STYLES
-from mpcbox.validation import integer, one_of, positive
+from mpcbox.validation import integer, one_of, optional_positive, positive
 
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
@@ -71,7 +71,7 @@ class Viewer(abc.ABC):
         self.style = one_of("style", style, STYLES)
         self.traces = integer("traces", traces, 0)
         self.site, self.body = site, body
-        self.radius = None if radius is None else positive("radius", radius)
+        self.radius = optional_positive("radius", radius)
         self.frames = 0
         self.model: mujoco.MjModel | None = None
         self.data: mujoco.MjData | None = None

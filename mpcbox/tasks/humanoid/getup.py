@@ -20,7 +20,13 @@ from mpcbox.errors import InvalidArgumentError, InvalidTypeError
 from mpcbox.registry import controller_class, make_controller
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.stand import HumanoidStand
-from mpcbox.validation import in_range, non_negative, non_negative_weights, positive
+from mpcbox.validation import (
+    in_range,
+    non_negative,
+    non_negative_weights,
+    optional_positive,
+    positive,
+)
 
 #: Config shared by the get-up's sampling controllers, the best of a small screen on an
 #: H100 (benchmarks/humanoid_getup.py; results/rt17_h100_run2_getup_screen.json): 1024
@@ -174,18 +180,12 @@ class HumanoidGetup(Problem):
         self.torso, self.root = torso, torso if root is None else root
         self.feet = tuple(feet)
         self._heights = {
-            "stand_height": None
-            if stand_height is None
-            else positive("stand_height", stand_height),
+            "stand_height": optional_positive("stand_height", stand_height),
             "stand_fraction": in_range(
                 "stand_fraction", stand_fraction, 0.0, 1.0, low_open=True, high_open=False
             ),
-            "handover_height": None
-            if handover_height is None
-            else positive("handover_height", handover_height),
-            "release_height": None
-            if release_height is None
-            else positive("release_height", release_height),
+            "handover_height": optional_positive("handover_height", handover_height),
+            "release_height": optional_positive("release_height", release_height),
             "release_fraction": in_range(
                 "release_fraction", release_fraction, 0.0, 1.0, low_open=True, high_open=True
             ),
@@ -193,15 +193,9 @@ class HumanoidGetup(Problem):
         self.hold = non_negative("hold", hold)
         self.settle = non_negative("settle", settle)
         self.handover_tilt = positive("handover_tilt", handover_tilt)
-        self.handover_speed = (
-            None if handover_speed is None else positive("handover_speed", handover_speed)
-        )
-        self.handover_offset = (
-            None if handover_offset is None else positive("handover_offset", handover_offset)
-        )
-        self.handover_posture = (
-            None if handover_posture is None else positive("handover_posture", handover_posture)
-        )
+        self.handover_speed = optional_positive("handover_speed", handover_speed)
+        self.handover_offset = optional_positive("handover_offset", handover_offset)
+        self.handover_posture = optional_positive("handover_posture", handover_posture)
         self._model_source = model
         kwargs.setdefault("keyframe", "stand")
         super().__init__(scene_path("humanoid.xml") if model is None else model, **kwargs)

@@ -38,6 +38,7 @@ from mpcbox.validation import (
     finite_array,
     non_negative,
     one_of,
+    optional_positive,
     positive,
 )
 
@@ -219,7 +220,7 @@ class LeggedBalance(Problem):
         self.ctrl_units = one_of("ctrl_units", ctrl_units, UNITS)
         self.fall_fraction = positive("fall_fraction", fall_fraction)
         self.fall_height = None if fall_height is None else finite("fall_height", fall_height)
-        self.fall_tilt = None if fall_tilt is None else positive("fall_tilt", fall_tilt)
+        self.fall_tilt = optional_positive("fall_tilt", fall_tilt)
         self.weights = dict(
             balance=non_negative("balance_cost", balance_cost),
             joint=_weight("joint_cost", joint_cost),
@@ -229,9 +230,7 @@ class LeggedBalance(Problem):
         if noise_torque is not None:
             noise_fraction = None
         self.noise_fraction, self.noise_torque = noise_fraction, noise_torque
-        self.recovery_tilt = (
-            None if recovery_tilt is None else positive("recovery_tilt", recovery_tilt)
-        )
+        self.recovery_tilt = optional_positive("recovery_tilt", recovery_tilt)
 
         spec = load_spec(model)
         base = compile_spec(spec)

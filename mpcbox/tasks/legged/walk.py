@@ -15,7 +15,7 @@ from mpcbox.errors import InvalidArgumentError
 from mpcbox.sim.measures import Measure
 from mpcbox.tasks.legged.measures import TargetDistance, Tilt
 from mpcbox.tasks.legged.quadruped import DM_CONTROL_FEET, QuadrupedStand, dm_control_quadruped
-from mpcbox.validation import finite_array, non_negative_weights, positive
+from mpcbox.validation import finite_array, non_negative_weights, optional_positive, positive
 
 #: Config shared by the walk's sampling controllers, sized for the CPU backend: 128
 #: candidates, a 0.5 s horizon of 50 planning steps of 0.01 s and four cubic knots, noise
@@ -138,7 +138,7 @@ class QuadrupedWalk(QuadrupedStand):
         self.target_arg = None if target is None else finite_array("target", target, (2,))
         self.distance = positive("distance", distance)
         self.radius = positive("radius", radius)
-        self.time_limit = None if time_limit is None else positive("time_limit", time_limit)
+        self.time_limit = optional_positive("time_limit", time_limit)
         self.walk_weights = non_negative_weights(
             distance_cost=distance_cost,
             height_cost=height_cost,
