@@ -26,8 +26,8 @@ import argparse
 import json
 import os
 import sys
-import time
 from pathlib import Path
+from time import perf_counter
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
@@ -37,6 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from json_report import finish  # benchmarks/ is not a package
 
+from mpcbox.comparison.records import cpu_name
 from mpcbox.controllers.base import Controller
 from mpcbox.registry import make_controller, task_class
 from mpcbox.sim.simulation import simulate
@@ -64,9 +65,9 @@ class PartTimer(Controller):
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
         before = len(self.inner._iters)
-        start = time_now()
+        start = perf_counter()
         out = self.inner(state, time)
-        total = time_now() - start
+        total = perf_counter() - start
         self.last_call = self.inner.last_call
         timing = self.inner.timing
         iters = self.inner._iters[-1] if len(self.inner._iters) > before else -1
@@ -76,10 +77,6 @@ class PartTimer(Controller):
     @property
     def stats(self) -> dict[str, float]:
         return self.inner.stats
-
-
-def time_now() -> float:
-    return time.perf_counter()
 
 
 def pct(values: np.ndarray, q: float) -> float:
@@ -176,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--machine", default=None, help="what runs it (e.g. the host's CPU)")
     parser.add_argument("--json", default="")
     args = parser.parse_args(argv)
-    t0 = time.perf_counter()
+    t0 = perf_counter()
     robots = [r for r in args.robots.split(",") if r]
     for robot in robots:
         if robot not in ROBOTS:
@@ -197,19 +194,9 @@ def main(argv: list[str] | None = None) -> int:
         },
         "load_average_at_end": [round(x, 2) for x in os.getloadavg()],
     }
-    cpu = _cpu_model()
-    machine = args.machine or f"{cpu}, {len(os.sched_getaffinity(0))} core(s) allowed"
+    cores = "?" if affinity is None else len(affinity)
+    machine = args.machine or f"{cpu_name()}, {cores} core(s) allowed"
     return finish(out, args.json, started=t0, machine=machine)
-
-
-def _cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return "unknown CPU"
 
 
 if __name__ == "__main__":
