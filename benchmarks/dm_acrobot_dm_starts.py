@@ -248,16 +248,7 @@ def hold_only(args: argparse.Namespace) -> None:
         )
         print(json.dumps(rows[-1]), flush=True)
     rows.append({"controller": "mppi", "variant": "tuned", **closed_loop("mppi", start, 3.0)})
-    out = {
-        "benchmark": "dm_acrobot_hold",
-        "start": start.tolist(),
-        "duration_s": 3.0,
-        "machine": {"description": "2-core sandbox CPU, shared", "cpus": os.cpu_count()},
-        "runs": rows,
-    }
-    path = RESULTS.with_name("dm_acrobot_hold.json")
-    path.write_text(json.dumps(out, indent=2) + "\n")
-    print(json.dumps(out, indent=2))
+    write_hold_report("dm_acrobot_hold", start, rows)
 
 
 def warm_start_check(seconds: float = 1.0, ticks: int = 40, shift: float = 0.04) -> dict:
@@ -301,7 +292,12 @@ def prediction_check(trials: int = 20, seed: int = 0) -> dict:
     and maximum (m)."""
     base = DmAcrobotSwingup(threads=1).model
     rng = np.random.default_rng(seed)
-    models = {"rk4_0.02": (1, 0.02), "implicitfast_0.02": (3, 0.02), "implicitfast_0.01": (3, 0.01)}
+    rk4, implicitfast = mujoco.mjtIntegrator.mjINT_RK4, mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    models = {
+        "rk4_0.02": (rk4, 0.02),
+        "implicitfast_0.02": (implicitfast, 0.02),
+        "implicitfast_0.01": (implicitfast, 0.01),
+    }
     errors: dict = {f"{name}@{t}s": [] for name in models for t in (0.5, 1.0, 2.0)}
 
     def run(model: mujoco.MjModel, state: np.ndarray, knots: np.ndarray, seconds: float):
@@ -344,15 +340,19 @@ def mppi_hold(args: argparse.Namespace) -> None:
             }
         )
         print(json.dumps(rows[-1]), flush=True)
+    write_hold_report("dm_acrobot_mppi_hold", start, rows)
+
+
+def write_hold_report(benchmark: str, start: np.ndarray, rows: list[dict]) -> None:
+    """Print the hold check's JSON and write it to ``results/<benchmark>.json``."""
     out = {
-        "benchmark": "dm_acrobot_mppi_hold",
+        "benchmark": benchmark,
         "start": start.tolist(),
         "duration_s": 3.0,
         "machine": {"description": "2-core sandbox CPU, shared", "cpus": os.cpu_count()},
         "runs": rows,
     }
-    path = RESULTS.with_name("dm_acrobot_mppi_hold.json")
-    path.write_text(json.dumps(out, indent=2) + "\n")
+    RESULTS.with_name(f"{benchmark}.json").write_text(json.dumps(out, indent=2) + "\n")
     print(json.dumps(out, indent=2))
 
 
