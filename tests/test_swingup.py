@@ -214,14 +214,20 @@ def test_dm_acrobot_plans_in_rk4_and_its_mppi_adds_the_lqr_value() -> None:
     assert mppi.terminal_cost(off) > problem.terminal_cost(off) + 1.0
 
 
-def test_dm_acrobot_default_mppi_holds_the_upright_from_an_elbow_offset() -> None:
+def _dm_acrobot_hold(controller: str):
+    """The task's default ``controller`` for 3 s from the upright with the elbow 0.05 rad
+    off, at rest: the start, the problem, the result and the tip's distance from upright."""
     pytest.importorskip("dm_control")
     from mpcbox.tasks.swingup.dm_control import DmAcrobotSwingup
 
-    start = np.array([0.0, 0.05, 0.0, 0.0])  # upright, elbow 0.05 rad off, at rest
+    start = np.array([0.0, 0.05, 0.0, 0.0])
     problem = DmAcrobotSwingup(initial=start, threads=1)
-    result = mpcbox.simulate(problem, mpcbox.make_controller("mppi", problem), 3.0)
-    errors = problem.upright_errors(result.states)
+    result = mpcbox.simulate(problem, mpcbox.make_controller(controller, problem), 3.0)
+    return start, problem, result, problem.upright_errors(result.states)
+
+
+def test_dm_acrobot_default_mppi_holds_the_upright_from_an_elbow_offset() -> None:
+    _, _, result, errors = _dm_acrobot_hold("mppi")
     assert result.failure is None
     # The same start falls without control (the iLQR test below checks it): caught (the tip
     # swings out to about the 0.2 m tolerance while the chain is caught), then settled within
@@ -231,13 +237,7 @@ def test_dm_acrobot_default_mppi_holds_the_upright_from_an_elbow_offset() -> Non
 
 
 def test_dm_acrobot_default_ilqr_holds_the_upright_from_an_elbow_offset() -> None:
-    pytest.importorskip("dm_control")
-    from mpcbox.tasks.swingup.dm_control import DmAcrobotSwingup
-
-    start = np.array([0.0, 0.05, 0.0, 0.0])  # upright, elbow 0.05 rad off, at rest
-    problem = DmAcrobotSwingup(initial=start, threads=1)
-    result = mpcbox.simulate(problem, mpcbox.make_controller("ilqr", problem), 3.0)
-    errors = problem.upright_errors(result.states)
+    start, problem, result, errors = _dm_acrobot_hold("ilqr")
     assert result.failure is None
     # Without control the chain falls: the tip leaves the 0.2 m ball within 1.5 s.
     data = mujoco.MjData(problem.model)
