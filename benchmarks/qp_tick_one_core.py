@@ -64,13 +64,14 @@ class PartTimer(Controller):
         self.inner.reset()
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
-        before = len(self.inner._iters)
+        before = self.inner.last_plan
         start = perf_counter()
         out = self.inner(state, time)
         total = perf_counter() - start
         self.last_call = self.inner.last_call
         timing = self.inner.timing
-        iters = self.inner._iters[-1] if len(self.inner._iters) > before else -1
+        plan = self.inner.last_plan  # a new plan object only when this tick solved
+        iters = plan.iterations if plan is not None and plan is not before else -1
         self.parts.append((total, timing.update, timing.solve, iters))
         return out
 
