@@ -84,15 +84,16 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-import dm_acrobot_reachability as reach
 from swingup_dm_control import perturbed_start, run_swingup
 
 import mpcbox
 from mpcbox.controllers.handover import HandOver
 from mpcbox.errors import PlanningModelWarning
-from mpcbox.tasks.swingup.dm_control import DmAcrobotSwingup
+from mpcbox.tasks.swingup.dm_control import SWING_GUESSES, DmAcrobotSwingup
 
 RESULTS = Path(__file__).parent / "results" / "dm_acrobot_dm_starts.json"
+#: Settings of ``--controllers ilqr_track`` (:meth:`DmAcrobotSwingup.offline_swingup`).
+TRACK: dict = {"seconds": 5.0, "iterations": 60, "angle": 3000.0}
 TARGET_S = 5.0
 TOLERANCE = 0.2
 #: The task's iLQR defaults before issue #13's change (with ``plan_rk4=False``).
@@ -163,25 +164,18 @@ def energy_deficit(state: np.ndarray) -> float:
 
 
 def oracle(state: np.ndarray, seconds: float, iterations: int) -> dict:
-    """Best end-only iLQR plan over ``seconds`` from ``state`` (see the module docstring)."""
-    problem, solver = reach.end_cost_solver(
-        seconds, iterations, rest=True, initial=state, planning_timestep=0.02, plan_rk4=True
-    )
-    t = problem.dt * np.arange(solver.horizon)
-    best = None
+    """Best end-only iLQR plan over ``seconds`` from ``state`` (see the module docstring):
+    the offline plan of the task's :meth:`~DmAcrobotSwingup.offline_swingup`."""
+    planner = DmAcrobotSwingup(threads=1).offline_swingup(seconds=seconds, iterations=iterations)
+    tracker = planner.controllers[0]
     wall = time.perf_counter()
-    for omega, phase in reach.GUESSES:
-        result = solver.solve(state, np.cos(omega * t + phase)[:, None])
-        tip = float(problem.upright_errors(result.states)[-1])
-        speed = float(np.linalg.norm(result.states[-1, 2:]))
-        if best is None or tip < best[0]:
-            best = (tip, speed, omega, phase)
-    assert best is not None
+    best = tracker.plan(state)
+    omega, phase = SWING_GUESSES[tracker.best]
     return {
-        "oracle_tip_error_m": round(best[0], 4),
-        "oracle_final_speed_rad_s": round(best[1], 3),
-        "oracle_guess": [best[2], round(best[3], 4)],
-        "oracle_reaches": bool(best[0] < TOLERANCE),
+        "oracle_tip_error_m": round(float(tracker.problem.upright_error(best.states[-1])), 4),
+        "oracle_final_speed_rad_s": round(float(np.linalg.norm(best.states[-1, 2:])), 3),
+        "oracle_guess": [omega, round(phase, 4)],
+        "oracle_reaches": bool(tracker.score(best) < TOLERANCE),
         "oracle_wall_s": round(time.perf_counter() - wall, 1),
     }
 
@@ -207,22 +201,60 @@ def closed_loop(
     **overrides: object,
 ) -> dict:
     """The task's tuned ``controller`` (config fields replaced by ``overrides``) from
-    ``state`` over ``duration`` s; ``plan_rk4`` replaces the task's default when given."""
+    ``state`` over ``duration`` s; ``plan_rk4`` replaces the task's default when given.
+    ``"ilqr_track"`` is the task's :meth:`~DmAcrobotSwingup.offline_swingup` with the
+    settings of :data:`TRACK`."""
     options = {} if plan_rk4 is None else {"plan_rk4": plan_rk4}
     problem = DmAcrobotSwingup(initial=state, threads=1, **options)
     if controller == "mppi_handover":
         ctrl = mppi_handover(problem, **overrides)
+    elif controller == "ilqr_track":
+        ctrl = problem.offline_swingup(**TRACK, **overrides)
     else:
         ctrl = mpcbox.make_controller(controller, problem, **overrides)
     failure, t_up, errors, ticks, wall = run_swingup(problem, ctrl, duration)
-    return {
+    row = {
         "success": failure is None,
         "within_5s": bool(failure is None and t_up <= TARGET_S),
         "time_to_upright_s": None if np.isnan(t_up) else round(float(t_up), 2),
+        "first_inside_s": first_inside(errors, problem.model.opt.timestep),
         "closest_m": round(float(errors.min()), 3),
         "final_error_m": round(float(errors[-1]), 3),
         "median_tick_ms": round(float(np.median(ticks)), 1),
         "wall_s": round(wall, 1),
+    }
+    if controller == "ilqr_track":
+        row.update(track_report(problem, ctrl, errors))
+    return row
+
+
+def first_inside(errors: np.ndarray, dt: float) -> float | None:
+    """First time (s) the tip is within the tolerance (``None`` if never)."""
+    inside = np.flatnonzero(errors < TOLERANCE)
+    return None if inside.size == 0 else round(float(inside[0] * dt), 2)
+
+
+def track_report(problem: DmAcrobotSwingup, ctrl: HandOver, errors: np.ndarray) -> dict:
+    """The offline plan of an ``ilqr_track`` run (its final tip distance, kept guess and
+    solve time), how closely the simulated tip's distance from the target followed the
+    plan's until the hand-over, and the hand-over's time (no plan when it hands over at
+    the start)."""
+    tracker = ctrl.controllers[0]
+    if tracker.tracker is None:
+        return {"handover_s": ctrl.switch_times[0]}
+    plan_errors = problem.upright_errors(tracker.tracker.reference.states)
+    switch = ctrl.switch_times[0] if ctrl.switch_times else None
+    steps = plan_errors.size if switch is None else round(switch / problem.model.opt.timestep)
+    steps = min(steps, plan_errors.size, errors.size)
+    omega, phase = SWING_GUESSES[tracker.best]
+    return {
+        "plan_tip_error_m": round(float(plan_errors[-1]), 4),
+        "plan_guess": [omega, round(phase, 4)],
+        "plan_wall_s": round(tracker.plan_seconds, 1),
+        "tip_distance_vs_plan_max_m": round(
+            float(np.abs(errors[:steps] - plan_errors[:steps]).max()), 4
+        ),
+        "handover_s": None if switch is None else round(switch, 2),
     }
 
 
@@ -381,10 +413,12 @@ def main() -> None:
         "--overrides", default="{}", help="JSON config fields replacing the tuned ones"
     )
     parser.add_argument("--oracle-from", default=None, help="reuse the oracle of this results JSON")
+    parser.add_argument("--track", default="{}", help="JSON settings replacing TRACK's")
     parser.add_argument("--out", default=str(RESULTS))
     args = parser.parse_args()
     warnings.simplefilter("ignore", PlanningModelWarning)
     controllers = args.controllers.split(",")
+    TRACK.update(json.loads(args.track))
     overrides = json.loads(args.overrides)
     reused = {}
     if args.oracle_from:

@@ -32,11 +32,14 @@ import numpy as np
 
 from mpcbox.controllers.ilqr.solver import ILQRSolver
 from mpcbox.errors import PlanningModelWarning
-from mpcbox.tasks.swingup import SwingupWeights
-from mpcbox.tasks.swingup.dm_control import DmAcrobotSwingup
+from mpcbox.tasks.swingup.dm_control import (
+    END_SOLVER_OPTIONS,
+    SWING_GUESSES,
+    DmAcrobotSwingup,
+    end_weights,
+)
 
 RESULTS = Path(__file__).parent / "results" / "dm_acrobot_reachability.json"
-GUESSES = [(w, phi) for w in (2.67, 4.0, 6.9) for phi in (0.0, np.pi / 2)]
 
 
 def energy_needed(problem: DmAcrobotSwingup) -> dict:
@@ -56,38 +59,19 @@ def energy_needed(problem: DmAcrobotSwingup) -> dict:
     }
 
 
-def end_weights(rest: bool = True, ctrl: float = 0.01) -> SwingupWeights:
-    """The end-only cost: tip weight 1000 and (``rest``) velocity weight 100 at the end;
-    small running velocity (0.001) and control (``ctrl``) weights."""
-    return SwingupWeights(
-        site=0.0,
-        velocity=0.001,
-        ctrl=ctrl,
-        position=0.0,
-        angle=0.0,
-        terminal_site=1000.0,
-        terminal_velocity=100.0 if rest else 0.0,
-        terminal_position=0.0,
-        terminal_angle=0.0,
-    )
-
-
 def end_cost_solver(
     seconds: float, iterations: int, rest: bool = True, **options
 ) -> tuple[DmAcrobotSwingup, ILQRSolver]:
-    """The acrobot under :func:`end_weights` (``options``: e.g. ``planning_timestep``,
-    ``plan_rk4``) and an iLQR solver over ``seconds`` on Tassa's regularization schedule."""
+    """The acrobot under the task's :func:`~mpcbox.tasks.swingup.dm_control.end_weights`
+    (``options``: e.g. ``planning_timestep``, ``plan_rk4``) and an iLQR solver over
+    ``seconds`` with the task's ``END_SOLVER_OPTIONS`` (Tassa's regularization schedule)."""
     problem = DmAcrobotSwingup(threads=1, weights=end_weights(rest), **options)
     solver = ILQRSolver(
         problem,
         horizon=round(seconds / problem.dt),
         max_iterations=iterations,
-        tolerance=1e-9,
-        regularization_schedule="tassa",
-        regularization_factor=1.6,
-        regularization_min=1e-6,
-        regularization=1.0,
         threads=1,
+        **END_SOLVER_OPTIONS,
     )
     return problem, solver
 
@@ -100,7 +84,7 @@ def solve_horizon(seconds: float, rest: bool, iterations: int) -> dict:
     horizon = solver.horizon
     t = problem.dt * np.arange(horizon)
     restarts = []
-    for w, phi in GUESSES:
+    for w, phi in SWING_GUESSES:
         wall = time.perf_counter()
         res = solver.solve(problem.initial_state(), np.cos(w * t + phi)[:, None])
         restarts.append(

@@ -55,14 +55,13 @@ import scipy.linalg
 sys.path.insert(0, str(Path(__file__).parent))
 
 import dm_acrobot_min_time as mt
-import dm_acrobot_reachability as reach
 
 from mpcbox import simulate
 from mpcbox.controllers.ilqr.solver import ILQRSolver
 from mpcbox.controllers.trajectory import TrajectoryTracker
 from mpcbox.controllers.trajectory.reference import TrackingReference, riccati_gains
 from mpcbox.errors import PlanningModelWarning
-from mpcbox.tasks.swingup.dm_control import DmAcrobotSwingup, suite_path
+from mpcbox.tasks.swingup.dm_control import DmAcrobotSwingup, end_weights, suite_path
 
 RESULTS = Path(__file__).parent / "results" / "dm_acrobot_track.json"
 WAVE = (2.928, 4.584)
@@ -209,7 +208,7 @@ def main() -> None:
 
     # 2. iLQR by multiple shooting, shifted by whole turns to end at the model's upright.
     shift = np.r_[-guess["goal"], 0.0, 0.0]
-    weights = reach.end_weights(ctrl=args.ilqr_ctrl_weight)
+    weights = end_weights(ctrl=args.ilqr_ctrl_weight)
     problem = DmAcrobotSwingup(plan_rk4=True, threads=1, weights=weights)
     steps = guess["ctrl"].size
     solver = ILQRSolver(

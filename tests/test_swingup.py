@@ -268,3 +268,31 @@ def test_acrobot_offline_ilqr_reaches_upright_and_stays_within_tolerance() -> No
     # The plan is a rollout of its controls on the simulated model (same timestep).
     replay = problem.rollout(x0, result.ctrls).states[0]
     assert np.max(np.abs(replay - result.states)) < 1e-9
+
+
+def test_dm_acrobot_offline_swingup_tracks_its_plan_and_hands_over() -> None:
+    pytest.importorskip("dm_control")
+    from mpcbox.tasks.swingup.dm_control import DmAcrobotSwingup
+
+    start = np.array([1.0, -1.5, 0.0, 0.0])  # at rest, the tip 0.69 m from the target
+    problem = DmAcrobotSwingup(initial=start, threads=1)
+    ctrl = problem.offline_swingup(seconds=2.0, iterations=15)
+    result = mpcbox.simulate(problem, ctrl, 2.06)
+    errors = problem.upright_errors(result.states)
+    tracker, hold = ctrl.controllers
+    # The kept plan is the guess whose plan ends nearest the target, inside the tolerance.
+    ends = [problem.upright_error(plan.states[-1]) for plan in tracker.plans]
+    assert len(ends) == 6 and tracker.best == int(np.argmin(ends)) and min(ends) < 0.2
+    # The plan was made once, before the loop, and reported offline (not as a tick).
+    assert result.metrics.offline_ms >= 1e3 * tracker.plan_seconds
+    # Tracked on the simulation grid (RK4, 0.01 s: the plan's 0.02 s controls held over
+    # two steps), the simulated tip's distance follows the plan's exactly.
+    dt = problem.model.opt.timestep
+    plan_errors = problem.upright_errors(tracker.tracker.reference.states)
+    steps = round(2.0 / dt)
+    assert np.abs(errors[: steps + 1] - plan_errors).max() < 1e-6
+    # The hand-over engages once, at the step after the plan's end, where the MPC's first
+    # guess is the rest of the plan: the reference control (0) beyond its end.
+    assert ctrl.switches == 1 and ctrl.switch_times[0] == pytest.approx(2.0 + dt)
+    assert ctrl.phase == 1 and hold.last_result is not None
+    np.testing.assert_array_equal(hold.ctrls_init, np.zeros((hold.horizon, 1)))

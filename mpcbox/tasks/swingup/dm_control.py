@@ -15,11 +15,16 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from mpcbox.controllers.handover import HandOver
 from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.sampling.config import MPPIConfig
+from mpcbox.controllers.trajectory.offline_plan import OfflinePlanTracker
+from mpcbox.controllers.trajectory.reference import TrackingWeights
 from mpcbox.errors import ModelNotFoundError
+from mpcbox.registry import make_controller
 from mpcbox.tasks.swingup.task import Swingup
 from mpcbox.tasks.swingup.weights import SwingupWeights
+from mpcbox.validation import positive
 
 
 def suite_path(name: str) -> Path:
@@ -42,6 +47,40 @@ def suite_path(name: str) -> Path:
             f"dm_control's suite has no model {name!r}; it has: {', '.join(found)}"
         )
     return path
+
+
+#: Control guesses ``cos(w t + phi)`` of the acrobot's offline swing-up: ``w`` the slow
+#: hanging mode (2.67 rad/s), 4 rad/s and the fast mode (6.9 rad/s); ``phi`` 0 or pi/2.
+SWING_GUESSES: tuple[tuple[float, float], ...] = tuple(
+    (w, phi) for w in (2.67, 4.0, 6.9) for phi in (0.0, np.pi / 2)
+)
+#: iLQR options of the acrobot's offline swing-up: Tassa's regularization schedule (factor
+#: 1.6, from 1), run to the iteration cap.
+END_SOLVER_OPTIONS: dict[str, Any] = {
+    "tolerance": 1e-9,
+    "regularization_schedule": "tassa",
+    "regularization_factor": 1.6,
+    "regularization_min": 1e-6,
+    "regularization": 1.0,
+}
+
+
+def end_weights(rest: bool = True, ctrl: float = 0.01, angle: float = 0.0) -> SwingupWeights:
+    """The acrobot's end-only cost: tip weight 1000, (``rest``) velocity weight 100 and
+    ``angle`` on the wrapped joint angles (for a Problem whose ``joints`` name them) at the
+    end; small running velocity (0.001) and control (``ctrl``) weights, so no running tip
+    cost pulls a plan into the one-link-up local minimum."""
+    return SwingupWeights(
+        site=0.0,
+        velocity=0.001,
+        ctrl=ctrl,
+        position=0.0,
+        angle=0.0,
+        terminal_site=1000.0,
+        terminal_velocity=100.0 if rest else 0.0,
+        terminal_position=0.0,
+        terminal_angle=angle,
+    )
 
 
 class DmCartpoleSwingup(Swingup):
@@ -222,3 +261,76 @@ class DmAcrobotSwingup(Swingup):
         kwargs.setdefault("weights", self.WEIGHTS)
         kwargs.setdefault("tolerance", 0.2)
         super().__init__(suite_path("acrobot"), **kwargs)
+
+    def swing_guesses(self, knots: int, dt: float = 0.02) -> list[np.ndarray]:
+        """The :data:`SWING_GUESSES` controls ``cos(w t + phi)``, each ``(knots, 1)``, at
+        ``t = dt k``."""
+        t = positive("dt", dt) * np.arange(knots)
+        return [np.cos(w * t + phi)[:, None] for w, phi in SWING_GUESSES]
+
+    def offline_swingup(
+        self,
+        *,
+        seconds: float = 5.0,
+        iterations: int = 60,
+        angle: float = 0.0,
+        radius: float | None = None,
+        speed: float = 0.5,
+        weights: TrackingWeights | None = None,
+        **overrides: Any,
+    ) -> HandOver:
+        """Swing up along an offline plan, then hold with the task's iLQR-MPC.
+
+        From the first measured state, an :class:`OfflinePlanTracker` plans ``seconds`` of
+        iLQR under :func:`end_weights` (with ``angle`` on the wrapped joint angles at the
+        end) on the RK4 model (0.02 s step, ``iterations`` per guess,
+        :data:`END_SOLVER_OPTIONS`) from each of :meth:`swing_guesses`, keeps the plan
+        whose last tip is nearest the target (with ``angle``: of least terminal cost) and
+        tracks it by time-varying LQR (``weights``; default: position 100, velocity 30,
+        torque 1). A :class:`~mpcbox.controllers.handover.HandOver` gives control to the
+        task's ``"ilqr"`` (config fields replaced by ``overrides``) once the plan has
+        ended, or (with ``radius``) once the tip is within ``radius`` m of the target with
+        joint speeds of norm below ``speed`` rad/s, and never hands back. At the hand-over
+        the MPC's first guess is the rest of the plan (:meth:`OfflinePlanTracker.ctrls_ahead`);
+        its first solve (``first_iterations``) reports ``"offline"`` as the MPC's does.
+
+        Returns:
+            The controller, named ``"ilqr_track"``.
+        """
+        speed = positive("speed", speed)
+        radius = None if radius is None else positive("radius", radius)
+        planner = DmAcrobotSwingup(
+            weights=end_weights(angle=angle),
+            joints={"shoulder": 0.0, "elbow": 0.0} if angle > 0 else {},
+            plan_rk4=True,
+            planning_timestep=0.02,
+            threads=1,
+        )
+        knots = round(positive("seconds", seconds) / planner.dt)
+        if weights is None:
+            weights = TrackingWeights(
+                position_weight=100.0, velocity_weight=30.0, torque_weight=1.0
+            )
+        tracker = OfflinePlanTracker(
+            planner,
+            self.swing_guesses(knots, planner.dt),
+            solver_options={**END_SOLVER_OPTIONS, "max_iterations": iterations},
+            score=lambda plan: (
+                planner.terminal_cost(plan.states[-1])
+                if angle > 0
+                else self.upright_error(plan.states[-1])
+            ),
+            weights=weights,
+        )
+        hold = make_controller("ilqr", self, **overrides)
+
+        def engage(state: np.ndarray) -> bool:
+            slow = radius is not None and np.linalg.norm(state[2:4]) < speed
+            if tracker.finished or (slow and self.upright_error(state) < radius):
+                hold.ctrls_init = tracker.ctrls_ahead(hold.horizon, hold.problem.dt)
+                return True
+            return False
+
+        return HandOver(
+            tracker, hold, engage=engage, release=lambda _: False, prime=False, name="ilqr_track"
+        )
