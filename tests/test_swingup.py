@@ -276,7 +276,7 @@ def test_dm_acrobot_offline_swingup_tracks_its_plan_and_hands_over() -> None:
 
     start = np.array([1.0, -1.5, 0.0, 0.0])  # at rest, the tip 0.69 m from the target
     problem = DmAcrobotSwingup(initial=start, threads=1)
-    ctrl = problem.offline_swingup(seconds=2.0, iterations=15)
+    ctrl = problem.offline_swingup(seconds=2.0, iterations=15, polish=5)
     result = mpcbox.simulate(problem, ctrl, 2.06)
     errors = problem.upright_errors(result.states)
     tracker, hold = ctrl.controllers
@@ -296,3 +296,25 @@ def test_dm_acrobot_offline_swingup_tracks_its_plan_and_hands_over() -> None:
     assert ctrl.switches == 1 and ctrl.switch_times[0] == pytest.approx(2.0 + dt)
     assert ctrl.phase == 1 and hold.last_result is not None
     np.testing.assert_array_equal(hold.ctrls_init, np.zeros((hold.horizon, 1)))
+
+
+def test_offline_plan_tracker_keeps_the_best_guess_and_follows_it_on_the_sim_grid() -> None:
+    from mpcbox.controllers.trajectory import OfflinePlanTracker
+
+    problem = PendulumSwingup(threads=1).with_planning_timestep(0.02)  # sim step 0.01
+    t = 0.02 * np.arange(100)
+    guesses = [np.zeros((100, 1)) + 1e-3, np.cos(4.0 * t)[:, None]]
+    score = problem.upright_error
+    ctrl = OfflinePlanTracker(
+        problem, guesses, solver_options={"max_iterations": 30}, score=lambda r: score(r.states[-1])
+    )
+    result = mpcbox.simulate(problem, ctrl, 2.0)
+    ends = [score(plan.states[-1]) for plan in ctrl.plans]
+    assert ctrl.best == int(np.argmin(ends)) and len(ends) == 2
+    # One offline call, then tracking: the simulated run is the reference (sim grid).
+    assert result.metrics.solve_ticks == 0 and result.metrics.offline_ms > 0
+    np.testing.assert_allclose(result.states, ctrl.tracker.reference.states, atol=1e-9)
+    with pytest.raises(InvalidArgumentError, match="guesses"):
+        OfflinePlanTracker(problem, [])
+    with pytest.raises(InvalidArgumentError, match="whole multiple"):
+        OfflinePlanTracker(PendulumSwingup(threads=1).with_planning_timestep(0.015), guesses)

@@ -9,8 +9,12 @@ per control guess :math:`U^{(g)}` ``(T, nu)`` and keeps the plan of lowest score
 
 The kept plan's controls, each held for one planning step :math:`\Delta t`, are repeated on
 the simulation grid (:math:`r = \Delta t / \delta t` steps of the simulation timestep
-:math:`\delta t`), rolled out from :math:`x_0` on the planning model at :math:`\delta t`
-(the simulated model itself when the Problem plans in its integrator) and tracked by
+:math:`\delta t`). The coarser model's plan drifts on the finer grid (an unstable swing
+amplifies the discretization error), so with ``polish_iterations`` the plan is first
+re-solved on the simulation grid by that many iterations of multiple shooting from its own
+states (linearly interpolated) and controls. The controls are rolled out from :math:`x_0`
+on the planning model at :math:`\delta t` (the simulated model itself when the Problem
+plans in its integrator) and tracked by
 time-varying LQR along that rollout
 (:func:`~mpcbox.controllers.trajectory.reference.tracking_reference` with the plan's own
 controls, :class:`~mpcbox.controllers.trajectory.tracker.TrajectoryTracker`), which holds
@@ -33,7 +37,7 @@ from mpcbox.controllers.trajectory.reference import TrackingWeights, tracking_re
 from mpcbox.controllers.trajectory.tracker import TrajectoryTracker
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError
-from mpcbox.validation import as_array, finite_array, positive
+from mpcbox.validation import as_array, finite_array, integer, positive
 
 #: Scores a plan; lower is better.
 PlanScore = Callable[[ILQRResult], float]
@@ -50,6 +54,7 @@ class OfflinePlanTracker(Controller):
         solver_options: Fields of :class:`~mpcbox.controllers.ilqr.config.ILQRConfig` for
             the solver (``horizon`` is taken from the guesses).
         score: Ranks the plans (default: their total cost).
+        polish_iterations: Iterations of the re-solve on the simulation grid (0: none).
         weights: Tracking weights (default
             :class:`~mpcbox.controllers.trajectory.reference.TrackingWeights`).
         name: Label in tables.
@@ -77,6 +82,7 @@ class OfflinePlanTracker(Controller):
         *,
         solver_options: Mapping[str, Any] | None = None,
         score: PlanScore | None = None,
+        polish_iterations: int = 0,
         weights: TrackingWeights | None = None,
         name: str = "offline-plan",
     ) -> None:
@@ -105,6 +111,12 @@ class OfflinePlanTracker(Controller):
             else self.problem.with_planning_timestep(problem.model.opt.timestep)
         )
         self.score: PlanScore = (lambda result: float(result.cost)) if score is None else score
+        self.polish_iterations = integer("polish_iterations", polish_iterations)
+        self.polisher = (
+            ILQRSolver(self.track_problem, **{**options, "horizon": first.shape[0] * self.substeps})
+            if self.polish_iterations > 0 and self.substeps > 1
+            else None
+        )
         self.weights = TrackingWeights() if weights is None else weights
         self.name = str(name)
         self.reset()
@@ -152,6 +164,15 @@ class OfflinePlanTracker(Controller):
         self.best = int(np.argmin([self.score(plan) for plan in self.plans]))
         kept = self.plans[self.best]
         fine = np.repeat(kept.ctrls, self.substeps, axis=0)
+        if self.polisher is not None:
+            grid = np.arange(fine.shape[0] + 1) / self.substeps
+            guess = np.stack(
+                [np.interp(grid, np.arange(kept.states.shape[0]), s) for s in kept.states.T], 1
+            )
+            polished = self.polisher.solve(
+                state, fine, states_init=guess, max_iterations=self.polish_iterations
+            )
+            fine = polished.ctrls
         states = self.track_problem.rollout(state, fine).states[0]
         ctrls = np.vstack([fine, fine[-1:]])
         reference = tracking_reference(self.track_problem, states, self.weights, ctrls=ctrls)

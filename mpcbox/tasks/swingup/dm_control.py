@@ -274,6 +274,7 @@ class DmAcrobotSwingup(Swingup):
         seconds: float = 5.0,
         iterations: int = 60,
         angle: float = 0.0,
+        polish: int = 20,
         radius: float | None = None,
         speed: float = 0.5,
         weights: TrackingWeights | None = None,
@@ -285,8 +286,10 @@ class DmAcrobotSwingup(Swingup):
         iLQR under :func:`end_weights` (with ``angle`` on the wrapped joint angles at the
         end) on the RK4 model (0.02 s step, ``iterations`` per guess,
         :data:`END_SOLVER_OPTIONS`) from each of :meth:`swing_guesses`, keeps the plan
-        whose last tip is nearest the target (with ``angle``: of least terminal cost) and
-        tracks it by time-varying LQR (``weights``; default: position 100, velocity 30,
+        whose last tip is nearest the target (with ``angle``: of least terminal cost),
+        re-solves it on the simulation's 0.01 s grid (``polish`` iterations of multiple
+        shooting: the 0.02 s plan drifts there by centimetres over a swing) and tracks it by
+        time-varying LQR (``weights``; default: position 100, velocity 30,
         torque 1). A :class:`~mpcbox.controllers.handover.HandOver` gives control to the
         task's ``"ilqr"`` (config fields replaced by ``overrides``) once the plan has
         ended, or (with ``radius``) once the tip is within ``radius`` m of the target with
@@ -320,6 +323,7 @@ class DmAcrobotSwingup(Swingup):
                 if angle > 0
                 else self.upright_error(plan.states[-1])
             ),
+            polish_iterations=polish,
             weights=weights,
         )
         hold = make_controller("ilqr", self, **overrides)
