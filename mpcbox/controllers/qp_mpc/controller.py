@@ -138,7 +138,9 @@ class QPMPC(Controller):
         config: The resolved options.
         horizon: Number of QP steps ``N``.
         dt: QP step (s).
-        period: Seconds between calls.
+        period: Seconds between calls: ``replan_period``, or the simulation model's
+            timestep with ``between_ticks="lqr"``.
+        replan_period: Seconds between solves (the config's ``period``, default ``dt``).
         substeps: Planning-model steps per QP step.
         friction: Friction coefficient of the pyramid.
         facets: Facets of the pyramid.
