@@ -60,6 +60,31 @@ with the earlier 2 s MPPI planned in RK4 and hands over to the default near the 
 0/12 (median tick 81 ms). ``dm_acrobot_hold.json``'s MPPI row is the
 earlier config. ``--no-oracle`` skips the oracle (for dev starts).
 
+Offline plan, tracked (issue #13): ``--controllers ilqr_track`` runs the task's
+:meth:`~mpcbox.tasks.swingup.dm_control.DmAcrobotSwingup.offline_swingup` with
+:data:`TRACK` (``--track`` JSON replaces its fields): the oracle's solve from the start
+(its 6 guesses, 60 iterations, 5 s), re-solved by 20 iterations on the simulation's 0.01 s
+grid (the 0.02 s plan drifts there: seed 0's ends 0.066 m from the target instead of 0.010
+m), tracked by time-varying LQR, handed over to the task's iLQR-MPC at the plan's end.
+Each row adds the plan's final tip distance and state (wrapped angles), the largest gap
+between the simulated and planned tip distances before the hand-over, and its time. No
+setting was chosen on seeds 0-11 (the angle weight on a test start, the polish count not
+tuned); its hold check is the iLQR-MPC's. Recorded (``..._ilqr_track.json``): 0/12 within
+5 s and held, 3/12 held by 10 s; the tip follows the plan exactly (0.0 m) and enters the
+ball at 4.83-4.93 s from all 5 starts the oracle reaches, then the MPC drops the chain:
+those plans end with the links bent (elbow 0.23-0.59 rad). With a terminal angle weight
+(``--track '{"angle": 3000}'``, ``..._ilqr_track_angle.json``): 0/12 (2/12 by 10 s);
+plans end upright to 0.3-5 mm from seeds 0, 1 and 7 but moving at up to 0.13 rad/s.
+``--catch-check`` (``dm_acrobot_catch.json``) runs the iLQR-MPC and the upright LQR of
+``dm_acrobot_track.py`` (:data:`TRACK_LQR`) from :data:`CATCH_STARTS` for 3 s: both hold
+the 0.05 rad elbow offset, neither 0.1 rad nor a plan end moving at 0.13 rad/s; only the
+LQR holds the upright moving at 0.01 rad/s.
+
+    nice -n 5 python benchmarks/dm_acrobot_dm_starts.py --controllers ilqr_track \
+        --oracle-from benchmarks/results/dm_acrobot_dm_starts.json --no-hanging \
+        --out benchmarks/results/dm_acrobot_dm_starts_ilqr_track.json
+    nice -n 5 python benchmarks/dm_acrobot_dm_starts.py --catch-check
+
 ``--plan-rk4 true|false`` replaces the task's ``plan_rk4`` and ``--overrides`` (JSON config
 fields) the tuned config fields in every controller run; ``--oracle-from`` copies the
 per-start oracle of an earlier results file instead of solving it again.
@@ -380,6 +405,32 @@ def mppi_hold(args: argparse.Namespace) -> None:
     write_hold_report("dm_acrobot_mppi_hold", start, rows)
 
 
+#: Starts of ``--catch-check``: near-upright rests with the links bent (the tip near the
+#: target), and two ends of tracked plans (``..._ilqr_track_angle.json``, seeds 0 and 1).
+CATCH_STARTS = [
+    [0.0, 0.05, 0.0, 0.0],
+    [0.0, 0.1, 0.0, 0.0],
+    [-0.05, 0.1, 0.0, 0.0],
+    [0.0, 0.0, -0.01, -0.006],
+    [0.002, -0.006, -0.132, -0.014],
+]
+#: The upright LQR of ``benchmarks/dm_acrobot_track.py`` (weights on angles, speeds, torque).
+TRACK_LQR: dict = {"Q": np.diag([100.0, 100.0, 30.0, 30.0]), "R": np.array([[4.0]])}
+
+
+def catch_check(args: argparse.Namespace) -> None:
+    """Which near-upright states the task's iLQR-MPC and the upright LQR of
+    :data:`TRACK_LQR` hold (3 s from each of :data:`CATCH_STARTS`): where an offline plan
+    must end for a hand-over to hold."""
+    rows = []
+    for start in CATCH_STARTS:
+        for name, options in (("ilqr", {}), ("lqr", TRACK_LQR)):
+            row = {"start": start, "controller": name}
+            rows.append({**row, **closed_loop(name, np.array(start), 3.0, **options)})
+            print(json.dumps(rows[-1]), flush=True)
+    write_hold_report("dm_acrobot_catch", np.zeros(4), rows)
+
+
 def write_hold_report(benchmark: str, start: np.ndarray, rows: list[dict]) -> None:
     """Print the hold check's JSON and write it to ``results/<benchmark>.json``."""
     out = {
@@ -406,6 +457,7 @@ def main() -> None:
     parser.add_argument(
         "--prediction-check", action="store_true", help="planning models' tip error near upright"
     )
+    parser.add_argument("--catch-check", action="store_true", help="iLQR-MPC from bent rests")
     parser.add_argument("--no-oracle", action="store_true", help="skip the per-start oracle")
     parser.add_argument("--no-hanging", action="store_true", help="skip the hanging-rest runs")
     parser.add_argument(
@@ -433,6 +485,9 @@ def main() -> None:
         return
     if args.mppi_hold:
         mppi_hold(args)
+        return
+    if args.catch_check:
+        catch_check(args)
         return
     if args.prediction_check:
         out = {

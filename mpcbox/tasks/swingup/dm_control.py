@@ -179,6 +179,23 @@ class DmAcrobotSwingup(Swingup):
     a local minimum of this cost, one link up and the other down
     (``benchmarks/swingup_dm_control.py``).
 
+    :meth:`offline_swingup` plans the whole swing-up offline instead: the oracle's solve
+    from the measured start, re-solved on the simulation's 0.01 s grid, tracked by
+    time-varying LQR and handed over to the iLQR-MPC at the plan's end
+    (``dm_acrobot_dm_starts.py --controllers ilqr_track``, seeds 0-11). It does not close
+    the gap: 0/12 within 5 s and held (3/12 held by 10 s, each after the MPC swung the
+    chain up again). The tracking works: the simulated tip follows the plan exactly and
+    enters the 0.2 m ball at 4.83-4.93 s from all 5 starts the oracle reaches. The
+    hand-over fails: the oracle's plans end with the links bent (elbow 0.23-0.59 rad off
+    straight, tip 0.01-0.14 m off), and with a terminal angle weight (``angle=3000``,
+    ``..._ilqr_track_angle.json``: also 0/12) they end upright to 0.3-5 mm from 3 of them
+    but still moving at 0.01-0.13 rad/s. The iLQR-MPC holds a 0.05 rad elbow offset at
+    rest but drops 0.1 rad, and even the upright moving at (-0.01, -0.006) rad/s, which
+    the upright LQR of ``benchmarks/dm_acrobot_track.py`` holds; neither holds (-0.132,
+    -0.014) rad/s (``dm_acrobot_dm_starts.py --catch-check``,
+    ``benchmarks/results/dm_acrobot_catch.json``). Closing the gap needs plans that end at
+    rest to about 0.01 rad/s and a holder with the LQR's basin.
+
     From the hanging rest 5 s is out of reach with this elbow: the elbow gives at most 2 N m
     and the swing-up must add 39.2 J of potential energy, 19.6 rad of elbow travel at full
     torque, against a slow hanging mode of period 2.36 s. Minimum-time direct multiple
