@@ -91,6 +91,7 @@ class ILQRSolver:
         self._knots = np.unique(
             np.r_[np.arange(0, self.horizon, cfg.linearize_every), self.horizon - 1]
         )
+        self._reference_lin = None if cfg.linearization == "trajectory" else self._at_reference()
 
     # ------------------------------------------------------------------ helpers
     def _initial_ctrls(self, ctrls: np.ndarray | None, name: str = "ctrls_init") -> np.ndarray:
@@ -132,20 +133,30 @@ class ILQRSolver:
             return roll.states[0], np.inf
         return roll.states[0], cost
 
+    def _at_reference(self) -> Linearization:
+        """``A`` ``(T, nx, nx)`` and ``B`` ``(T, nx, nu)``: the planning model's Jacobians at
+        the reference state and ``ctrl_ref`` (within the bounds) at every knot."""
+        p = self.problem
+        ctrl = np.clip(p.ctrl_ref, self.ctrl_low, self.ctrl_high)
+        A, B = p.linearize(p.reference_state(), ctrl, centered=self.config.fd_centered)
+        return Linearization(
+            np.broadcast_to(A, (self.horizon, *A.shape)),
+            np.broadcast_to(B, (self.horizon, *B.shape)),
+        )
+
     def _derivatives(
         self, states: np.ndarray, ctrls: np.ndarray
     ) -> tuple[Linearization, Quadratization]:
         p, knots = self.problem, self._knots
-        lin = p.linearize_trajectory(
-            states[knots], ctrls[knots], centered=self.config.fd_centered, threads=self.threads
-        )
-        lin = interpolate_linearization(lin.A, lin.B, knots, self.horizon)
+        if self._reference_lin is not None:
+            lin = self._reference_lin
+        else:
+            lin = p.linearize_trajectory(
+                states[knots], ctrls[knots], centered=self.config.fd_centered, threads=self.threads
+            )
+            lin = interpolate_linearization(lin.A, lin.B, knots, self.horizon)
         quad = p.quadratize_trajectory(states, ctrls, threads=self.threads)
         return lin, quad
-
-    def _increase(self, regularization: float) -> float:
-        cfg = self.config
-        return max(cfg.regularization_min, regularization * cfg.regularization_factor)
 
     def _schedule(self, value: float) -> Regularization:
         """The regularization of one solve, starting at ``value``, on the config's schedule."""
