@@ -35,11 +35,12 @@ class ILQR(ILQRSolver, Controller):
     fields of :class:`~mpcbox.controllers.ilqr.config.ILQRConfig`.
 
     Each replan starts from the smaller of the configured ``regularization`` and the last
-    replan's final :math:`\mu`. The plan's feedback gains come from its last backward
-    pass, so a :math:`\mu` raised by one replan's failed line searches would weaken the
-    gains of the following ones: carried over, a replan that stalled at
-    ``regularization_max`` left every later one to start there and stall too, with gains
-    near zero (on Menagerie's G1, 107 stalled replans of 192 and a fall within 4 s).
+    replan's final :math:`\mu`, and its feedback gains are those of its last linearization
+    at that starting :math:`\mu` (:class:`~mpcbox.controllers.ilqr.result.ILQRResult`), so
+    a :math:`\mu` raised by failed line searches weakens neither this plan's gains nor the
+    next replan's. Carried over, a replan that stalled at ``regularization_max`` left every
+    later one to start there and stall too, with gains near zero (on Menagerie's G1 with
+    the reference linearization, 107 stalled replans of 192 and a fall within 4 s).
 
     Args:
         problem: The Problem; its planning model (timestep ``problem.dt``) is used.

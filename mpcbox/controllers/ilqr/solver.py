@@ -223,6 +223,7 @@ class ILQRSolver:
     ) -> ILQRResult:
         p, cfg = self.problem, self.config
         mu = reg if isinstance(reg, Regularization) else self._schedule(reg)
+        mu_start, gains_mu, gains_ctrls = mu.value, mu.value, ctrls
         t_start = _time.perf_counter()
         t_der = t_back = t_roll = 0.0
         divergences = 0
@@ -273,6 +274,7 @@ class ILQRSolver:
                 continue
             t_back += _time.perf_counter() - t0
             k, K = bp.k, bp.K
+            gains_mu, gains_ctrls = mu.value, ctrls
             dv1, dv2 = bp.expected
             if -(dv1 + dv2) <= 1e-12 * max(1.0, abs(cost)):
                 t0 = _time.perf_counter()
@@ -323,6 +325,8 @@ class ILQRSolver:
                     reason = StopReason.SHORT_STEP
                     status = f"short step (relative decrease below tolerance at alpha={ls.alpha})"
                 break
+        if gains_mu > mu_start and lin is not None and quad is not None:
+            K = self._gains_at(lin, quad, gains_ctrls, mu_start, k, K)
         total = _time.perf_counter() - t_start
         return ILQRResult(
             states=states,
@@ -339,6 +343,29 @@ class ILQRSolver:
             status=status,
             stop_reason=reason,
         )
+
+    def _gains_at(
+        self,
+        lin: Linearization,
+        quad: Quadratization,
+        ctrls: np.ndarray,
+        regularization: float,
+        k: np.ndarray,
+        K: np.ndarray,
+    ) -> np.ndarray:
+        r"""Feedback gains ``(T, nu, nx)`` of the last linearization at the solve's starting
+        :math:`\mu`, or ``K`` if that backward pass fails.
+
+        The line search raises :math:`\mu` until a step is accepted (or gives up); the
+        gains of that backward pass shrink toward zero as :math:`\mu` grows (about
+        :math:`-Q_{ux}/\mu`), and a receding-horizon controller applies them until the next
+        replan. The feedback law is the Riccati gain of the model, not a step-size device.
+        """
+        try:
+            bp = backward_pass(lin, quad, ctrls, self.ctrl_low, self.ctrl_high, regularization, k)
+        except SolverError:
+            return K
+        return bp.K
 
     def _descent_probe(self, x0: np.ndarray, ctrls: np.ndarray, cost: float) -> bool:
         r"""Whether a small change of the controls lowers the cost at a stationary point.
