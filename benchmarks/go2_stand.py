@@ -13,7 +13,11 @@ measured by ``benchmarks/quadruped_stand.py``'s ``evaluate``:
 * ``qp_settings``: why the QP-MPC defaults are what they are, on the Go2 and the Go1
   (``--sweep-seeds`` x ``--sweep-duration`` s under the noise recipe): the settings before
   this benchmark (controls unscaled, OSQP defaults, 50 Hz over 10 steps), controls scaled
-  by their cost, plus the quadrupeds' OSQP settings, and the task's defaults now.
+  by their cost, plus the quadrupeds' OSQP settings, those settings replanning at 250 Hz
+  and at 100 Hz with the plan's first control held in between (250 Hz held was the
+  torque-robot default before feedback between ticks), at 50 Hz with the LQR gain about
+  the plan in between (``between_ticks="lqr"``), and the task's defaults now (on the Go2:
+  100 Hz with that feedback).
 
 Runs one process at a time on one thread (``--workers 1``), so tick times are on one core;
 the machine is a shared 2-core sandbox, so they include other users' load::
@@ -53,6 +57,11 @@ VARIANTS: dict[str, QPMPCConfig | None] = {
     "scaled_controls_quadruped_osqp": QPMPCConfig(
         period=0.02, stance_weight=1e5, osqp_settings=QP_OSQP_SETTINGS
     ),
+    "hold_250hz": QPMPCConfig(period=0.004, stance_weight=1e5, osqp_settings=QP_OSQP_SETTINGS),
+    "hold_100hz": QPMPCConfig(period=0.01, stance_weight=1e5, osqp_settings=QP_OSQP_SETTINGS),
+    "feedback_50hz": QPMPCConfig(
+        period=0.02, stance_weight=1e5, osqp_settings=QP_OSQP_SETTINGS, between_ticks="lqr"
+    ),
     "task_default": None,
 }
 
@@ -86,6 +95,7 @@ def sweep(robot: str, seeds: int, duration: float) -> dict:
             "horizon": config.horizon,
             "dt": config.dt,
             "period": config.period,
+            "between_ticks": config.between_ticks,
             "scale_controls": config.scale_controls,
             "osqp_settings": dict(config.osqp_settings or {}),
             "survived": survived,
@@ -135,6 +145,7 @@ def main(argv: list[str] | None = None) -> int:
             push_tolerance=args.push_tolerance,
             push=True,
             workers=args.workers,
+            controller_options="{}",  # the task's own configs
         )
         result = evaluate("unitree_go2", ns)
         out["targets"] = result

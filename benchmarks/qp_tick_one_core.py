@@ -17,7 +17,9 @@ longer than the period, the parts of a tick (building the QP's vectors, OSQP), O
 iterations, and the solves stopped at the config's OSQP ``time_limit`` whose last iterate
 was used (``truncated_solves``). A tick is the controller's whole call (a fallback
 included); the first tick of each run (OSQP's setup and factorization) is reported on
-its own as ``first_tick_ms``.
+its own as ``first_tick_ms``. With ``between_ticks="lqr"`` (the Go2's default) the period
+is the replanning period, and the calls between two solves, which only add the LQR gain
+to the plan, are reported apart (``held_calls``, ``held_call_ms``).
 """
 
 from __future__ import annotations
@@ -58,7 +60,9 @@ class PartTimer(Controller):
     def __init__(self, inner: Controller) -> None:
         self.inner = inner
         self.name, self.period = inner.name, inner.period
+        self.replan_period = inner.replan_period
         self.parts: list[tuple[float, float, float, int]] = []
+        self.held: list[float] = []  # calls between solves (``between_ticks="lqr"``)
 
     def reset(self) -> None:
         self.inner.reset()
@@ -69,6 +73,9 @@ class PartTimer(Controller):
         out = self.inner(state, time)
         total = perf_counter() - start
         self.last_call = self.inner.last_call
+        if self.last_call == "hold":
+            self.held.append(total)
+            return out
         timing = self.inner.timing
         plan = self.inner.last_plan  # a new plan object only when this tick solved
         iters = plan.iterations if plan is not None and plan is not before else -1
@@ -89,14 +96,14 @@ def measure(
 ) -> dict:
     task, options = ROBOTS[robot]
     problem = task_class(task)(threads=1, **options)
-    rows, ticks, vectors, osqp, iters, first = [], [], [], [], [], []
+    rows, ticks, vectors, osqp, iters, first, held = [], [], [], [], [], [], []
     period = None
     for seed in range(seeds):
         options = {} if limit == "config" else {"time_limit": _limit(limit, problem)}
         options.update(extra or {})
         qp = make_controller("qp", problem, **options)
         timer = PartTimer(qp)
-        period = qp.period
+        period = qp.replan_period  # a solve's budget (held calls in between are not solves)
         run = simulate(problem, timer, duration, noise=problem.noise(), seed=seed)
         parts = np.array(timer.parts)
         first.append(1e3 * parts[0, 0])
@@ -104,6 +111,7 @@ def measure(
         vectors.extend(1e3 * parts[1:, 1])
         osqp.extend(1e3 * parts[1:, 2])
         iters.extend(int(i) for i in parts[1:, 3] if i >= 0)
+        held.extend(1e3 * np.array(timer.held))
         rows.append(
             {
                 "seed": seed,
@@ -132,6 +140,9 @@ def measure(
         "tick_ms": {q: pct(ticks_a, p) for q, p in (("p50", 50), ("p90", 90), ("p99", 99))},
         "tick_max_ms": round(float(ticks_a.max()), 3),
         "over_period_share": round(float(np.mean(ticks_a > period_ms)), 5),
+        "between_ticks": qp.config.between_ticks,
+        "held_calls": len(held),
+        "held_call_ms": {q: pct(np.array(held), p) for q, p in (("p50", 50), ("p99", 99))},
         "first_tick_ms": [round(f, 1) for f in first],
         "vectors_ms": {q: pct(np.array(vectors), p) for q, p in (("p50", 50), ("p99", 99))},
         "osqp_ms": {q: pct(np.array(osqp), p) for q, p in (("p50", 50), ("p99", 99))},

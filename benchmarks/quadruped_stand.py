@@ -19,11 +19,14 @@ Needs ``MENAGERIE_ROOT`` (or the mujoco-menagerie package)::
 
     python benchmarks/quadruped_stand.py --json benchmarks/results/quadruped_stand.json
     python benchmarks/quadruped_stand.py --robots unitree_go1 --seeds 5 --duration 3
+    python benchmarks/quadruped_stand.py --controllers qp \\
+        --controller-options '{"qp": {"between_ticks": "lqr"}}'
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -31,7 +34,7 @@ import time
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
-from json_report import finish  # benchmarks/ is not a package
+from json_report import SANDBOX, finish  # benchmarks/ is not a package
 
 from mpcbox.comparison.report import Comparison
 from mpcbox.comparison.runner import compare
@@ -96,6 +99,7 @@ def evaluate(robot: str, args: argparse.Namespace) -> dict:
         range(args.seeds),
         push_tests=[test] if args.push else [],
         problem_options={"model": model, "threads": 1},
+        controller_options=json.loads(args.controller_options),
         workers=args.workers or None,
         progress=False,
     )
@@ -135,6 +139,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--push-tolerance", type=float, default=5.0, help="bisection (N)")
     parser.add_argument("--no-push", dest="push", action="store_false", help="skip pushes")
     parser.add_argument("--workers", type=int, default=2, help="worker processes")
+    parser.add_argument(
+        "--controller-options",
+        default="{}",
+        help='JSON overrides per controller name, e.g. \'{"qp": {"between_ticks": "lqr"}}\'',
+    )
+    parser.add_argument("--machine", default=SANDBOX, help="what runs it, for the JSON")
     parser.add_argument("--json", default="", help="also write the JSON here")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
@@ -144,9 +154,10 @@ def main(argv: list[str] | None = None) -> int:
         "seeds": args.seeds,
         "duration_s": args.duration,
         "push": {"start_s": 1.0, "duration_s": 0.1, "settle_s": 2.0, "noise": 0},
+        "controller_options": json.loads(args.controller_options),
         "robots": {robot: evaluate(robot, args) for robot in args.robots.split(",")},
     }
-    return finish(out, args.json, started=t0)
+    return finish(out, args.json, started=t0, machine=args.machine)
 
 
 if __name__ == "__main__":

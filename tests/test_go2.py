@@ -54,10 +54,13 @@ def test_go2_holds_its_posture_on_motor_torques(go2) -> None:
 
 def test_qp_mpc_stands_the_go2_on_four_friction_cones(go2) -> None:
     qp = mpcbox.make_controller("qp", go2)
-    assert qp.points.count == 4 and qp.period == pytest.approx(0.004)
+    # Torque motors: replanning at 100 Hz with the LQR gain about the plan at every step.
+    assert qp.points.count == 4 and qp.replan_period == pytest.approx(0.01)
+    assert qp.config.between_ticks == "lqr" and qp.period == go2.model.opt.timestep
     res = mpcbox.simulate(go2, qp, 1.0, noise=go2.noise(), seed=0)
     assert res.survived, res.failure
     assert res.metrics.fallbacks == 0 and qp.stats["solver_iterations_max"] < 400
+    assert res.metrics.solve_ticks == 100 and res.metrics.held_ticks == 400
 
 
 def test_scaled_controls_same_plan_fewer_iterations(go2) -> None:

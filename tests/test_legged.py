@@ -113,7 +113,7 @@ def test_lqr_keeps_the_dm_control_quadruped_up_under_the_generic_noise(quad) -> 
     assert not res.survived and "fell" in res.failure
 
 
-def test_qp_replans_faster_only_where_no_actuator_holds_a_position(quad) -> None:
+def test_qp_replans_faster_with_feedback_only_where_no_actuator_holds_a_position(quad) -> None:
     from mpcbox.tasks.humanoid.two_feet import HumanoidTwoFeet
     from mpcbox.tasks.legged.balance import QP_OSQP_SETTINGS, TORQUE_QP_PERIOD
 
@@ -130,6 +130,9 @@ def test_qp_replans_faster_only_where_no_actuator_holds_a_position(quad) -> None
         warnings.simplefilter("ignore", mpcbox.errors.EquilibriumWarning)
         motors = LeggedBalance(spec, feet=feet, threads=1)
     assert motors.controller_configs["qp"].period == pytest.approx(TORQUE_QP_PERIOD)
+    # ... and gets the LQR gain about the plan between two solves; servos need none.
+    assert motors.controller_configs["qp"].between_ticks == "lqr"
+    assert quad.controller_configs["qp"].between_ticks == "hold"
     assert type(motors).controller_configs["qp"].period == pytest.approx(0.02)  # class intact
     # The humanoid presets keep their measured 50 Hz on their torque motors.
     assert HumanoidTwoFeet(threads=1).controller_configs["qp"].period == pytest.approx(0.02)

@@ -247,6 +247,45 @@ def test_time_limit_uses_the_last_iterate(one_leg):
     assert cut.stats["truncated_solves"] == cut.stats["solves"] == res.metrics.solve_ticks
 
 
+def test_lqr_feedback_between_ticks_tracks_the_plan(one_leg):
+    """``between_ticks="lqr"``: called every simulation step, solving every ``period``; in
+    between, the plan's control plus the LQR gain on the error to the plan's predicted
+    state, linearly interpolated: zero feedback on the prediction, ``-K e`` off it."""
+    h = float(one_leg.model.opt.timestep)
+    ctl = QPMPC(one_leg, period=0.02, between_ticks="lqr")
+    assert ctl.period == pytest.approx(h) and ctl.replan_period == pytest.approx(0.02)
+    assert QPMPC(one_leg, period=0.02).period == pytest.approx(0.02)  # "hold": as before
+    x0 = one_leg.reference_state()
+    x0[one_leg.nq + 3] = 0.05  # roll rate of the root
+    u0 = ctl(x0, 0.0)
+    plan, K = ctl.last_plan, ctl._fallback_lqr().K
+    assert ctl.last_call == "solve"
+    np.testing.assert_allclose(u0, one_leg.clip_ctrl(plan.ctrls[0]), atol=1e-12)
+    t = 0.75 * ctl.dt  # three quarters of the way to the plan's first predicted state
+    on_plan = one_leg.state_add(ctl.state_ref, 0.25 * plan.dx[0] + 0.75 * plan.dx[1])
+    np.testing.assert_allclose(ctl(on_plan, t), one_leg.clip_ctrl(plan.ctrls[0]), atol=1e-9)
+    assert ctl.last_call == "hold" and ctl.stats["solves"] == 1
+    kick = np.zeros(one_leg.nx)
+    kick[one_leg.nv + 3] = 0.02  # a roll rate off the prediction
+    off_plan = one_leg.state_add(on_plan, kick)
+    expected = one_leg.clip_ctrl(plan.ctrls[0] - K @ kick)
+    np.testing.assert_allclose(ctl(off_plan, t), expected, atol=1e-9)
+    assert not np.allclose(expected, one_leg.clip_ctrl(plan.ctrls[0]))
+    ctl(off_plan, 0.02)  # a replanning period after the solve
+    assert ctl.last_call == "solve" and ctl.stats["solves"] == 2
+    res = simulate(one_leg, ctl, 0.1)
+    assert res.survived and res.metrics.fallbacks == 0
+    assert res.metrics.solve_ticks == 5 and res.metrics.held_ticks == round(0.1 / h) - 5
+    assert res.metrics.period_s == pytest.approx(0.02)  # a solve's budget
+    with pytest.raises(InvalidArgumentError, match=r"between_ticks.*'hold', 'lqr'"):
+        QPMPCConfig(between_ticks="pid")
+    # Every solve failing is a degraded run, however many held calls come in between.
+    failing = QPMPC(one_leg, period=0.02, between_ticks="lqr", osqp_settings=dict(max_iter=1))
+    res = simulate(one_leg, failing, 0.1)
+    assert res.metrics.fallbacks == res.metrics.solve_ticks < res.metrics.held_ticks
+    assert res.metrics.outcome == "degraded", res.failure
+
+
 @pytest.mark.parametrize("fallback", ["lqr", "plan"])
 def test_fallback_after_failed_solves(one_leg, fallback):
     ctl = QPMPC(one_leg, horizon=10, dt=0.02, period=0.02, fallback=fallback)

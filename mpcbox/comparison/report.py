@@ -71,7 +71,7 @@ class Row(NamedTuple):
         runs: Number of seeds.
         success_rate: Fraction of runs whose outcome is ``"success"`` (see
             :data:`~mpcbox.sim.simulation.OUTCOMES`): no fall, no divergence, no controller
-            error, the task's goal met, and at most half of the controller's calls fell back.
+            error, the task's goal met, and at most half of the controller's solves fell back.
         outcomes: Number of runs per outcome other than ``"success"`` (e.g.
             ``{"goal missed": 2}``).
         mean_time_to_fall: Mean of the failure times, counting survived runs at the full

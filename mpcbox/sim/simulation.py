@@ -67,8 +67,10 @@ class Metrics(NamedTuple):
         solve_ticks: Calls that solved online (``Controller.last_call == "solve"``).
         held_ticks: Calls that followed the current plan without solving.
         offline_ms: Total time of offline solves (ms), e.g. IPOPT's before the loop.
-        period_s: Seconds between controller calls (the simulation step when the controller
-            sets no ``period``).
+        period_s: The budget of one online solve: seconds between the controller's solves,
+            its ``replan_period`` when it has one (a controller that adds feedback between
+            solves is called more often), else seconds between calls (the simulation step
+            when the controller sets no ``period``).
         kept_up: Real-time runs (:func:`mpcbox.sim.realtime.simulate_realtime`): whether
             the planner's p99 tick fit in ``period_s``; ``None`` for lock-step runs.
     """
@@ -172,8 +174,8 @@ def simulate(
       :meth:`Problem.goal_failure <mpcbox.Problem.goal_failure>` says the task's goal was not
       met (a pole left hanging, an arm short of its target);
     - ``"degraded"``: none of the above, but more than ``degraded_limit`` of the
-      controller's calls fell back (``stats["fallbacks"]``): the run is not that
-      controller's success;
+      controller's solves (calls that solved, not those that held a plan) fell back
+      (``stats["fallbacks"]``): the run is not that controller's success;
     - ``"success"`` otherwise.
 
     Whatever ends the run, the trajectory recorded up to that point is kept.
@@ -189,7 +191,7 @@ def simulate(
         initial_state: Start state (default ``problem.initial_state()``).
         stop_on_failure: Stop at the first task failure (falls; divergence and controller
             errors always stop the run).
-        degraded_limit: Largest share of fallbacks among the controller's calls, in
+        degraded_limit: Largest share of fallbacks among the controller's solves, in
             ``[0, 1]``, for a run to count as a success.
         viewer: Show the run while it goes (:mod:`mpcbox.sim.viewer`): a
             :class:`~mpcbox.sim.viewer.Viewer`, ``"live"`` (a window), ``"auto"`` or a
@@ -307,7 +309,7 @@ def simulate(
         wall=wall,
         fallbacks0=fallbacks0,
         degraded_limit=degraded_limit,
-        period_s=every * dt,
+        period_s=float(getattr(controller, "replan_period", None) or every * dt),
         pushes=pushes,
         mismatch=mismatch,
         noise=noise,
@@ -372,13 +374,15 @@ def finish_run(
         summaries.update(measure.summarize(series[measure.name], times))
     stats = dict(getattr(controller, "stats", {}) or {})
     fallbacks = max(0, round(controller_fallbacks(controller) - fallbacks0))
-    ncalls = sum(len(v) for v in calls.values())
+    # The share is of the calls that solved: held calls (feedback between solves) cannot
+    # fall back and would dilute it.
+    ncalls = len(calls["solve"]) + len(calls["offline"]) or sum(len(v) for v in calls.values())
     if failure is None:
         goal = problem.goal_failure(times, states)
         if goal is not None:
             failure, outcome = goal, "goal missed"
         elif ncalls and fallbacks > degraded_limit * ncalls:
-            failure = f"degraded: {fallbacks} of {ncalls} controller calls fell back"
+            failure = f"degraded: {fallbacks} of {ncalls} controller solves fell back"
             outcome = "degraded"
     ctimes = np.asarray(calls["solve"])
     sim_time = float(times[-1]) if n else 0.0

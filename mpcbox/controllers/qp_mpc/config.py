@@ -32,6 +32,8 @@ STANCE_MODELS: tuple[str, ...] = ("soft", "rigid")
 FALLBACKS: tuple[str, ...] = ("lqr", "plan")
 LIFTED_POINTS: tuple[str, ...] = ("drop", "keep")
 LIFTED_FORCE_LAWS: tuple[str, ...] = ("drop", "cancel")
+BetweenTicks = Literal["hold", "lqr"]
+BETWEEN_TICKS: tuple[str, ...] = ("hold", "lqr")
 
 
 def _check_osqp_settings(settings: object) -> None:
@@ -138,6 +140,18 @@ class QPMPCConfig:
             in ``stats["truncated_solves"]``, unlike a solve that reaches ``max_iter``,
             which fails. ``None``: no limit. A budget below one iteration's time leaves
             OSQP's first iterate (benchmarks/qp_tick_one_core.py measures the effect).
+        between_ticks: What the controller applies between two solves, ``period`` apart:
+            ``"hold"`` (default) holds the plan's first control; ``"lqr"`` is called at
+            every step of the simulation model and adds the LQR gain :math:`K` about the
+            reference (the fallback's) to the plan, tracking its predicted states:
+            :math:`u(t) = u_k - K\,\big((x(t) \ominus \bar x) - \delta\hat x(t)\big)`
+            with :math:`k = \lfloor (t - t_s)/dt \rfloor` and :math:`\delta\hat x(t)` the
+            plan's state deviations from the linearization point :math:`\bar x`,
+            interpolated linearly in time from the solve at :math:`t_s`. A robot driven by
+            torque alone gets feedback between slow replans, as a servo robot gets from its
+            servos. The extra calls are counted as held (``Metrics.held_ticks``), and
+            solve-time budgets stay ``period``. After a failed solve the steps until the
+            next solve use the ``fallback``.
     """
 
     horizon: int = 10
@@ -169,6 +183,7 @@ class QPMPCConfig:
     export_dir: str | Path | None = None
     fallback: Fallback = "lqr"
     time_limit: float | None = None
+    between_ticks: BetweenTicks = "hold"
 
     def __post_init__(self) -> None:
         def put(name: str, value: Any) -> None:
@@ -229,6 +244,7 @@ class QPMPCConfig:
                 )
             put("export_dir", Path(self.export_dir))
         one_of("fallback", self.fallback, FALLBACKS)
+        one_of("between_ticks", self.between_ticks, BETWEEN_TICKS)
         one_of("lifted_points", self.lifted_points, LIFTED_POINTS)
         one_of("lifted_force_law", self.lifted_force_law, LIFTED_FORCE_LAWS)
         for name in (

@@ -138,7 +138,9 @@ class QPMPC(Controller):
         config: The resolved options.
         horizon: Number of QP steps ``N``.
         dt: QP step (s).
-        period: Seconds between calls.
+        period: Seconds between calls: ``replan_period``, or the simulation model's
+            timestep with ``between_ticks="lqr"``.
+        replan_period: Seconds between solves (the config's ``period``, default ``dt``).
         substeps: Planning-model steps per QP step.
         friction: Friction coefficient of the pyramid.
         facets: Facets of the pyramid.
@@ -174,7 +176,11 @@ class QPMPC(Controller):
         self.config = cfg = resolve_config(QPMPCConfig, config, options, "QPMPC")
         check_planning_step(problem)  # PlanningDivergenceError at a diverging timestep
         self.horizon, self.dt = cfg.horizon, cfg.dt
-        self.period = cfg.dt if cfg.period is None else cfg.period
+        self.replan_period = cfg.dt if cfg.period is None else cfg.period
+        # With feedback between ticks the simulation calls every step and solves every
+        # ``replan_period``; otherwise the two are the same.
+        feedback = cfg.between_ticks == "lqr"
+        self.period = float(problem.model.opt.timestep) if feedback else self.replan_period
         self.friction, self.facets = cfg.friction, cfg.facets
         self.stance_model = cfg.stance_model
         self.pyramid = friction_pyramid(cfg.friction, cfg.facets)
@@ -249,7 +255,7 @@ class QPMPC(Controller):
         self.backend = make_backend(cfg.solver, settings)
         self.rescue = None if cfg.rescue is None else make_backend(cfg.rescue)
         # Built now, not on the first failed (already slow) tick.
-        self._lqr: LQR | None = LQR(problem) if cfg.fallback == "lqr" else None
+        self._lqr: LQR | None = LQR(problem) if cfg.fallback == "lqr" or feedback else None
         # Per-run state, set by reset().
         self._prev_z: np.ndarray | None = None
         self._prev_y: np.ndarray | None = None
@@ -269,6 +275,10 @@ class QPMPC(Controller):
         self._prev_y = None
         self.last_plan = None
         self._plan_age = 0
+        self._t_solve: float | None = None
+        self._t_plan = 0.0
+        self._plan_origin = self.state_ref
+        self.last_call = "solve"
         self.prediction.reset()
         self._tick = 0
         self._fallbacks = self._plan_fallbacks = self._inaccurate = 0
@@ -322,7 +332,7 @@ class QPMPC(Controller):
         """Previous primal and dual solutions moved ``period / dt`` stages earlier."""
         if not self.config.warm_start or self._prev_z is None or self._prev_y is None:
             return None
-        shift = max(0, min(self.horizon - 1, round(self.period / self.dt)))
+        shift = max(0, min(self.horizon - 1, round(self.replan_period / self.dt)))
         return self.formulation.shifted(self._prev_z, self._prev_y, shift)
 
     def solve(self, state: np.ndarray) -> QPPlan | None:
@@ -383,13 +393,21 @@ class QPMPC(Controller):
         return plan
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
+        if self._t_solve is not None and time - self._t_solve < self.replan_period - 0.5 * (
+            self.period
+        ):
+            self.last_call = "hold"  # between_ticks="lqr": feedback until the next solve
+            return self._between(state, time)
+        self.last_call = "solve"
+        self._t_solve = time
         plan = self.solve(state)
         if plan is not None:
+            self._t_plan, self._plan_origin = time, self.linearization.state
             ctrl = self.problem.clip_ctrl(plan.ctrls[0])
         else:
             self._fallbacks += 1
             self._plan_age += 1
-            step = round(self._plan_age * self.period / self.dt)
+            step = round(self._plan_age * self.replan_period / self.dt)
             plan = self.last_plan
             if self.config.fallback == "plan" and plan is not None and step < self.horizon:
                 ctrl = self.problem.clip_ctrl(plan.ctrls[step])
@@ -398,6 +416,23 @@ class QPMPC(Controller):
                 ctrl = self._fallback_lqr()(state, time)
         self._last_ctrl = ctrl
         return ctrl
+
+    def _between(self, state: np.ndarray, time: float) -> np.ndarray:
+        """The plan with LQR feedback about its predicted states (``between_ticks="lqr"``);
+        the fallback's control while the last solve failed."""
+        plan, p = self.last_plan, self.problem
+        if self._plan_age or plan is None:
+            if self.config.fallback == "plan" and plan is not None:
+                step = round((time - self._t_plan) / self.dt)
+                if step < self.horizon:
+                    return p.clip_ctrl(plan.ctrls[step])
+            return self._fallback_lqr()(state, time)
+        tau = max(0.0, (time - self._t_plan) / self.dt)
+        k = min(int(tau), self.horizon - 1)
+        frac = min(tau - k, 1.0)
+        predicted = (1.0 - frac) * plan.dx[k] + frac * plan.dx[k + 1]
+        error = p.state_difference(state, self._plan_origin) - predicted
+        return p.clip_ctrl(plan.ctrls[k] - self._fallback_lqr().K @ error)
 
     def _fallback_lqr(self) -> LQR:
         """The LQR about the reference that a failed solve falls back to (built once)."""

@@ -89,9 +89,9 @@ QP_OSQP_SETTINGS: MappingProxyType[str, Any] = MappingProxyType(
     {"rho": 0.3, "check_dualgap": False}
 )
 
-#: QP-MPC's replanning period (s) on a robot driven by torque alone (see
-#: :class:`LeggedBalance`).
-TORQUE_QP_PERIOD = 0.004
+#: QP-MPC's replanning period (s) on a robot driven by torque alone, which gets the LQR
+#: gain about the plan in between (``between_ticks="lqr"``; see :class:`LeggedBalance`).
+TORQUE_QP_PERIOD = 0.01
 
 
 def position_feedback(model: mujoco.MjModel) -> bool:
@@ -162,14 +162,20 @@ class LeggedBalance(Problem):
         **kwargs: Passed to :class:`~mpcbox.Problem` (``planning_timestep``, ``qpos_ref``...).
 
     QP-MPC runs with OSQP at ``rho = 0.3`` and without OSQP 1.x's duality-gap test
-    (:data:`QP_OSQP_SETTINGS`). It replans at 50 Hz on robots whose actuators hold a
-    position between two ticks (position servos: Go1, A1, ANYmal C) and at 250 Hz
-    (:data:`TORQUE_QP_PERIOD`) on robots driven by torque alone (motors: the Go2), which get
-    no feedback in between. On the Go2 under the noise recipe, at 50 Hz one of two 3 s runs
-    fell (the root height swinging by 8 cm, the knee torques at their limits); at 100 Hz
-    over 15 steps 2 of 20 seeds of 10 s fell, over 20, 25 or 30 steps seeds 17 or 19 still
-    did; at 250 Hz (two 0.002 s physics steps) over 10 steps none of seeds 0, 17 and 19
-    did, at a median 2.7-3.0 ms a tick (``benchmarks/results/go2_stand.json`` for all 20).
+    (:data:`QP_OSQP_SETTINGS`). It replans at 50 Hz, holding the plan's first control, on
+    robots whose actuators hold a position between two ticks (position servos: Go1, A1,
+    ANYmal C). On robots driven by torque alone (motors: the Go2), which get no feedback
+    from their actuators, it replans at 100 Hz (:data:`TORQUE_QP_PERIOD`) and adds the LQR
+    gain about the plan at every step in between (``between_ticks="lqr"``). On the Go2
+    under the noise recipe, with the control held: at 50 Hz one of two 3 s runs fell (the
+    root height swinging by 8 cm, the knee torques at their limits), at 100 Hz over 15 steps
+    2 of 20 seeds of 10 s fell, and 250 Hz stood 20/20 with 15 % of ticks over its 4 ms
+    period on one core. With the feedback, 100 Hz stands 20/20 with no fallback, 0.7 % of
+    ticks over the period and a larger push limit (184 N against 146 N); at 50 Hz some
+    seeds still fall (``benchmarks/go2_stand.py``, ``benchmarks/results/go2_stand*.json``).
+    The servo robots keep the held control: with the feedback their push limits moved both
+    ways (A1 305 N to 153 N, Go1 98 N to 112 N,
+    ``benchmarks/results/quadruped_stand_qp_feedback.json``).
 
     The humanoid presets keep their own measured QP settings (50 Hz, their stance weight and
     lifted-force law) with these OSQP settings.
@@ -184,13 +190,14 @@ class LeggedBalance(Problem):
     name = "legged_balance"
     #: LQR, and QP-MPC with friction cones at the task's :attr:`contacts` (50 Hz, OSQP at
     #: :data:`QP_OSQP_SETTINGS`; an instance whose actuators have no position feedback
-    #: replans every :attr:`torque_qp_period` s).
+    #: replans every :attr:`torque_qp_period` s with LQR feedback in between).
     controller_configs: ClassVar[dict[str, Any]] = {
         "lqr": LQRConfig(),
         "qp": QPMPCConfig(period=0.02, stance_weight=1e5, osqp_settings=QP_OSQP_SETTINGS),
     }
     #: QP-MPC's replanning period on a robot driven by torque alone (no actuator holds a
-    #: position between two ticks, :func:`position_feedback`); ``None`` keeps the config's.
+    #: position between two ticks, :func:`position_feedback`), which also gets
+    #: ``between_ticks="lqr"``; ``None`` keeps the config as it is.
     torque_qp_period: ClassVar[float | None] = TORQUE_QP_PERIOD
     equilibrium: Equilibrium | None = None
 
@@ -254,7 +261,7 @@ class LeggedBalance(Problem):
         if isinstance(qp, QPMPCConfig) and period and not position_feedback(self.model):
             self.controller_configs = {
                 **type(self).controller_configs,
-                "qp": dataclasses.replace(qp, period=period),
+                "qp": dataclasses.replace(qp, period=period, between_ticks="lqr"),
             }
 
     # ------------------------------------------------------------------ construction

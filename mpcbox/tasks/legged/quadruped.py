@@ -87,7 +87,8 @@ class QuadrupedStand(LeggedBalance):
 
     QP-MPC runs with :class:`~mpcbox.tasks.legged.balance.LeggedBalance`'s settings: OSQP
     at ``rho = 0.3`` without the duality-gap test, 50 Hz on robots with position servos
-    (Go1, A1, ANYmal C) and 250 Hz on robots driven by torque alone (the Go2).
+    (Go1, A1, ANYmal C) and 100 Hz with the LQR gain about the plan between ticks on robots
+    driven by torque alone (the Go2).
 
     Raises:
         InvalidArgumentError: If ``feet`` is omitted for a robot not in
