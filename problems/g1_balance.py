@@ -5,10 +5,10 @@ foot, an inverse-kinematics stance with the center of mass over the stance foot,
 for self-collision), the root height adjusted until the feet carry the weight, the holding
 set-points through the G1's 29 position servos, the robot-independent noise recipe (5 % of
 each actuator's range), QP-MPC with a friction pyramid at each of the feet's spheres, and
-iLQR-MPC on a 0.01 s planning model. Every controller runs the same seeded scenarios
-(:func:`mpcbox.compare`): noise alone, and noise with a forward push on the root body at
-1 s; then the largest forward push (0.1 s, no noise) is found by bisection. Prints a
-markdown table.
+iLQR-MPC linearized at the standing reference (the LQR's model). Every controller runs the
+same seeded scenarios (:func:`mpcbox.compare`): noise alone, and noise with a forward push
+on the root body at 1 s; then the largest forward push (0.1 s, no noise) is found by
+bisection. Prints a markdown table.
 
 Examples::
 

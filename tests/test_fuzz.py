@@ -333,6 +333,7 @@ ILQR_ARGS = {
     "threads": opt(integer),
     "planning_timestep": opt(positive),
     "terminal_value": opt(choice),
+    "linearization": choice,
 }
 PUSH_ARGS = {
     "force": array((3,), limit=1e8),

@@ -321,6 +321,23 @@ def test_qp_mpc_stands_the_g1_on_eight_friction_cones(g1_two_feet):
 
 
 @pytest.mark.menagerie
+def test_g1_ilqr_mpc_feedback_is_the_lqr_gain_despite_joint_friction(g1_two_feet):
+    # The G1's joints have dry friction: Jacobians along a trajectory belong to other
+    # stick-slip modes than the reference's, and the preset linearizes at the reference, so
+    # the replan's gains are the LQR gain (the terminal value's).
+    problem = g1_two_feet
+    assert np.all(problem.model.dof_frictionloss[6:] > 0)
+    lqr = mpcbox.LQR(problem)
+    ilqr = mpcbox.make_controller("ilqr", problem)
+    x0 = problem.reference_state()
+    x0[7:36] += 0.01 * np.random.default_rng(0).standard_normal(29)
+    ilqr(x0, 0.0)
+    K = ilqr.last_result.K
+    rel = np.linalg.norm(K + lqr.K, axis=(1, 2)) / np.linalg.norm(lqr.K)
+    assert rel.max() < 0.01, rel.max()
+
+
+@pytest.mark.menagerie
 def test_g1_one_foot_stance_is_collision_free_and_lqr_stands_on_it():
     from mpcbox.tasks.legged.biped import BipedStand
 

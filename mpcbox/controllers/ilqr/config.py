@@ -28,10 +28,13 @@ from mpcbox.validation import (
 
 LineSearch = Literal["backtracking", "parallel"]
 TerminalValue = Literal["lqr"]
+DynamicsLinearization = Literal["trajectory", "reference"]
 #: Valid values of :attr:`ILQRConfig.line_search`.
 LINE_SEARCHES: tuple[str, ...] = ("backtracking", "parallel")
 #: Valid values of :attr:`ILQRConfig.terminal_value` besides ``None``.
 TERMINAL_VALUES: tuple[str, ...] = ("lqr",)
+#: Valid values of :attr:`ILQRConfig.linearization`.
+LINEARIZATIONS: tuple[str, ...] = ("trajectory", "reference")
 
 
 @checked_options
@@ -61,7 +64,10 @@ class ILQRConfig:
             ``None`` so that the simulation calls it every step); otherwise the control is
             held for ``replan_period``.
         regularization: Initial Levenberg-Marquardt term :math:`\mu \ge 0` added to the
-            diagonal of :math:`Q_{uu}`.
+            diagonal of :math:`Q_{uu}`. In receding-horizon mode every replan starts from the
+            smaller of this and the last replan's final :math:`\mu`: an increase that one
+            replan needed does not carry into the next (see
+            :class:`~mpcbox.controllers.ilqr.controller.ILQR`).
         regularization_min: Below this, :math:`\mu` snaps to 0.
         regularization_max: Give up (keep the current trajectory) above this.
         regularization_factor: Multiplicative step of the :math:`\mu` schedule (> 1).
@@ -107,6 +113,20 @@ class ILQRConfig:
             model at the reference (:class:`~mpcbox.core.cost.QuadraticValue` with the Riccati
             matrix ``P``) to the terminal cost, so a short horizon still sees the cost-to-go;
             ``None`` keeps the Problem's terminal cost.
+        linearization: Where the dynamics are linearized: ``"trajectory"`` (at the knots of
+            the current trajectory, as iLQR does) or ``"reference"`` (once, at the Problem's
+            reference state and ``ctrl_ref``, with ``fd_centered``; every knot then uses
+            those ``A``, ``B``, and ``linearize_every`` is moot). The cost is quadratized
+            and the line search rolls the nonlinear model out either way. With
+            ``"reference"`` and ``terminal_value="lqr"`` the feedback gains are exactly the
+            LQR gain, and a replan costs no finite differences: for regulation about an
+            equilibrium of a model whose step is only piecewise smooth. MuJoCo's joint dry
+            friction (``frictionloss``) is such a model: each joint sticks or slips, and the
+            Jacobians of one mode do not hold a few milliradians away. On Menagerie's G1
+            (0.3 N m on every joint) ``A - I`` and ``B`` changed by 33-62 % along 0.1 s of
+            drift from the standing reference (under 1.2 % with the friction removed), and
+            iLQR-MPC linearized along its trajectories fell where the reference
+            linearization stood (:class:`~mpcbox.tasks.legged.biped.BipedStand`).
 
     Raises:
         InvalidArgumentError: Naming the field, if a value is out of range.
@@ -139,6 +159,7 @@ class ILQRConfig:
     threads: int | None = None
     planning_timestep: float | None = None
     terminal_value: TerminalValue | None = None
+    linearization: DynamicsLinearization = "trajectory"
 
     def __post_init__(self) -> None:
         def put(name: str, value: object) -> None:
@@ -181,6 +202,7 @@ class ILQRConfig:
         put("armijo", in_range("armijo", self.armijo, 0.0, 1.0, low_open=False, high_open=True))
         if self.terminal_value is not None:
             one_of("terminal_value", self.terminal_value, TERMINAL_VALUES)
+        one_of("linearization", self.linearization, LINEARIZATIONS)
         for name in ("ctrl_low", "ctrl_high", "ctrls_init"):  # shapes: by the controller
             value = getattr(self, name)
             if value is not None:  # infinite bounds mean none; an initial guess is finite
@@ -206,4 +228,12 @@ class ILQRConfig:
         return self.mpc_iterations if self.first_iterations is None else self.first_iterations
 
 
-__all__ = ["LINE_SEARCHES", "TERMINAL_VALUES", "ILQRConfig", "LineSearch", "TerminalValue"]
+__all__ = [
+    "LINEARIZATIONS",
+    "LINE_SEARCHES",
+    "TERMINAL_VALUES",
+    "DynamicsLinearization",
+    "ILQRConfig",
+    "LineSearch",
+    "TerminalValue",
+]

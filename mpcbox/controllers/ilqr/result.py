@@ -84,7 +84,9 @@ class ILQRResult(NamedTuple):
         states: Optimized states ``(T + 1, nstate)``, ``states[0] = x0``.
         ctrls: Optimized controls ``(T, nu)``, inside the control bounds.
         k: Last feed-forward terms ``(T, nu)``.
-        K: Last feedback gains ``(T, nu, nx)`` (acting on ``x ⊖ states[t]``).
+        K: Last feedback gains ``(T, nu, nx)`` (acting on ``x ⊖ states[t]``): those of the
+            last linearization at the solve's starting regularization, even when its line
+            search had to raise the regularization (unless that backward pass fails).
         cost: Final total cost.
         costs: Cost after each accepted iteration, starting with the initial guess.
         iterations: Iterations performed (backward passes with fresh derivatives).

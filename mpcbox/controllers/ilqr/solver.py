@@ -91,6 +91,7 @@ class ILQRSolver:
         self._knots = np.unique(
             np.r_[np.arange(0, self.horizon, cfg.linearize_every), self.horizon - 1]
         )
+        self._reference_lin = None if cfg.linearization == "trajectory" else self._at_reference()
 
     # ------------------------------------------------------------------ helpers
     def _initial_ctrls(self, ctrls: np.ndarray | None, name: str = "ctrls_init") -> np.ndarray:
@@ -132,20 +133,30 @@ class ILQRSolver:
             return roll.states[0], np.inf
         return roll.states[0], cost
 
+    def _at_reference(self) -> Linearization:
+        """``A`` ``(T, nx, nx)`` and ``B`` ``(T, nx, nu)``: the planning model's Jacobians at
+        the reference state and ``ctrl_ref`` (within the bounds) at every knot."""
+        p = self.problem
+        ctrl = np.clip(p.ctrl_ref, self.ctrl_low, self.ctrl_high)
+        A, B = p.linearize(p.reference_state(), ctrl, centered=self.config.fd_centered)
+        return Linearization(
+            np.broadcast_to(A, (self.horizon, *A.shape)),
+            np.broadcast_to(B, (self.horizon, *B.shape)),
+        )
+
     def _derivatives(
         self, states: np.ndarray, ctrls: np.ndarray
     ) -> tuple[Linearization, Quadratization]:
         p, knots = self.problem, self._knots
-        lin = p.linearize_trajectory(
-            states[knots], ctrls[knots], centered=self.config.fd_centered, threads=self.threads
-        )
-        lin = interpolate_linearization(lin.A, lin.B, knots, self.horizon)
+        if self._reference_lin is not None:
+            lin = self._reference_lin
+        else:
+            lin = p.linearize_trajectory(
+                states[knots], ctrls[knots], centered=self.config.fd_centered, threads=self.threads
+            )
+            lin = interpolate_linearization(lin.A, lin.B, knots, self.horizon)
         quad = p.quadratize_trajectory(states, ctrls, threads=self.threads)
         return lin, quad
-
-    def _increase(self, regularization: float) -> float:
-        cfg = self.config
-        return max(cfg.regularization_min, regularization * cfg.regularization_factor)
 
     def _schedule(self, value: float) -> Regularization:
         """The regularization of one solve, starting at ``value``, on the config's schedule."""
@@ -212,6 +223,7 @@ class ILQRSolver:
     ) -> ILQRResult:
         p, cfg = self.problem, self.config
         mu = reg if isinstance(reg, Regularization) else self._schedule(reg)
+        mu_start, gains_mu, gains_ctrls = mu.value, mu.value, ctrls
         t_start = _time.perf_counter()
         t_der = t_back = t_roll = 0.0
         divergences = 0
@@ -262,6 +274,7 @@ class ILQRSolver:
                 continue
             t_back += _time.perf_counter() - t0
             k, K = bp.k, bp.K
+            gains_mu, gains_ctrls = mu.value, ctrls
             dv1, dv2 = bp.expected
             if -(dv1 + dv2) <= 1e-12 * max(1.0, abs(cost)):
                 t0 = _time.perf_counter()
@@ -312,6 +325,8 @@ class ILQRSolver:
                     reason = StopReason.SHORT_STEP
                     status = f"short step (relative decrease below tolerance at alpha={ls.alpha})"
                 break
+        if gains_mu > mu_start and lin is not None and quad is not None:
+            K = self._gains_at(lin, quad, gains_ctrls, mu_start, k, K)
         total = _time.perf_counter() - t_start
         return ILQRResult(
             states=states,
@@ -328,6 +343,29 @@ class ILQRSolver:
             status=status,
             stop_reason=reason,
         )
+
+    def _gains_at(
+        self,
+        lin: Linearization,
+        quad: Quadratization,
+        ctrls: np.ndarray,
+        regularization: float,
+        k: np.ndarray,
+        K: np.ndarray,
+    ) -> np.ndarray:
+        r"""Feedback gains ``(T, nu, nx)`` of the last linearization at the solve's starting
+        :math:`\mu`, or ``K`` if that backward pass fails.
+
+        The line search raises :math:`\mu` until a step is accepted (or gives up); the
+        gains of that backward pass shrink toward zero as :math:`\mu` grows (about
+        :math:`-Q_{ux}/\mu`), and a receding-horizon controller applies them until the next
+        replan. The feedback law is the Riccati gain of the model, not a step-size device.
+        """
+        try:
+            bp = backward_pass(lin, quad, ctrls, self.ctrl_low, self.ctrl_high, regularization, k)
+        except SolverError:
+            return K
+        return bp.K
 
     def _descent_probe(self, x0: np.ndarray, ctrls: np.ndarray, cost: float) -> bool:
         r"""Whether a small change of the controls lowers the cost at a stationary point.

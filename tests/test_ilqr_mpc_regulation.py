@@ -1,0 +1,123 @@
+"""iLQR-MPC about an equilibrium: the reference linearization through joint dry friction, and
+replans that do not inherit a raised regularization."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import mpcbox
+from mpcbox.controllers.ilqr.controller import ILQR
+from mpcbox.core.cost import ControlCost, Cost, StateCost
+from mpcbox.errors import InvalidArgumentError
+
+# A two-link arm hanging under gravity, held by position servos at zero: the reference is an
+# equilibrium. ``frictionloss`` gives each hinge MuJoCo's dry friction (stick or slip).
+ARM = """
+<mujoco>
+  <option timestep="0.01"/>
+  <default><joint axis="0 1 0" frictionloss="{friction}" armature="0.01"/></default>
+  <worldbody>
+    <body name="upper">
+      <joint name="shoulder"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -0.3" size="0.03" mass="1"/>
+      <body name="lower" pos="0 0 -0.3">
+        <joint name="elbow"/>
+        <geom type="capsule" fromto="0 0 0 0 0 -0.3" size="0.03" mass="0.5"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <position joint="shoulder" kp="20" ctrlrange="-3 3"/>
+    <position joint="elbow" kp="10" ctrlrange="-3 3"/>
+  </actuator>
+</mujoco>
+"""
+X0 = np.array([0.1, -0.05, 0.0, 0.0])
+
+
+def gain_errors(friction: float, linearization: str) -> np.ndarray:
+    """Relative distance ``(T,)`` of each knot's iLQR gain from the LQR gain, one iteration
+    from ``X0`` with the LQR value as terminal cost."""
+    problem = mpcbox.Problem(ARM.format(friction=friction), threads=1)
+    lqr = mpcbox.LQR(problem)
+    ilqr = ILQR(
+        problem,
+        horizon=30,
+        terminal_value="lqr",
+        linearization=linearization,
+        regularization=0.0,
+    )
+    res = ilqr.solve(X0, max_iterations=1)
+    assert np.all(res.ctrls > -3) and np.all(res.ctrls < 3)  # no clamped gains
+    return np.linalg.norm(res.K + lqr.K, axis=(1, 2)) / np.linalg.norm(lqr.K)
+
+
+def test_reference_linearization_keeps_the_lqr_gain_through_dry_friction():
+    # Without friction the arm's dynamics are smooth: Jacobians along the trajectory stay
+    # within 1 % of the reference's, and so do the gains.
+    assert gain_errors(0.0, "trajectory").max() < 0.02
+    # With it, each hinge sticks or slips and the trajectory's Jacobians belong to another
+    # mode than the reference's: the gains differ from the LQR gain by as much as the gain.
+    assert gain_errors(0.3, "trajectory").max() > 0.5
+    # Linearized at the reference, the LQR value is the exact cost-to-go of the backward
+    # pass's model, so every knot's gain is the LQR gain, friction or not.
+    for friction in (0.0, 0.3):
+        assert gain_errors(friction, "reference").max() < 1e-9
+
+
+def test_reference_linearization_is_checked():
+    problem = mpcbox.Problem(ARM.format(friction=0.0), threads=1)
+    with pytest.raises(InvalidArgumentError, match="linearization"):
+        ILQR(problem, horizon=5, linearization="knots")
+
+
+def test_a_stalled_replan_keeps_riccati_gains_and_the_next_starts_afresh():
+    # A point mass on two sliders: linear dynamics, quadratic cost, so every backward pass
+    # at the configured regularization gives the same gains wherever the trajectory is.
+    problem = mpcbox.Problem(
+        """
+        <mujoco>
+          <option timestep="0.05" gravity="0 0 0"/>
+          <worldbody><body>
+            <joint name="x" type="slide" axis="1 0 0"/>
+            <joint name="y" type="slide" axis="0 1 0"/>
+            <geom type="sphere" size="0.1" mass="2" contype="0" conaffinity="0"/>
+          </body></worldbody>
+          <actuator><motor joint="x"/><motor joint="y"/></actuator>
+        </mujoco>
+        """,
+        cost=Cost(
+            [StateCost(np.zeros(2), weight_qpos=1.0, weight_qvel=0.1), ControlCost(weight=0.05)]
+        ),
+        threads=1,
+    )
+
+    class Stalling(ILQR):
+        stall = True
+
+        def _forward(self, *args):
+            out = super()._forward(*args)
+            return (out[0] * np.nan, out[1], np.inf) if self.stall else out
+
+    options = dict(horizon=20, replan_period=0.2, max_retries=25)
+    ctrl = Stalling(problem, **options)
+    x0 = np.array([1.0, -0.5, 0.0, 0.0])
+    ctrl(x0, 0.0)  # every line search fails and the regularization grows 4^26-fold
+    first = ctrl.last_result
+    assert first.stop_reason.stalled and first.regularization > 1e9
+    # Its gains are still the Riccati gains at the configured regularization (those of the
+    # backward pass at 1e9 would be near zero, and applied until the next replan).
+    gains = ILQR(problem, **options).solve(x0, max_iterations=1).K
+    assert np.linalg.norm(gains[0]) > 0.1
+    np.testing.assert_allclose(first.K, gains, rtol=1e-6, atol=1e-9)
+    assert ctrl.stats["fallbacks"] == 1
+    assert ctrl.stats["regularization"] == ctrl.config.regularization
+    ctrl.stall = False
+    x1 = np.array([0.9, -0.4, -0.5, 0.5])
+    ctrl(x1, 0.2)  # the next replan, steps accepted again
+    second = ctrl.last_result
+    assert not second.stop_reason.stalled and ctrl.stats["fallbacks"] == 1
+    # Carried over, the raised regularization would have started the second replan there.
+    assert second.regularization <= ctrl.config.regularization
+    np.testing.assert_allclose(second.K, gains, rtol=1e-6, atol=1e-9)
