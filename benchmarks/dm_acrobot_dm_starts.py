@@ -190,9 +190,11 @@ def energy_deficit(state: np.ndarray) -> float:
 
 def oracle(state: np.ndarray, seconds: float, iterations: int) -> dict:
     """Best end-only iLQR plan over ``seconds`` from ``state`` (see the module docstring):
-    the offline plan of the task's :meth:`~DmAcrobotSwingup.offline_swingup`."""
-    planner = DmAcrobotSwingup(threads=1).offline_swingup(seconds=seconds, iterations=iterations)
-    tracker = planner.controllers[0]
+    the offline plan of the task's :meth:`~DmAcrobotSwingup.offline_swingup`, without the
+    re-solve on the simulation grid (only the planning-grid solves are reported)."""
+    tracker = DmAcrobotSwingup(threads=1).offline_planner(
+        seconds=seconds, iterations=iterations, polish=0
+    )
     wall = time.perf_counter()
     best = tracker.plan(state)
     omega, phase = SWING_GUESSES[tracker.best]

@@ -285,6 +285,43 @@ class DmAcrobotSwingup(Swingup):
         t = positive("dt", dt) * np.arange(knots)
         return [np.cos(w * t + phi)[:, None] for w, phi in SWING_GUESSES]
 
+    def offline_planner(
+        self,
+        *,
+        seconds: float = 5.0,
+        iterations: int = 60,
+        angle: float = 0.0,
+        polish: int = 20,
+        weights: TrackingWeights | None = None,
+    ) -> OfflinePlanTracker:
+        """The offline plan and its tracker of :meth:`offline_swingup` (see there for the
+        arguments), without the hand-over: e.g. the 5 s oracle of
+        ``benchmarks/dm_acrobot_dm_starts.py`` with ``polish=0``."""
+        planner = DmAcrobotSwingup(
+            weights=end_weights(angle=angle),
+            joints={"shoulder": 0.0, "elbow": 0.0} if angle > 0 else {},
+            plan_rk4=True,
+            planning_timestep=0.02,
+            threads=1,
+        )
+        knots = round(positive("seconds", seconds) / planner.dt)
+        if weights is None:
+            weights = TrackingWeights(
+                position_weight=100.0, velocity_weight=30.0, torque_weight=1.0
+            )
+        return OfflinePlanTracker(
+            planner,
+            self.swing_guesses(knots, planner.dt),
+            solver_options={**END_SOLVER_OPTIONS, "max_iterations": iterations},
+            score=lambda plan: (
+                planner.terminal_cost(plan.states[-1])
+                if angle > 0
+                else self.upright_error(plan.states[-1])
+            ),
+            polish_iterations=polish,
+            weights=weights,
+        )
+
     def offline_swingup(
         self,
         *,
@@ -319,29 +356,8 @@ class DmAcrobotSwingup(Swingup):
         """
         speed = positive("speed", speed)
         radius = None if radius is None else positive("radius", radius)
-        planner = DmAcrobotSwingup(
-            weights=end_weights(angle=angle),
-            joints={"shoulder": 0.0, "elbow": 0.0} if angle > 0 else {},
-            plan_rk4=True,
-            planning_timestep=0.02,
-            threads=1,
-        )
-        knots = round(positive("seconds", seconds) / planner.dt)
-        if weights is None:
-            weights = TrackingWeights(
-                position_weight=100.0, velocity_weight=30.0, torque_weight=1.0
-            )
-        tracker = OfflinePlanTracker(
-            planner,
-            self.swing_guesses(knots, planner.dt),
-            solver_options={**END_SOLVER_OPTIONS, "max_iterations": iterations},
-            score=lambda plan: (
-                planner.terminal_cost(plan.states[-1])
-                if angle > 0
-                else self.upright_error(plan.states[-1])
-            ),
-            polish_iterations=polish,
-            weights=weights,
+        tracker = self.offline_planner(
+            seconds=seconds, iterations=iterations, angle=angle, polish=polish, weights=weights
         )
         hold = make_controller("ilqr", self, **overrides)
 
