@@ -119,6 +119,8 @@ from mpcbox.tasks.swingup.dm_control import SWING_GUESSES, DmAcrobotSwingup
 RESULTS = Path(__file__).parent / "results" / "dm_acrobot_dm_starts.json"
 #: Settings of ``--controllers ilqr_track`` (:meth:`DmAcrobotSwingup.offline_swingup`).
 TRACK: dict = {"seconds": 5.0, "iterations": 60, "angle": 0.0, "polish": 20}
+#: The offline-plan controllers and their holders (``offline_swingup``'s ``holder``).
+TRACKED: dict[str, str] = {"ilqr_track": "ilqr", "ilqr_track_lqr": "lqr"}
 TARGET_S = 5.0
 TOLERANCE = 0.2
 #: The task's iLQR defaults before issue #13's change (with ``plan_rk4=False``).
@@ -229,14 +231,15 @@ def closed_loop(
 ) -> dict:
     """The task's tuned ``controller`` (config fields replaced by ``overrides``) from
     ``state`` over ``duration`` s; ``plan_rk4`` replaces the task's default when given.
-    ``"ilqr_track"`` is the task's :meth:`~DmAcrobotSwingup.offline_swingup` with the
-    settings of :data:`TRACK`."""
+    ``"ilqr_track"`` and ``"ilqr_track_lqr"`` are the task's
+    :meth:`~DmAcrobotSwingup.offline_swingup` with the settings of :data:`TRACK` and the
+    holder of :data:`TRACKED`."""
     options = {} if plan_rk4 is None else {"plan_rk4": plan_rk4}
     problem = DmAcrobotSwingup(initial=state, threads=1, **options)
     if controller == "mppi_handover":
         ctrl = mppi_handover(problem, **overrides)
-    elif controller == "ilqr_track":
-        ctrl = problem.offline_swingup(**TRACK, **overrides)
+    elif controller in TRACKED:
+        ctrl = problem.offline_swingup(**TRACK, holder=TRACKED[controller], **overrides)
     else:
         ctrl = mpcbox.make_controller(controller, problem, **overrides)
     failure, t_up, errors, ticks, wall = run_swingup(problem, ctrl, duration)
@@ -250,7 +253,7 @@ def closed_loop(
         "median_tick_ms": round(float(np.median(ticks)), 1),
         "wall_s": round(wall, 1),
     }
-    if controller == "ilqr_track":
+    if controller in TRACKED:
         row.update(track_report(problem, ctrl, errors))
     return row
 
@@ -503,7 +506,7 @@ def main() -> None:
 
     hold = {}
     for name in controllers:
-        if name == "ilqr_track":  # it holds with the task's "ilqr": that one's hold check
+        if name in TRACKED:  # its holder's hold check: "ilqr" here, "lqr" in --catch-check
             continue
         hold[name] = closed_loop(
             name, np.array([0.0, args.hold_offset, 0.0, 0.0]), 3.0, args.plan_rk4, **overrides
@@ -548,7 +551,7 @@ def main() -> None:
                 not r["oracle_reaches"] for r in misses if "oracle_reaches" in r
             ),
         }
-        if name == "ilqr_track":
+        if name in TRACKED:
             plans = [r[name].get("plan_tip_error_m", np.inf) for r in runs]
             summary[name]["plan_reaches"] = f"{sum(e < TOLERANCE for e in plans)}/{len(runs)}"
             summary[name]["settings"] = TRACK

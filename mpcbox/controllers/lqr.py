@@ -19,6 +19,11 @@ operating point (states :math:`x_0, x_1 = f(x_0, u_0), \dots`, Jacobians :math:`
 the exact linearization of :math:`n` steps under one held control (at a fixed point
 :math:`A = A_0^n`, :math:`B = \sum_i A_0^i B_0`), with the per-step weights :math:`Q, R`
 (scaling both by :math:`n` leaves :math:`K` unchanged).
+
+With ``wrap`` the deviation :math:`\delta q_j` of each hinge joint without a range is taken
+modulo a whole turn, :math:`\delta q_j \mapsto \delta q_j - 2\pi \lfloor (\delta q_j + \pi)
+/ 2\pi \rfloor \in [-\pi, \pi)`, so the controller regulates to the nearest whole-turn copy
+of the operating point (a pendulum upright at :math:`0` is also upright at :math:`2\pi`).
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import mujoco
 import numpy as np
 import scipy.linalg
 
@@ -40,7 +46,7 @@ from mpcbox.errors import (
     ShapeError,
     SolverError,
 )
-from mpcbox.validation import as_array, checked_options, positive
+from mpcbox.validation import as_array, boolean, checked_options, positive
 
 
 def check_symmetric(name: str, mat: np.ndarray, rtol: float = 1e-9) -> None:
@@ -168,7 +174,7 @@ def dlqr(
 @checked_options
 @dataclass(frozen=True, kw_only=True)
 class LQRConfig:
-    """Options of :class:`LQR`.
+    r"""Options of :class:`LQR`.
 
     Attributes:
         Q: State weight ``(nx, nx)``; by default the Gauss-Newton Hessian of the Problem's
@@ -181,6 +187,8 @@ class LQRConfig:
         period: Seconds between calls, a whole number ``n`` of the Problem's planning steps
             (default: one step); the gain is designed for the control held ``n`` steps (see
             the module docstring).
+        wrap: Wrap each unlimited hinge joint's deviation onto :math:`[-\pi, \pi)` (see the
+            module docstring); off: the deviation is the plain difference.
     """
 
     Q: np.ndarray | None = None
@@ -190,10 +198,12 @@ class LQRConfig:
     eps: float | None = None
     centered: bool | None = None
     period: float | None = None
+    wrap: bool = False
 
     def __post_init__(self) -> None:
         if self.period is not None:
             positive("period", self.period)
+        object.__setattr__(self, "wrap", boolean("wrap", self.wrap))
 
 
 def hold_steps(period: float | None, dt: float) -> int:
@@ -230,6 +240,8 @@ class LQR(Controller):
         A, B: The linearization.
         K: Gain ``(nu, nx)``.
         P: Riccati solution ``(nx, nx)``.
+        wrapped: Tangent indices ``(k,)`` whose deviation is wrapped (empty without
+            ``wrap``).
 
     Raises:
         InvalidTypeError: If ``problem`` is not a Problem or ``config`` not an LQRConfig.
@@ -268,6 +280,8 @@ class LQR(Controller):
         self.R = as_array("R", R, (problem.nu, problem.nu))
         self.K, self.P = dlqr(self.A, self.B, self.Q, self.R, N)
         self.period = steps * problem.dt
+        hinges = unlimited_hinges(problem.model) if cfg.wrap else np.zeros(0, int)
+        self.wrapped = np.asarray(problem.model.jnt_dofadr[hinges], dtype=int)
 
     @property
     def closed_loop_eigenvalues(self) -> np.ndarray:
@@ -281,7 +295,17 @@ class LQR(Controller):
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
         dx = self.problem.state_difference(state, self.state0)
+        if self.wrapped.size:
+            dx[self.wrapped] = np.mod(dx[self.wrapped] + np.pi, 2.0 * np.pi) - np.pi
         return self.problem.clip_ctrl(self.ctrl0 - self.K @ dx)
+
+
+def unlimited_hinges(model: mujoco.MjModel) -> np.ndarray:
+    """Ids ``(k,)`` of the hinge joints without a range in ``model``: the joints whose angle
+    is defined modulo a whole turn (their angle at ``jnt_qposadr``, tangent at
+    ``jnt_dofadr``)."""
+    hinge = (model.jnt_type == mujoco.mjtJoint.mjJNT_HINGE) & (model.jnt_limited == 0)
+    return np.flatnonzero(hinge)
 
 
 def with_lqr_terminal_value(problem: Problem) -> Problem:
@@ -321,5 +345,6 @@ __all__ = [
     "dlqr",
     "hold_steps",
     "nearest_psd",
+    "unlimited_hinges",
     "with_lqr_terminal_value",
 ]

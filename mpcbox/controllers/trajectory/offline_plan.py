@@ -20,6 +20,15 @@ time-varying LQR along that rollout
 controls, :class:`~mpcbox.controllers.trajectory.tracker.TrajectoryTracker`), which holds
 the final knot once the plan has ended. The solve call reports ``last_call = "offline"``,
 the tracking calls ``"hold"``.
+
+To end the plan where a regulator about the Problem's reference takes over, the re-solve
+can use other solver options (``polish_options``, e.g. ``terminal_value="lqr"``: the
+reference's LQR value as terminal cost) and run on the whole-turn copy of the plan nearest
+the reference (``wrap``: each unlimited hinge's angles shifted by
+:math:`2\pi\,\mathrm{round}((q_{j,T} - q_j^{ref}) / 2\pi)`, the plan's final angle
+:math:`q_{j,T}`; such a shift leaves the dynamics unchanged); the tracking gains' recursion
+can start from a given terminal weight (``terminal``: the regulator's Riccati matrix, so the
+last gains are nearly its gain).
 """
 
 from __future__ import annotations
@@ -33,11 +42,12 @@ import numpy as np
 from mpcbox.controllers.base import Controller, check_problem
 from mpcbox.controllers.ilqr.result import ILQRResult
 from mpcbox.controllers.ilqr.solver import ILQRSolver
+from mpcbox.controllers.lqr import unlimited_hinges
 from mpcbox.controllers.trajectory.reference import TrackingWeights, tracking_reference
 from mpcbox.controllers.trajectory.tracker import TrajectoryTracker
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError
-from mpcbox.validation import as_array, finite_array, integer, positive
+from mpcbox.validation import as_array, boolean, finite_array, integer, positive
 
 #: Scores a plan; lower is better.
 PlanScore = Callable[[ILQRResult], float]
@@ -57,6 +67,16 @@ class OfflinePlanTracker(Controller):
         polish_iterations: Iterations of the re-solve on the simulation grid (0: none).
         weights: Tracking weights (default
             :class:`~mpcbox.controllers.trajectory.reference.TrackingWeights`).
+        polish_options: :class:`~mpcbox.controllers.ilqr.config.ILQRConfig` fields that
+            replace ``solver_options`` in the re-solve (e.g. ``{"terminal_value": "lqr"}``).
+        wrap: Re-solve on the whole-turn copy of the plan nearest the reference (module
+            docstring); the tracked plan stays in the measured angles.
+        terminal: Terminal weight ``(nx, nx)`` of the tracking gains' Riccati recursion
+            (default: the tracking state weight).
+        period: Seconds between calls it declares: ``None`` or the simulation timestep
+            (it is called every step either way), so that it pairs in a
+            :class:`~mpcbox.controllers.handover.HandOver` with a controller that states
+            that period (e.g. an :class:`~mpcbox.controllers.lqr.LQR` at that step).
         name: Label in tables.
 
     Attributes:
@@ -67,9 +87,10 @@ class OfflinePlanTracker(Controller):
 
     Raises:
         InvalidTypeError: If ``problem`` is not a Problem or ``score`` not callable.
-        InvalidArgumentError: For no guesses, guesses of different lengths, or a planning
-            step that is not a whole number of simulation steps.
-        ShapeError: If a guess is not ``(T, nu)``.
+        InvalidArgumentError: For no guesses, guesses of different lengths, a planning
+            step that is not a whole number of simulation steps, or a ``period`` other than
+            the simulation timestep.
+        ShapeError: If a guess is not ``(T, nu)`` or ``terminal`` not ``(nx, nx)``.
     """
 
     name = "offline-plan"
@@ -84,6 +105,10 @@ class OfflinePlanTracker(Controller):
         score: PlanScore | None = None,
         polish_iterations: int = 0,
         weights: TrackingWeights | None = None,
+        polish_options: Mapping[str, Any] | None = None,
+        wrap: bool = False,
+        terminal: np.ndarray | None = None,
+        period: float | None = None,
         name: str = "offline-plan",
     ) -> None:
         problem = check_problem(problem, type(self).__name__)
@@ -112,12 +137,23 @@ class OfflinePlanTracker(Controller):
         )
         self.score: PlanScore = (lambda result: float(result.cost)) if score is None else score
         self.polish_iterations = integer("polish_iterations", polish_iterations)
+        polish = {**options, **dict(polish_options or {})}
         self.polisher = (
-            ILQRSolver(self.track_problem, **{**options, "horizon": first.shape[0] * self.substeps})
+            ILQRSolver(self.track_problem, **{**polish, "horizon": first.shape[0] * self.substeps})
             if self.polish_iterations > 0 and self.substeps > 1
             else None
         )
         self.weights = TrackingWeights() if weights is None else weights
+        self.wrap = boolean("wrap", wrap)
+        nx = self.problem.nx
+        self.terminal = None if terminal is None else finite_array("terminal", terminal, (nx, nx))
+        step = problem.model.opt.timestep
+        if period is not None and abs(positive("period", period) - step) > 1e-12:
+            raise InvalidArgumentError(
+                f"period must be None or the simulation timestep {step} s (the plan is tracked "
+                f"every step), got {period}"
+            )
+        self.period = period
         self.name = str(name)
         self.reset()
 
@@ -169,16 +205,32 @@ class OfflinePlanTracker(Controller):
             guess = np.stack(
                 [np.interp(grid, np.arange(kept.states.shape[0]), s) for s in kept.states.T], 1
             )
+            shift = self.turns(kept.states[-1]) if self.wrap else np.zeros_like(state)
             polished = self.polisher.solve(
-                state, fine, states_init=guess, max_iterations=self.polish_iterations
+                state - shift,
+                fine,
+                states_init=guess - shift,
+                max_iterations=self.polish_iterations,
             )
             fine = polished.ctrls
         states = self.track_problem.rollout(state, fine).states[0]
         ctrls = np.vstack([fine, fine[-1:]])
-        reference = tracking_reference(self.track_problem, states, self.weights, ctrls=ctrls)
+        reference = tracking_reference(
+            self.track_problem, states, self.weights, ctrls=ctrls, terminal=self.terminal
+        )
         self.tracker = TrajectoryTracker(self.track_problem, reference, name=self.name)
         self.plan_seconds = _time.perf_counter() - wall
         return kept
+
+    def turns(self, state: np.ndarray) -> np.ndarray:
+        """Whole turns ``(nstate,)`` by which each unlimited hinge angle of ``state``
+        ``(nstate,)`` is off the Problem's reference (zero elsewhere): ``state`` minus this is
+        the copy of ``state`` nearest the reference."""
+        model, out = self.problem.model, np.zeros(self.problem.nstate)
+        address = model.jnt_qposadr[unlimited_hinges(model)]
+        offset = state[address] - self.problem.qpos_ref[address]
+        out[address] = 2.0 * np.pi * np.round(offset / (2.0 * np.pi))
+        return out
 
     def ctrls_ahead(self, knots: int, dt: float) -> np.ndarray:
         """The plan's controls ``(knots, nu)`` at ``dt``-spaced times from the last call on,

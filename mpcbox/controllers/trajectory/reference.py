@@ -14,7 +14,8 @@ Given reference states :math:`\bar x_k` every planning step (from a quintic
 
   .. math::
       K_k = (R + B_k^T P_{k+1} B_k)^{-1} B_k^T P_{k+1} A_k, \qquad
-      P_k = Q + A_k^T P_{k+1} (A_k - B_k K_k), \qquad P_K = Q,
+      P_k = Q + A_k^T P_{k+1} (A_k - B_k K_k), \qquad P_K = Q
+      \text{ (or a given terminal weight)},
 
   with :math:`Q = \mathrm{diag}(w_q I, w_v I, 0)` on the tangent deviation and
   :math:`R = w_u\,\mathrm{diag}(k_i^2)` (:math:`k_i`: torque per unit of control ``i``, so
@@ -195,6 +196,24 @@ def riccati_gains(
     return gains
 
 
+def weight_matrices(
+    problem: Problem, weights: TrackingWeights, state: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    r"""The LQR weights of the module docstring: :math:`Q = \mathrm{diag}(w_q I, w_v I, 0)`
+    ``(nx, nx)`` and :math:`R = w_u\,\mathrm{diag}(k_i^2)` ``(nu, nu)``, with the torque per
+    unit of control :math:`k_i` at ``state``'s posture ``(nstate,)``."""
+    nv, na = problem.nv, problem.na
+    Q = np.diag(
+        np.r_[
+            np.full(nv, weights.position_weight),
+            np.full(nv, weights.velocity_weight),
+            np.zeros(na),
+        ]
+    )
+    torque = actuator_scales(problem.planning_model, state[: problem.nq]).torque_per_ctrl
+    return Q, weights.torque_weight * np.diag(np.maximum(torque, 1e-9) ** 2)
+
+
 def tracking_reference(
     problem: Problem,
     states: np.ndarray | JointTrajectory,
@@ -202,6 +221,7 @@ def tracking_reference(
     *,
     ctrls: np.ndarray | None = None,
     ctrl_init: np.ndarray | None = None,
+    terminal: np.ndarray | None = None,
 ) -> TrackingReference:
     """Feedforward controls and time-varying LQR gains along reference states.
 
@@ -214,6 +234,8 @@ def tracking_reference(
         ctrls: Feedforward controls ``(K, nu)`` known to realize the states (a plan's own,
             e.g. iLQR's); by default they are searched for (:func:`feedforward`).
         ctrl_init: Start of the feedforward search (see :func:`feedforward`).
+        terminal: Terminal weight :math:`P_K` ``(nx, nx)`` of the gains' recursion (default
+            :math:`Q`; see :func:`riccati_gains`).
 
     Returns:
         A :class:`TrackingReference`.
@@ -233,18 +255,8 @@ def tracking_reference(
         ctrls = problem.clip_ctrl(finite_array("ctrls", ctrls, (states.shape[0], problem.nu)))
         miss = _largest_miss(problem, states, ctrls)
     lin = problem.linearize_trajectory(states, ctrls)
-    A, B = lin.A, lin.B
-    nv, na = problem.nv, problem.na
-    Q = np.diag(
-        np.r_[
-            np.full(nv, weights.position_weight),
-            np.full(nv, weights.velocity_weight),
-            np.zeros(na),
-        ]
-    )
-    torque = actuator_scales(problem.planning_model, states[0, : problem.nq]).torque_per_ctrl
-    R = weights.torque_weight * np.diag(np.maximum(torque, 1e-9) ** 2)
-    gains = riccati_gains(A, B, Q, R)
+    Q, R = weight_matrices(problem, weights, states[0])
+    gains = riccati_gains(lin.A, lin.B, Q, R, terminal=terminal)
     time = problem.dt * np.arange(states.shape[0])
     return TrackingReference(time, states.copy(), ctrls, gains, miss)
 
@@ -257,4 +269,5 @@ __all__ = [
     "riccati_gains",
     "tracking_reference",
     "unlimited",
+    "weight_matrices",
 ]

@@ -17,14 +17,15 @@ import numpy as np
 
 from mpcbox.controllers.handover import HandOver
 from mpcbox.controllers.ilqr.config import ILQRConfig
+from mpcbox.controllers.lqr import LQR
 from mpcbox.controllers.sampling.config import MPPIConfig
 from mpcbox.controllers.trajectory.offline_plan import OfflinePlanTracker
-from mpcbox.controllers.trajectory.reference import TrackingWeights
-from mpcbox.errors import ModelNotFoundError
+from mpcbox.controllers.trajectory.reference import TrackingWeights, weight_matrices
+from mpcbox.errors import InvalidArgumentError, ModelNotFoundError
 from mpcbox.registry import make_controller
 from mpcbox.tasks.swingup.task import Swingup
 from mpcbox.tasks.swingup.weights import SwingupWeights
-from mpcbox.validation import positive
+from mpcbox.validation import integer, one_of, positive
 
 
 def suite_path(name: str) -> Path:
@@ -54,6 +55,8 @@ def suite_path(name: str) -> Path:
 SWING_GUESSES: tuple[tuple[float, float], ...] = tuple(
     (w, phi) for w in (2.67, 4.0, 6.9) for phi in (0.0, np.pi / 2)
 )
+#: Holders of :meth:`DmAcrobotSwingup.offline_swingup` after the plan.
+HOLDERS: tuple[str, ...] = ("ilqr", "lqr")
 #: iLQR options of the acrobot's offline swing-up: Tassa's regularization schedule (factor
 #: 1.6, from 1), run to the iteration cap.
 END_SOLVER_OPTIONS: dict[str, Any] = {
@@ -293,10 +296,13 @@ class DmAcrobotSwingup(Swingup):
         angle: float = 0.0,
         polish: int = 20,
         weights: TrackingWeights | None = None,
+        **options: Any,
     ) -> OfflinePlanTracker:
         """The offline plan and its tracker of :meth:`offline_swingup` (see there for the
         arguments), without the hand-over: e.g. the 5 s oracle of
-        ``benchmarks/dm_acrobot_dm_starts.py`` with ``polish=0``."""
+        ``benchmarks/dm_acrobot_dm_starts.py`` with ``polish=0``. ``options``: further
+        :class:`OfflinePlanTracker` arguments (``polish_options``, ``wrap``, ``terminal``,
+        ``period``)."""
         planner = DmAcrobotSwingup(
             weights=end_weights(angle=angle),
             joints={"shoulder": 0.0, "elbow": 0.0} if angle > 0 else {},
@@ -320,6 +326,7 @@ class DmAcrobotSwingup(Swingup):
             ),
             polish_iterations=polish,
             weights=weights,
+            **options,
         )
 
     def offline_swingup(
@@ -332,9 +339,10 @@ class DmAcrobotSwingup(Swingup):
         radius: float | None = None,
         speed: float = 0.5,
         weights: TrackingWeights | None = None,
+        holder: str = "ilqr",
         **overrides: Any,
     ) -> HandOver:
-        """Swing up along an offline plan, then hold with the task's iLQR-MPC.
+        """Swing up along an offline plan, then hold with the task's iLQR-MPC or an LQR.
 
         From the first measured state, an :class:`OfflinePlanTracker` plans ``seconds`` of
         iLQR under :func:`end_weights` (with ``angle`` on the wrapped joint angles at the
@@ -351,11 +359,47 @@ class DmAcrobotSwingup(Swingup):
         the MPC's first guess is the rest of the plan (:meth:`OfflinePlanTracker.ctrls_ahead`);
         its first solve (``first_iterations``) reports ``"offline"`` as the MPC's does.
 
+        With ``holder="lqr"`` the plan is made to end at rest at the upright and the holder
+        is the upright's infinite-horizon LQR on the RK4 model at the simulation step, with
+        the tracking weights (:func:`~mpcbox.controllers.trajectory.reference.weight_matrices`:
+        position 100, velocity 30, torque 1 by default) and angles wrapped to the nearest
+        upright (``LQR(wrap=True)``: a plan may end turns away from ``(0, 0)``). The re-solve
+        on the 0.01 s grid then adds that grid's upright LQR value as terminal cost
+        (``terminal_value="lqr"``) on the whole-turn copy of the plan ending nearest the
+        upright (``wrap``), and the tracking gains' recursion starts from the holder's
+        Riccati matrix, so the last gains are nearly its gain. Why: the 2 N m elbow's hold
+        basin is a few hundredths of a rad and rad/s (the LQR drops a 0.1 rad elbow offset
+        at rest), and the oracle's plans end with the links bent by 0.23-0.59 rad; with the
+        terminal value they end within about 0.25 rad and 0.12 rad/s of the upright on the
+        tracking gains' terms, which the tracker and the LQR then catch
+        (``benchmarks/dm_acrobot_dm_starts.py --controllers ilqr_track_lqr``). ``overrides``
+        must then be empty; ``polish`` must be positive.
+
+        Args:
+            holder: ``"ilqr"`` (the task's iLQR-MPC) or ``"lqr"`` (see above).
+
         Returns:
-            The controller, named ``"ilqr_track"``.
+            The controller, named ``"ilqr_track"`` (``"ilqr_track_lqr"`` with the LQR).
+
+        Raises:
+            InvalidArgumentError: For another ``holder`` (the error lists :data:`HOLDERS`),
+                ``holder="lqr"`` with ``overrides`` or ``polish=0``, or a non-positive
+                ``speed``, ``radius`` or ``seconds``.
         """
         speed = positive("speed", speed)
         radius = None if radius is None else positive("radius", radius)
+        one_of("holder", holder, HOLDERS)
+        if holder == "lqr":
+            return self._lqr_swingup(
+                radius,
+                speed,
+                overrides,
+                seconds=seconds,
+                iterations=iterations,
+                angle=angle,
+                polish=polish,
+                weights=weights,
+            )
         tracker = self.offline_planner(
             seconds=seconds, iterations=iterations, angle=angle, polish=polish, weights=weights
         )
@@ -370,4 +414,45 @@ class DmAcrobotSwingup(Swingup):
 
         return HandOver(
             tracker, hold, engage=engage, release=lambda _: False, prime=False, name="ilqr_track"
+        )
+
+    def _lqr_swingup(
+        self, radius: float | None, speed: float, overrides: dict[str, Any], **plan: Any
+    ) -> HandOver:
+        """:meth:`offline_swingup` with ``holder="lqr"`` (see there)."""
+        if overrides:
+            raise InvalidArgumentError(
+                f"overrides: holder='lqr' takes no iLQR config fields, got {sorted(overrides)}"
+            )
+        if integer("polish", plan["polish"]) < 1:
+            raise InvalidArgumentError(
+                f"polish must be positive with holder='lqr' (the re-solve ends the plan at "
+                f"rest), got {plan['polish']}"
+            )
+        weights = plan.pop("weights") or TrackingWeights(
+            position_weight=100.0, velocity_weight=30.0, torque_weight=1.0
+        )
+        fine = DmAcrobotSwingup(plan_rk4=True, threads=1)  # planning step = simulation step
+        Q, R = weight_matrices(fine, weights, fine.reference_state())
+        hold = LQR(fine, Q=Q, R=R, wrap=True)
+        tracker = self.offline_planner(
+            **plan,
+            weights=weights,
+            polish_options={"terminal_value": "lqr"},
+            wrap=True,
+            terminal=hold.P,
+            period=hold.period,
+        )
+
+        def engage(state: np.ndarray) -> bool:
+            slow = radius is not None and np.linalg.norm(state[2:4]) < speed
+            return tracker.finished or (slow and self.upright_error(state) < radius)
+
+        return HandOver(
+            tracker,
+            hold,
+            engage=engage,
+            release=lambda _: False,
+            prime=False,
+            name="ilqr_track_lqr",
         )
