@@ -156,3 +156,30 @@ def test_a_held_period_gets_the_gain_of_the_held_step():
         mpcbox.LQR(cart, period=1.5 * cart.dt)
     with pytest.raises(mpcbox.InvalidArgumentError, match="period"):
         LQRConfig(period=-0.1)
+
+
+def test_wrap_regulates_to_the_nearest_whole_turn_of_unlimited_hinges():
+    """``wrap=True`` takes the unlimited hinge's deviation modulo 2 pi (closed form against
+    the plain LQR at the wrapped state); the cart's slide joint is left alone."""
+    from mpcbox.controllers.lqr import unlimited_hinges
+
+    cart = mpcbox.Problem(scene_path("cartpole.xml"), qpos_ref=np.array([0.0, np.pi]))
+    plain, wrapped = mpcbox.LQR(cart), mpcbox.LQR(cart, wrap=True)
+    np.testing.assert_array_equal(unlimited_hinges(cart.model), [1])
+    np.testing.assert_array_equal(wrapped.wrapped, [1])
+    np.testing.assert_array_equal(wrapped.K, plain.K)
+    ref = cart.reference_state()
+    small = ref + np.array([0.01, 0.02, 0.03, -0.01])
+    for turns in (-2, 1, 3):
+        shifted = small + np.array([0.0, 2 * np.pi * turns, 0.0, 0.0])
+        np.testing.assert_allclose(wrapped(shifted, 0.0), plain(small, 0.0), atol=1e-9)
+        assert abs(plain(shifted, 0.0)[0] - plain(small, 0.0)[0]) > 0.01
+    # Past half a turn the nearest copy is the next one: pi + 0.01 acts as -pi + 0.01.
+    over = ref + np.array([0.0, np.pi + 0.01, 0.0, 0.0])
+    under = ref + np.array([0.0, -np.pi + 0.01, 0.0, 0.0])
+    np.testing.assert_allclose(wrapped(over, 0.0), plain(under, 0.0), atol=1e-9)
+    # The slide joint is not wrapped.
+    slid = small + np.array([2 * np.pi, 0.0, 0.0, 0.0])
+    np.testing.assert_allclose(wrapped(slid, 0.0), plain(slid, 0.0), atol=1e-12)
+    with pytest.raises(InvalidTypeError, match="wrap"):
+        mpcbox.LQR(cart, wrap=1)

@@ -13,7 +13,12 @@ from mpcbox.cli import main as cli_main
 from mpcbox.controllers.ilqr.controller import ILQR
 from mpcbox.controllers.ilqr.result import StopReason
 from mpcbox.core.cost import ControlCost, Cost, StateCost, WrappedAngle
-from mpcbox.errors import InvalidArgumentError, PlanningModelWarning, UnknownNameError
+from mpcbox.errors import (
+    InvalidArgumentError,
+    PlanningModelWarning,
+    ShapeError,
+    UnknownNameError,
+)
 from mpcbox.registry import task_class
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.swingup import CartpoleSwingup, PendulumSwingup, Swingup, SwingupWeights
@@ -298,6 +303,46 @@ def test_dm_acrobot_offline_swingup_tracks_its_plan_and_hands_over() -> None:
     np.testing.assert_array_equal(hold.ctrls_init, np.zeros((hold.horizon, 1)))
 
 
+def test_dm_acrobot_offline_swingup_with_the_lqr_holder_catches_a_rising_chain() -> None:
+    """From the time reverse of a 1.2 s fall from near the upright (moving up, a turn away
+    on the shoulder), the plan re-solved to end at rest, tracked and handed over to the
+    wrapped upright LQR holds the tip inside the tolerance; the LQR alone drops it."""
+    pytest.importorskip("dm_control")
+    from mpcbox.controllers.lqr import LQR
+    from mpcbox.tasks.swingup.dm_control import DmAcrobotSwingup
+
+    model = DmAcrobotSwingup(threads=1).model
+    data = mujoco.MjData(model)
+    data.qpos[:] = [0.0, 0.05]
+    for _ in range(120):
+        mujoco.mj_step(model, data)
+    start = np.r_[data.qpos + np.array([2 * np.pi, 0.0]), -data.qvel]
+    problem = DmAcrobotSwingup(initial=start, threads=1)
+    assert problem.upright_error(start) > 2.0  # the tip starts 2 m or more away
+    ctrl = problem.offline_swingup(seconds=1.2, holder="lqr")
+    tracker, hold = ctrl.controllers
+    assert isinstance(hold, LQR) and ctrl.name == "ilqr_track_lqr"
+    result = mpcbox.simulate(problem, ctrl, 2.5)
+    errors = problem.upright_errors(result.states)
+    # Handed over once, at the step after the plan's end, then held near the top.
+    assert ctrl.switches == 1 and ctrl.switch_times[0] == pytest.approx(1.21)
+    assert errors[121:].max() < 0.05 and errors[-1] < 0.01
+    # The plan ends at rest at an upright a whole turn away, and the holder's last gains
+    # are the tracker's.
+    end = tracker.tracker.reference.states[-1]
+    assert np.abs(end[:2] - tracker.turns(end)[:2]).max() < 0.1 and np.abs(end[2:]).max() < 0.1
+    assert np.abs(tracker.tracker.reference.gains[-1] - hold.K).max() < 0.1 * np.abs(hold.K).max()
+    hold.reset()
+    alone = problem.upright_errors(mpcbox.simulate(problem, hold, 2.5).states)
+    assert alone[-1] > 1.0
+    with pytest.raises(InvalidArgumentError, match="holder"):
+        problem.offline_swingup(holder="mpc")
+    with pytest.raises(InvalidArgumentError, match="overrides"):
+        problem.offline_swingup(holder="lqr", horizon=10)
+    with pytest.raises(InvalidArgumentError, match="polish"):
+        problem.offline_swingup(holder="lqr", polish=0)
+
+
 def test_offline_plan_tracker_keeps_the_best_guess_and_follows_it_on_the_sim_grid() -> None:
     from mpcbox.controllers.trajectory import OfflinePlanTracker
 
@@ -318,3 +363,10 @@ def test_offline_plan_tracker_keeps_the_best_guess_and_follows_it_on_the_sim_gri
         OfflinePlanTracker(problem, [])
     with pytest.raises(InvalidArgumentError, match="whole multiple"):
         OfflinePlanTracker(PendulumSwingup(threads=1).with_planning_timestep(0.015), guesses)
+    with pytest.raises(InvalidArgumentError, match="period"):
+        OfflinePlanTracker(problem, guesses, period=0.02)
+    with pytest.raises(ShapeError, match="terminal"):
+        OfflinePlanTracker(problem, guesses, terminal=np.eye(3))
+    # Whole turns of the unlimited hinge off the reference (pi), nothing on the speed.
+    turns = ctrl.turns(np.array([np.pi + 4 * np.pi + 0.1, 7.0]))
+    np.testing.assert_allclose(turns, [4 * np.pi, 0.0])
