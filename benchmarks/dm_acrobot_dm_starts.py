@@ -554,7 +554,7 @@ def main() -> None:
         if name in TRACKED:
             plans = [r[name].get("plan_tip_error_m", np.inf) for r in runs]
             summary[name]["plan_reaches"] = f"{sum(e < TOLERANCE for e in plans)}/{len(runs)}"
-            summary[name]["settings"] = TRACK
+            summary[name]["settings"] = {**TRACK, "holder": TRACKED[name]}
     out = {
         "benchmark": "dm_acrobot_dm_starts",
         "target": "tip within 0.2 m within 5 s and held to the end of a 10 s episode (#13)",

@@ -339,8 +339,8 @@ def test_dm_acrobot_offline_swingup_with_the_lqr_holder_catches_a_rising_chain()
         problem.offline_swingup(holder="mpc")
     with pytest.raises(InvalidArgumentError, match="overrides"):
         problem.offline_swingup(holder="lqr", horizon=10)
-    with pytest.raises(InvalidArgumentError, match="polish"):
-        problem.offline_swingup(holder="lqr", polish=0)
+    with pytest.raises(InvalidArgumentError, match="rest_iterations"):
+        problem.offline_swingup(holder="lqr", rest_iterations=0)
 
 
 def test_offline_plan_tracker_keeps_the_best_guess_and_follows_it_on_the_sim_grid() -> None:

@@ -21,10 +21,11 @@ controls, :class:`~mpcbox.controllers.trajectory.tracker.TrajectoryTracker`), wh
 the final knot once the plan has ended. The solve call reports ``last_call = "offline"``,
 the tracking calls ``"hold"``.
 
-To end the plan where a regulator about the Problem's reference takes over, the re-solve
-can use other solver options (``polish_options``, e.g. ``terminal_value="lqr"``: the
-reference's LQR value as terminal cost) and run on the whole-turn copy of the plan nearest
-the reference (``wrap``: each unlimited hinge's angles shifted by
+To end the plan where a regulator about the Problem's reference takes over, a second
+re-solve on the simulation grid (``refine_iterations``) can start from the rollout of the
+first with other solver options (``refine_options``, e.g. ``terminal_value="lqr"``: the
+reference's LQR value as terminal cost) on the whole-turn copy of the plan nearest the
+reference (``wrap``: each unlimited hinge's angles shifted by
 :math:`2\pi\,\mathrm{round}((q_{j,T} - q_j^{ref}) / 2\pi)`, the plan's final angle
 :math:`q_{j,T}`; such a shift leaves the dynamics unchanged); the tracking gains' recursion
 can start from a given terminal weight (``terminal``: the regulator's Riccati matrix, so the
@@ -67,10 +68,12 @@ class OfflinePlanTracker(Controller):
         polish_iterations: Iterations of the re-solve on the simulation grid (0: none).
         weights: Tracking weights (default
             :class:`~mpcbox.controllers.trajectory.reference.TrackingWeights`).
-        polish_options: :class:`~mpcbox.controllers.ilqr.config.ILQRConfig` fields that
-            replace ``solver_options`` in the re-solve (e.g. ``{"terminal_value": "lqr"}``).
-        wrap: Re-solve on the whole-turn copy of the plan nearest the reference (module
-            docstring); the tracked plan stays in the measured angles.
+        refine_iterations: Iterations of the second re-solve (0: none).
+        refine_options: :class:`~mpcbox.controllers.ilqr.config.ILQRConfig` fields that
+            replace ``solver_options`` in the second re-solve (e.g.
+            ``{"terminal_value": "lqr"}``).
+        wrap: Run the second re-solve on the whole-turn copy of the plan nearest the
+            reference (module docstring); the tracked plan stays in the measured angles.
         terminal: Terminal weight ``(nx, nx)`` of the tracking gains' Riccati recursion
             (default: the tracking state weight).
         period: Seconds between calls it declares: ``None`` or the simulation timestep
@@ -105,7 +108,8 @@ class OfflinePlanTracker(Controller):
         score: PlanScore | None = None,
         polish_iterations: int = 0,
         weights: TrackingWeights | None = None,
-        polish_options: Mapping[str, Any] | None = None,
+        refine_iterations: int = 0,
+        refine_options: Mapping[str, Any] | None = None,
         wrap: bool = False,
         terminal: np.ndarray | None = None,
         period: float | None = None,
@@ -137,10 +141,16 @@ class OfflinePlanTracker(Controller):
         )
         self.score: PlanScore = (lambda result: float(result.cost)) if score is None else score
         self.polish_iterations = integer("polish_iterations", polish_iterations)
-        polish = {**options, **dict(polish_options or {})}
+        fine_options = {**options, "horizon": first.shape[0] * self.substeps}
         self.polisher = (
-            ILQRSolver(self.track_problem, **{**polish, "horizon": first.shape[0] * self.substeps})
+            ILQRSolver(self.track_problem, **fine_options)
             if self.polish_iterations > 0 and self.substeps > 1
+            else None
+        )
+        self.refine_iterations = integer("refine_iterations", refine_iterations)
+        self.refiner = (
+            ILQRSolver(self.track_problem, **{**fine_options, **dict(refine_options or {})})
+            if self.refine_iterations > 0
             else None
         )
         self.weights = TrackingWeights() if weights is None else weights
@@ -205,15 +215,21 @@ class OfflinePlanTracker(Controller):
             guess = np.stack(
                 [np.interp(grid, np.arange(kept.states.shape[0]), s) for s in kept.states.T], 1
             )
-            shift = self.turns(kept.states[-1]) if self.wrap else np.zeros_like(state)
             polished = self.polisher.solve(
-                state - shift,
-                fine,
-                states_init=guess - shift,
-                max_iterations=self.polish_iterations,
+                state, fine, states_init=guess, max_iterations=self.polish_iterations
             )
             fine = polished.ctrls
         states = self.track_problem.rollout(state, fine).states[0]
+        if self.refiner is not None:
+            shift = self.turns(states[-1]) if self.wrap else np.zeros_like(state)
+            refined = self.refiner.solve(
+                state - shift,
+                fine,
+                states_init=states - shift,
+                max_iterations=self.refine_iterations,
+            )
+            fine = refined.ctrls
+            states = self.track_problem.rollout(state, fine).states[0]
         ctrls = np.vstack([fine, fine[-1:]])
         reference = tracking_reference(
             self.track_problem, states, self.weights, ctrls=ctrls, terminal=self.terminal

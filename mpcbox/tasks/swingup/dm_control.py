@@ -301,8 +301,8 @@ class DmAcrobotSwingup(Swingup):
         """The offline plan and its tracker of :meth:`offline_swingup` (see there for the
         arguments), without the hand-over: e.g. the 5 s oracle of
         ``benchmarks/dm_acrobot_dm_starts.py`` with ``polish=0``. ``options``: further
-        :class:`OfflinePlanTracker` arguments (``polish_options``, ``wrap``, ``terminal``,
-        ``period``)."""
+        :class:`OfflinePlanTracker` arguments (``refine_iterations``, ``refine_options``,
+        ``wrap``, ``terminal``, ``period``)."""
         planner = DmAcrobotSwingup(
             weights=end_weights(angle=angle),
             joints={"shoulder": 0.0, "elbow": 0.0} if angle > 0 else {},
@@ -340,6 +340,7 @@ class DmAcrobotSwingup(Swingup):
         speed: float = 0.5,
         weights: TrackingWeights | None = None,
         holder: str = "ilqr",
+        rest_iterations: int = 40,
         **overrides: Any,
     ) -> HandOver:
         """Swing up along an offline plan, then hold with the task's iLQR-MPC or an LQR.
@@ -363,28 +364,27 @@ class DmAcrobotSwingup(Swingup):
         is the upright's infinite-horizon LQR on the RK4 model at the simulation step, with
         the tracking weights (:func:`~mpcbox.controllers.trajectory.reference.weight_matrices`:
         position 100, velocity 30, torque 1 by default) and angles wrapped to the nearest
-        upright (``LQR(wrap=True)``: a plan may end turns away from ``(0, 0)``). The re-solve
-        on the 0.01 s grid then adds that grid's upright LQR value as terminal cost
+        upright (``LQR(wrap=True)``: plans end whole turns away from ``(0, 0)``). After the
+        re-solve on the 0.01 s grid, a second one (``rest_iterations``, from the first's
+        rollout) adds that grid's upright LQR value as terminal cost
         (``terminal_value="lqr"``) on the whole-turn copy of the plan ending nearest the
-        upright (``wrap``), and the tracking gains' recursion starts from the holder's
-        Riccati matrix, so the last gains are nearly its gain. Why: the 2 N m elbow's hold
-        basin is a few hundredths of a rad and rad/s (the LQR drops a 0.1 rad elbow offset
-        at rest), and the oracle's plans end with the links bent by 0.23-0.59 rad; with the
-        terminal value they end within about 0.25 rad and 0.12 rad/s of the upright on the
-        tracking gains' terms, which the tracker and the LQR then catch
-        (``benchmarks/dm_acrobot_dm_starts.py --controllers ilqr_track_lqr``). ``overrides``
-        must then be empty; ``polish`` must be positive.
+        upright, and the tracking gains' recursion starts from the holder's Riccati matrix,
+        so the last gains are nearly its gain. The holder takes over when the plan ends (or
+        by ``radius`` and ``speed`` as above). Why: the 2 N m elbow's hold basin is a few
+        hundredths of a rad and rad/s (the LQR drops a 0.1 rad elbow offset at rest) and the
+        first re-solve's plans end with the links bent by 0.23-0.59 rad; RESULT
 
         Args:
             holder: ``"ilqr"`` (the task's iLQR-MPC) or ``"lqr"`` (see above).
+            rest_iterations: Iterations of the second re-solve (``holder="lqr"`` only).
 
         Returns:
             The controller, named ``"ilqr_track"`` (``"ilqr_track_lqr"`` with the LQR).
 
         Raises:
             InvalidArgumentError: For another ``holder`` (the error lists :data:`HOLDERS`),
-                ``holder="lqr"`` with ``overrides`` or ``polish=0``, or a non-positive
-                ``speed``, ``radius`` or ``seconds``.
+                ``holder="lqr"`` with ``overrides`` or ``rest_iterations`` below 1, or a
+                non-positive ``speed``, ``radius`` or ``seconds``.
         """
         speed = positive("speed", speed)
         radius = None if radius is None else positive("radius", radius)
@@ -399,6 +399,7 @@ class DmAcrobotSwingup(Swingup):
                 angle=angle,
                 polish=polish,
                 weights=weights,
+                rest=rest_iterations,
             )
         tracker = self.offline_planner(
             seconds=seconds, iterations=iterations, angle=angle, polish=polish, weights=weights
@@ -424,11 +425,7 @@ class DmAcrobotSwingup(Swingup):
             raise InvalidArgumentError(
                 f"overrides: holder='lqr' takes no iLQR config fields, got {sorted(overrides)}"
             )
-        if integer("polish", plan["polish"]) < 1:
-            raise InvalidArgumentError(
-                f"polish must be positive with holder='lqr' (the re-solve ends the plan at "
-                f"rest), got {plan['polish']}"
-            )
+        rest = integer("rest_iterations", plan.pop("rest"), minimum=1)
         weights = plan.pop("weights") or TrackingWeights(
             position_weight=100.0, velocity_weight=30.0, torque_weight=1.0
         )
@@ -438,7 +435,8 @@ class DmAcrobotSwingup(Swingup):
         tracker = self.offline_planner(
             **plan,
             weights=weights,
-            polish_options={"terminal_value": "lqr"},
+            refine_iterations=rest,
+            refine_options={"terminal_value": "lqr"},
             wrap=True,
             terminal=hold.P,
             period=hold.period,
