@@ -85,6 +85,19 @@ LQR holds the upright moving at 0.01 rad/s.
         --out benchmarks/results/dm_acrobot_dm_starts_ilqr_track.json
     nice -n 5 python benchmarks/dm_acrobot_dm_starts.py --catch-check
 
+``--controllers ilqr_track_lqr``: the same with ``holder="lqr"`` (a second re-solve, 40
+iterations, with the upright LQR value as terminal cost so the plan ends at rest at the
+upright; tracking gains from the holder's Riccati matrix; then the upright LQR of
+:data:`TRACK_LQR`'s weights with wrapped angles). Recorded (``..._ilqr_track_lqr.json``):
+6/12 within 5 s and held (4.81-4.84 s; all 5 starts the oracle reaches, and seed 11, which
+it does not), 6/12 by 10 s; the iteration count was fixed before any run (one 20-iteration
+re-solve with the terminal value, an earlier variant, gave 3/12). Dev starts 100-107
+(``--seeds 100-107``, ``..._ilqr_track_lqr_dev.json``): 2/8, the oracle reaching 5/8.
+
+    nice -n 5 python benchmarks/dm_acrobot_dm_starts.py --controllers ilqr_track_lqr \
+        --oracle-from benchmarks/results/dm_acrobot_dm_starts.json --no-hanging \
+        --out benchmarks/results/dm_acrobot_dm_starts_ilqr_track_lqr.json
+
 ``--plan-rk4 true|false`` replaces the task's ``plan_rk4`` and ``--overrides`` (JSON config
 fields) the tuned config fields in every controller run; ``--oracle-from`` copies the
 per-start oracle of an earlier results file instead of solving it again.

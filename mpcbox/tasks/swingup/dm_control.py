@@ -196,8 +196,9 @@ class DmAcrobotSwingup(Swingup):
     rest but drops 0.1 rad, and even the upright moving at (-0.01, -0.006) rad/s, which
     the upright LQR of ``benchmarks/dm_acrobot_track.py`` holds; neither holds (-0.132,
     -0.014) rad/s (``dm_acrobot_dm_starts.py --catch-check``,
-    ``benchmarks/results/dm_acrobot_catch.json``). Closing the gap needs plans that end at
-    rest to about 0.01 rad/s and a holder with the LQR's basin.
+    ``benchmarks/results/dm_acrobot_catch.json``). With ``holder="lqr"`` (a second re-solve
+    with the upright LQR value as terminal cost, then the wrapped upright LQR) 6/12 are
+    upright within 5 s and held (``..._ilqr_track_lqr.json``; dev starts 100-107: 2/8).
 
     From the hanging rest 5 s is out of reach with this elbow: the elbow gives at most 2 N m
     and the swing-up must add 39.2 J of potential energy, 19.6 rad of elbow travel at full
@@ -372,7 +373,12 @@ class DmAcrobotSwingup(Swingup):
         so the last gains are nearly its gain. The holder takes over when the plan ends (or
         by ``radius`` and ``speed`` as above). Why: the 2 N m elbow's hold basin is a few
         hundredths of a rad and rad/s (the LQR drops a 0.1 rad elbow offset at rest) and the
-        first re-solve's plans end with the links bent by 0.23-0.59 rad; RESULT
+        first re-solve's plans end with the links bent by 0.23-0.59 rad. With the second
+        they end with the shoulder within 0.12 rad, the elbow 0.24 rad and both speeds 0.12
+        rad/s of the upright, moving towards it (low LQR value), from the 6 caught starts,
+        and seeds 0-11 are upright within 5 s and held from 6/12 (the oracle's 5 and one
+        it does not reach; dev starts 100-107: 2/8, the oracle reaching 5/8;
+        ``benchmarks/dm_acrobot_dm_starts.py --controllers ilqr_track_lqr``).
 
         Args:
             holder: ``"ilqr"`` (the task's iLQR-MPC) or ``"lqr"`` (see above).
