@@ -375,7 +375,8 @@ class DmAcrobotSwingup(Swingup):
         hundredths of a rad and rad/s (the LQR drops a 0.1 rad elbow offset at rest) and the
         first re-solve's plans end with the links bent by 0.23-0.59 rad. With the second
         they end with the shoulder within 0.12 rad, the elbow 0.24 rad and both speeds 0.12
-        rad/s of the upright, moving towards it (low LQR value), from the 6 caught starts,
+        rad/s of the upright from the 6 caught starts (which the tracker's last gains and
+        the LQR then catch; the LQR alone drops a 0.1 rad elbow offset at rest),
         and seeds 0-11 are upright within 5 s and held from 6/12 (the oracle's 5 and one
         it does not reach; dev starts 100-107: 2/8, the oracle reaching 5/8;
         ``benchmarks/dm_acrobot_dm_starts.py --controllers ilqr_track_lqr``).
