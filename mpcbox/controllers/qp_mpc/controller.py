@@ -102,7 +102,15 @@ def default_contacts(problem: Problem, state: np.ndarray) -> list[str]:
             "contacts: nothing touches the ground at the reference state; name the "
             "contact geoms, sites or bodies"
         )
-    return ["body:" + mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) for b in bodies]
+    names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) for b in bodies]
+    unnamed = [b for b, name in zip(bodies, names, strict=True) if not name]
+    if unnamed:
+        raise InvalidArgumentError(
+            f"contacts: unnamed bodies (ids {unnamed}) touch the ground at the reference state, "
+            "so they cannot be found by name; name them in the MJCF or give "
+            "QPMPCConfig(contacts=...) the contact geoms, sites or bodies"
+        )
+    return ["body:" + name for name in names]
 
 
 def grounded_points(
