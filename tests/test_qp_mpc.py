@@ -502,3 +502,6 @@ def test_default_contacts_name_the_touching_body_or_refuse_an_unnamed_one():
     unnamed = Problem(BLOCK.format(name=""), threads=1)
     with pytest.raises(InvalidArgumentError, match=r"unnamed bodies \(ids \[1\]\).*contacts="):
         QPMPC(unnamed)
+    floating = Problem(BLOCK.format(name='name="block"').replace("0 0 0.1", "0 0 0.5"), threads=1)
+    with pytest.raises(InvalidArgumentError, match=r"nothing touches the ground.*for LQR, iLQR"):
+        QPMPC(floating)
