@@ -250,7 +250,7 @@ def test_servo_whose_ctrlrange_misses_its_force_range_is_pinned_not_crashed():
         '<position name="servo" joint="shoulder" kp="100" ctrlrange="0.5 1" forcerange="-1 1"/>'
         '<position joint="elbow" kp="100"/>'
     )
-    with pytest.raises(InfeasibleEquilibriumError, match="'servo' is at its .* ctrlrange limit"):
+    with pytest.raises(InfeasibleEquilibriumError, match=r"'servo' is at its .* ctrlrange limit"):
         mpcbox.find_equilibrium(model, POSTURE, on_infeasible="raise")
     eq = mpcbox.find_equilibrium(model, POSTURE, on_infeasible="ignore")
     assert eq.ctrl[0] == 0.5
