@@ -160,6 +160,8 @@ def test_unknown_names_list_the_valid_ones(balance):
         Scenario(noise_scale=-1.0)
     with pytest.raises(InvalidArgumentError, match="direction"):
         PushTest(direction=(0.0, 0.0, 0.0))
+    with pytest.raises(InvalidArgumentError, match=r"seeds must be distinct, got \[3\]"):
+        compare(balance, ["lqr"], seeds=[3, 1, 3])  # each row was counted twice
 
 
 def test_columns_follow_the_task_measures():
