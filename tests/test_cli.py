@@ -41,15 +41,20 @@ def test_options_lists_a_controllers_config_with_defaults(capsys) -> None:
         (["compare", "pendulum_swingup", "--noise", "x"], "--noise"),
         (["compare", "pendulum_swingup", "--controllers", "nope"], "nope"),
         (["compare", "no_such_task"], "no_such_task"),
+        # Checked before any run (each run used to fail, the table came first or rc was 0):
+        (["compare", "pendulum_swingup", "--set", "ilqr.horizon=-3"], "horizon"),
+        (["compare", "pendulum_swingup", "--push", "3", "--push-body", "nope"], "--push-body"),
+        (["compare", "quadruped_stand", "--model", str(Path(__file__))], "feet"),
         (["options", "no_such_controller"], "no_such_controller"),
         (["frobnicate"], "frobnicate"),
     ],
 )
 def test_user_errors_exit_2_with_one_line(capsys, tmp_path, argv, needle) -> None:
-    code, _, err = run(capsys, *argv, *(["--out", str(tmp_path)] if argv[0] == "compare" else []))
+    code, out, err = run(capsys, *argv, *(["--out", str(tmp_path)] if argv[0] == "compare" else []))
     assert code == 2
     assert err.startswith("error:") and needle in err, err
     assert "Traceback" not in err
+    assert "|" not in out  # no table: nothing ran
 
 
 def test_unwritable_out_fails_before_anything_runs(capsys, tmp_path: Path) -> None:

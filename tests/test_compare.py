@@ -160,6 +160,8 @@ def test_unknown_names_list_the_valid_ones(balance):
         Scenario(noise_scale=-1.0)
     with pytest.raises(InvalidArgumentError, match="direction"):
         PushTest(direction=(0.0, 0.0, 0.0))
+    with pytest.raises(InvalidArgumentError, match=r"seeds must be distinct, got \[3\]"):
+        compare(balance, ["lqr"], seeds=[3, 1, 3])  # each row was counted twice
 
 
 def test_columns_follow_the_task_measures():
@@ -188,6 +190,31 @@ def test_columns_follow_the_task_measures():
         "compute_mean_ms,compute_p99_ms,period_ms,p99_fits,offline_ms,realtime_factor,"
         "fallbacks,fallback_rate"
     )
+
+
+def _broken_factory(problem):
+    raise ValueError("broken controller")
+
+
+_broken_factory.name = "broken"
+
+
+def test_a_controller_that_errors_in_every_run_gets_a_row_not_a_crash():
+    """Its runs record no measures; the table shows NaN there (it raised KeyError, e.g. for
+    ``mpcbox compare pendulum_swingup --set ilqr.horizon=-3``)."""
+    result = compare(
+        "pendulum_swingup",
+        ["lqr", _broken_factory],
+        Scenario(duration=0.05, noise_scale=0.0),
+        seeds=1,
+        workers=1,
+        progress=False,
+    )
+    lqr, broken = result.rows()
+    assert np.isfinite(lqr.measures["upright_error_final_rad"])
+    assert np.isnan(broken.measures["upright_error_final_rad"])
+    assert broken.outcomes == {"controller error": 1}
+    assert "broken" in result.to_markdown()
 
 
 def test_cli_unknown_names(capsys):

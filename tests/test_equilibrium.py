@@ -240,6 +240,25 @@ def test_force_limit_of_a_position_servo_bounds_the_setpoint():
     assert abs(eq.actuator_force[0]) == pytest.approx(1.0, abs=1e-9)
 
 
+def test_servo_whose_ctrlrange_misses_its_force_range_is_pinned_not_crashed():
+    """The posture is outside the servo's set-point range (as Menagerie's Panda at ``qpos0``,
+    whose joint 4 range excludes 0): the control range and the force range's set-points do
+    not overlap. MuJoCo clamps the set-point into its range and the force to its limit, so
+    the control sits at the range's end nearest the posture and the shortfall is reported
+    (the bounded least squares used to raise scipy's ValueError on the inverted bounds)."""
+    model = arm(
+        '<position name="servo" joint="shoulder" kp="100" ctrlrange="0.5 1" forcerange="-1 1"/>'
+        '<position joint="elbow" kp="100"/>'
+    )
+    with pytest.raises(InfeasibleEquilibriumError, match=r"'servo' is at its .* ctrlrange limit"):
+        mpcbox.find_equilibrium(model, POSTURE, on_infeasible="raise")
+    eq = mpcbox.find_equilibrium(model, POSTURE, on_infeasible="ignore")
+    assert eq.ctrl[0] == 0.5
+    assert eq.actuator_force[0] == pytest.approx(1.0)  # MuJoCo's clamp: kp (0.5 + 0.4) -> 1
+    tau = holding_force(model, POSTURE)
+    assert eq.shortfall == pytest.approx(abs(tau[0] - 1.0), abs=1e-9)
+
+
 def test_humanoid_motors_keep_the_plain_least_squares_control():
     model = mujoco.MjModel.from_xml_path(str(scene_path("humanoid.xml")))
     key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "stand_on_left_leg")

@@ -153,6 +153,16 @@ def test_unknown_names_list_what_exists() -> None:
         LeggedBalance(spec, feet=["toe_front_left"], support="middle")
 
 
+def test_contacts_are_checked_when_the_task_is_built() -> None:
+    """A misspelt QP-MPC contact was accepted and only failed when QP-MPC was built; a single
+    name was split into its characters."""
+    feet = ["toe_front_left", "toe_front_right", "toe_back_right", "toe_back_left"]
+    with pytest.raises(UnknownNameError, match=r"^contacts: unknown contact geom 'toe_nope'"):
+        LeggedBalance(dm_quadruped(), feet=feet, contacts=["geom:toe_back_left", "geom:toe_nope"])
+    one = LeggedBalance(dm_quadruped(), feet=feet, contacts="geom:toe_back_left", threads=1)
+    assert one.contacts == ("geom:toe_back_left",)
+
+
 def test_a_fixed_base_needs_a_named_root() -> None:
     xml = """<mujoco><worldbody><geom type="plane" size="1 1 .1"/>
       <body name="leg" pos="0 0 .5"><joint name="j" axis="0 1 0"/>

@@ -228,6 +228,23 @@ def test_bad_inputs_raise_clear_errors(balance):
         mpcbox.Problem(HUMANOID, keyframe="nope")
 
 
+def test_zero_quaternions_are_refused_and_a_reference_quaternion_is_normalized(balance):
+    """A zero root quaternion (free joint at qpos[3:7]) was accepted: LQR about it returned a
+    NaN gain, a simulation from it ended in "controller error" with NumPy warnings."""
+    zero = balance.reference_state()
+    zero[3:7] = 0.0
+    with pytest.raises(mpcbox.InvalidArgumentError, match=r"initial_state\[3:7\] is a zero"):
+        mpcbox.simulate(balance, mpcbox.LQR(balance), 0.01, initial_state=zero)
+    with pytest.raises(mpcbox.InvalidArgumentError, match=r"state\[3:7\] is a zero quaternion"):
+        mpcbox.LQR(balance, state=zero)
+    with pytest.raises(mpcbox.InvalidArgumentError, match=r"qpos_ref\[3:7\] is a zero"):
+        mpcbox.Problem(HUMANOID, qpos_ref=zero[: balance.nq])
+    scaled = balance.qpos_ref.copy()
+    scaled[3:7] *= 2.0  # MuJoCo normalizes it when it steps; the reference must be the same
+    problem = mpcbox.Problem(HUMANOID, qpos_ref=scaled)
+    np.testing.assert_allclose(problem.qpos_ref, balance.qpos_ref, rtol=0, atol=1e-15)
+
+
 def test_quadratic_value_term_is_half_dx_P_dx(balance):
     rng = np.random.default_rng(8)
     M = rng.standard_normal((balance.nx, balance.nx))

@@ -474,3 +474,34 @@ def test_force_law_of_a_lifted_point_is_dropped_or_cancelled(one_leg):
             np.testing.assert_array_equal(lo_d[rows], lo_c[rows])
     with pytest.raises(InvalidArgumentError, match="lifted_force_law"):
         QPMPCConfig(lifted_force_law="never")
+
+
+BLOCK = """
+<mujoco>
+  <worldbody>
+    <geom type="plane" size="1 1 0.1"/>
+    <body {name} pos="0 0 0.1">
+      <joint name="x" type="slide" axis="1 0 0"/>
+      <joint name="z" type="slide" axis="0 0 1"/>
+      <geom type="box" size="0.1 0.1 0.1" mass="1"/>
+    </body>
+  </worldbody>
+  <actuator><motor joint="x"/><motor joint="z"/></actuator>
+</mujoco>
+"""
+
+
+def test_default_contacts_name_the_touching_body_or_refuse_an_unnamed_one():
+    """Contacts found by touch are passed on by name: an unnamed body touching the floor (as
+    in mujoco-warp's adhesion test model) used to raise a raw TypeError (str + None)."""
+    from mpcbox.controllers.qp_mpc.controller import default_contacts
+    from mpcbox.core.problem import Problem
+
+    named = Problem(BLOCK.format(name='name="block"'), threads=1)
+    assert default_contacts(named, named.reference_state()) == ["body:block"]
+    unnamed = Problem(BLOCK.format(name=""), threads=1)
+    with pytest.raises(InvalidArgumentError, match=r"unnamed bodies \(ids \[1\]\).*contacts="):
+        QPMPC(unnamed)
+    floating = Problem(BLOCK.format(name='name="block"').replace("0 0 0.1", "0 0 0.5"), threads=1)
+    with pytest.raises(InvalidArgumentError, match=r"nothing touches the ground.*for LQR, iLQR"):
+        QPMPC(floating)

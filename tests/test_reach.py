@@ -52,6 +52,17 @@ def test_free_pot_is_refused_by_name_or_welded_out_of_the_state(aloha: ArmReach)
     assert np.max(np.abs(np.linalg.eigvals(lqr.A - lqr.B @ lqr.K))) < 1.0
 
 
+@pytest.mark.parametrize(
+    "argument, value",
+    [("target", [np.nan, 0.0, 0.0]), ("orientation", [1.0, np.nan, 0.0, 0.0])],
+)
+def test_non_finite_targets_are_refused_by_their_name(argument, value) -> None:
+    """A NaN target was reported as ``position must be finite`` (the IK's argument)."""
+    kwargs = {"target": [0.0, 0.0, 0.0], argument: value}
+    with pytest.raises(InvalidArgumentError, match=f"^{argument} must be finite"):
+        ArmReach(aloha_scene(), frame="left\\gripper", relative=True, **kwargs)
+
+
 def test_lqr_reaches_and_the_goal_check_and_measure_agree(aloha: ArmReach) -> None:
     start = aloha.initial_state()
     assert aloha.reach_error(start) == pytest.approx(0.1, abs=1e-9)

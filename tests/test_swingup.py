@@ -162,6 +162,17 @@ def test_names_that_do_not_exist_list_the_choices() -> None:
     assert "dm_cartpole_swingup" in str(info.value)
 
 
+def test_targets_that_are_not_numbers_are_refused_by_name() -> None:
+    """They raised NumPy's raw ValueError (could not convert string to float)."""
+    path = str(scene_path("cartpole.xml"))
+    with pytest.raises(InvalidArgumentError, match=r"joints\['hinge_1'\] must be a number"):
+        Swingup(path, joints={"hinge_1": "up"})
+    with pytest.raises(InvalidArgumentError, match=r"target of 'tip' must be a height.*'high'"):
+        Swingup(path, sites={"tip": "high"})
+    with pytest.raises(InvalidArgumentError, match=r"target of 'tip' must be .*\[1, \[2\]\]"):
+        Swingup(path, sites={"tip": [1, [2]]})  # ragged
+
+
 def test_ilqr_at_a_hanging_rest_says_saddle_not_converged() -> None:
     problem = PendulumSwingup(planning_timestep=0.05, threads=1)
     at_rest = ILQR(problem, horizon=40, threads=1).solve(problem.initial_state())

@@ -284,7 +284,9 @@ def run_comparison(
     from mpcbox.comparison.runner import compare, resolve_controllers
     from mpcbox.comparison.scenario import PushTest
     from mpcbox.comparison.stream import RunStream
-    from mpcbox.registry import task_class
+    from mpcbox.config import resolve_config
+    from mpcbox.core.model import object_id
+    from mpcbox.registry import controller_class, task_class
 
     stream = stream or sys.stdout
     out = check_output_folder(args.out)
@@ -299,6 +301,14 @@ def run_comparison(
         overrides.setdefault(name, {}).update(options)
     reductions = cpu_reductions(task_class(task), defaults, sets)
     task_options = {name: getattr(args, name) for name in task_parameters(task)}
+    # Built here (write_outputs needs it anyway) so that a bad task option or --set value
+    # stops the command before any run, instead of failing every run.
+    problem = task_class(task)(**task_options)
+    for name, options in overrides.items():
+        cls = controller_class(name).config_class
+        resolve_config(cls, problem.controller_configs.get(name), options, f"--set {name}")
+    if args.push or args.largest_push:
+        object_id(problem.model, "body", args.push_body, "--push-body")
     push_tests = ()
     if args.largest_push:
         common = dict(
@@ -353,6 +363,7 @@ def run_comparison(
         overrides=overrides,
         reductions=reductions,
         command=command,
+        problem=problem,
     )
     folder = out / "trajectories"
     direct = [p for p in written if p.parent == out]

@@ -138,8 +138,11 @@ def write_outputs(
     overrides: Mapping[str, Mapping[str, Any]],
     reductions: Mapping[str, Any],
     command: Sequence[str] | str | None,
+    problem: Any = None,
 ) -> list[Path]:
     """Write the records of a comparison into ``args.out``, and the single-run files.
+
+    ``problem`` is the task built with ``task_options`` (built here when ``None``).
 
     Returns:
         The written paths.
@@ -147,7 +150,8 @@ def write_outputs(
     from mpcbox.comparison.records import controller_settings, write_records
     from mpcbox.registry import task_class
 
-    problem = task_class(task)(**task_options)
+    if problem is None:
+        problem = task_class(task)(**task_options)
     settings = controller_settings(problem, result.controllers, overrides)
     for name, changes in reductions.items():
         settings[name]["reduced_for_cpu"] = {k: list(v) for k, v in changes.items()}

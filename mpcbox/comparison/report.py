@@ -170,7 +170,7 @@ class Comparison:
                 )
                 measures = {
                     measure.display_key(summary): measure.scale_of(summary)
-                    * _mean([m.measures[measure.key(summary)] for m in metrics])
+                    * _mean([m.measures.get(measure.key(summary), math.nan) for m in metrics])
                     for measure, summary in self._measure_columns()
                 }
                 outcomes: dict[str, int] = {}

@@ -214,6 +214,9 @@ def compare(
         if isinstance(seeds, int | np.integer) and not isinstance(seeds, bool)
         else integers("seeds", seeds)
     )
+    repeated = sorted({s for s in seed_list if seed_list.count(s) > 1})
+    if repeated:  # a run is identified by its seed (rows, checkpoint)
+        raise InvalidArgumentError(f"seeds must be distinct, got {repeated} more than once")
     tests = (push_tests,) if isinstance(push_tests, PushTest) else push_tests
     if not isinstance(tests, Sequence):
         raise InvalidTypeError(f"push_tests must be PushTest objects, got {type(tests).__name__}")

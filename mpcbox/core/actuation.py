@@ -223,6 +223,17 @@ def actuation_map(model: mujoco.MjModel, data: mujoco.MjData) -> ActuationMap:
     def tighten(j: int, interval: tuple[float, float] | None, source: str) -> None:
         if interval is None:
             return
+        if interval[0] > upper[j] or interval[1] < lower[j]:
+            # Disjoint from the range found so far (the control's own range comes first):
+            # MuJoCo clamps the control into its range, so the force stays at its limit; the
+            # control is pinned at the end of its range nearest the force limits.
+            if interval[0] > upper[j]:
+                value, side = upper[j], upper_source[j]
+            else:
+                value, side = lower[j], lower_source[j]
+            lower[j] = upper[j] = value
+            lower_source[j] = upper_source[j] = side
+            return
         if interval[0] > lower[j]:
             lower[j], lower_source[j] = interval[0], source
         if interval[1] < upper[j]:
@@ -291,7 +302,11 @@ def solve_actuation(amap: ActuationMap, qfrc: np.ndarray) -> np.ndarray:
     if np.all(x >= lower) and np.all(x <= upper):
         return x
     x = np.clip(np.zeros_like(x), lower, upper)
-    used = np.flatnonzero(np.any(A != 0.0, axis=0))
+    # A variable pinned by its bounds (lower == upper) is fixed; BVLS needs lower < upper.
+    pinned = lower >= upper
+    x[pinned] = lower[pinned]
+    target = target - A[:, pinned] @ x[pinned]
+    used = np.flatnonzero(np.any(A != 0.0, axis=0) & ~pinned)
     if used.size:
         fit = lsq_linear(
             A[:, used], target, bounds=(lower[used], upper[used]), method="bvls", tol=1e-12

@@ -146,7 +146,9 @@ class Problem:
             self.qpos_ref = base.qpos0.copy()
             key_ctrl = np.zeros(self.nu)
         if qpos_ref is not None:
-            self.qpos_ref = finite_array("qpos_ref", qpos_ref, (self.nq,)).copy()
+            self.qpos_ref = self.tangent.unit_quaternions(
+                "qpos_ref", finite_array("qpos_ref", qpos_ref, (self.nq,))
+            )
         self.ctrl_ref = (
             key_ctrl if ctrl_ref is None else finite_array("ctrl_ref", ctrl_ref, (self.nu,))
         )
@@ -240,9 +242,9 @@ class Problem:
 
     def check_state(self, state: np.ndarray, name: str = "state") -> np.ndarray:
         """A state ``[qpos, qvel, act]`` as float64, checked: :class:`ShapeError` for another
-        shape than ``(nstate,)``, :class:`DivergenceError` for NaN or infinity (``name``: the
-        argument's name in messages)."""
-        return inputs.check_state(name, state, self.nstate)
+        shape than ``(nstate,)``, :class:`DivergenceError` for NaN or infinity,
+        :class:`InvalidArgumentError` for a zero quaternion (``name``: the argument's name)."""
+        return self.tangent.check_quaternions(name, inputs.check_state(name, state, self.nstate))
 
     def check_ctrl(self, ctrl: np.ndarray, name: str = "ctrl") -> np.ndarray:
         """Check a control ``(nu,)``: shape, finite, within MuJoCo's limit (:mod:`.inputs`)."""
@@ -250,11 +252,8 @@ class Problem:
 
     # ------------------------------------------------------------------ dynamics
     def scratch_data(self) -> mujoco.MjData:
-        """The calling thread's ``MjData`` of the planning model, for controllers' own loops.
-
-        The same object comes back on every call from one thread, holding what its last user
-        left: write the state and ``ctrl`` before stepping it.
-        """
+        """The calling thread's ``MjData`` of the planning model, for controllers' own loops
+        (the same object on every call from one thread, as its last user left it)."""
         return self.dynamics.scratch_data()
 
     def executor(self) -> ThreadPoolExecutor:

@@ -14,6 +14,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from mpcbox.errors import InvalidArgumentError
+
 
 def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product of quaternions ``(..., 4)`` in (w, x, y, z) order."""
@@ -93,6 +95,29 @@ class TangentSpace:
         """``(qpos addresses, dof addresses)`` of the quaternions (ball joints and free-joint
         rotation), each ``(n,)``: four positions and three dofs from each address."""
         return self._quat_q, self._quat_v
+
+    def check_quaternions(self, name: str, x: np.ndarray) -> np.ndarray:
+        """Return ``x`` (positions ``(nq,)`` or a state beginning with them) unchanged after
+        checking that no quaternion is zero (MuJoCo cannot normalize one).
+
+        Raises:
+            InvalidArgumentError: Naming ``name`` and the quaternion's positions.
+        """
+        for a in self._quat_q:
+            if not np.linalg.norm(x[a : a + 4]) > 1e-10:
+                raise InvalidArgumentError(
+                    f"{name}[{a}:{a + 4}] is a zero quaternion; the orientations of ball and "
+                    "free joints are unit quaternions [w, x, y, z] (e.g. [1, 0, 0, 0])"
+                )
+        return x
+
+    def unit_quaternions(self, name: str, qpos: np.ndarray) -> np.ndarray:
+        """A copy of ``qpos`` ``(nq,)`` with each quaternion scaled to unit norm, as MuJoCo
+        does when it steps (:meth:`check_quaternions` first)."""
+        qpos = self.check_quaternions(name, np.array(qpos, dtype=float))
+        for a in self._quat_q:
+            qpos[a : a + 4] /= np.linalg.norm(qpos[a : a + 4])
+        return qpos
 
     def difference(
         self, qpos: np.ndarray, qpos_ref: np.ndarray, out: np.ndarray | None = None

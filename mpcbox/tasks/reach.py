@@ -37,7 +37,7 @@ from mpcbox.core.posture import reach_posture
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.tasks.reach_measures import ReachError
-from mpcbox.validation import as_array, one_of, positive
+from mpcbox.validation import finite_array, one_of, positive
 
 #: Valid values of ``ArmReach(free_objects=...)``.
 FREE_OBJECTS = ("weld", "error")
@@ -134,9 +134,9 @@ class ArmReach(Problem):
         **kwargs: Any,
     ) -> None:
         self.frame = frame
-        self.target_input = as_array("target", target, (3,)).copy()
+        self.target_input = finite_array("target", target, (3,)).copy()
         self.orientation = (
-            None if orientation is None else as_array("orientation", orientation, (4,))
+            None if orientation is None else finite_array("orientation", orientation, (4,))
         )
         self.relative = bool(relative)
         self.tolerance = positive("tolerance", tolerance)
@@ -185,7 +185,7 @@ class ArmReach(Problem):
     def prepare(self, model: mujoco.MjModel) -> None:
         self.start_qpos = self._key_qpos(model)
         if self._start_qpos is not None:
-            self.start_qpos = as_array("start_qpos", self._start_qpos, (model.nq,)).copy()
+            self.start_qpos = finite_array("start_qpos", self._start_qpos, (model.nq,)).copy()
         data = mujoco.MjData(model)
         data.qpos[:] = self.start_qpos
         mujoco.mj_forward(model, data)

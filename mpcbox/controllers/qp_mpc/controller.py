@@ -100,9 +100,18 @@ def default_contacts(problem: Problem, state: np.ndarray) -> list[str]:
     if not bodies:
         raise InvalidArgumentError(
             "contacts: nothing touches the ground at the reference state; name the "
-            "contact geoms, sites or bodies"
+            "contact geoms, sites or bodies (QP-MPC plans contact forces: a model without "
+            "contacts, such as a fixed-base arm or a cart-pole, is for LQR, iLQR or sampling)"
         )
-    return ["body:" + mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) for b in bodies]
+    names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) for b in bodies]
+    unnamed = [b for b, name in zip(bodies, names, strict=True) if not name]
+    if unnamed:
+        raise InvalidArgumentError(
+            f"contacts: unnamed bodies (ids {unnamed}) touch the ground at the reference state, "
+            "so they cannot be found by name; name them in the MJCF or give "
+            "QPMPCConfig(contacts=...) the contact geoms, sites or bodies"
+        )
+    return ["body:" + name for name in names]
 
 
 def grounded_points(

@@ -13,6 +13,7 @@ import numpy as np
 from mpcbox.controllers.lqr import LQRConfig
 from mpcbox.controllers.qp_mpc.config import QPMPCConfig
 from mpcbox.core.actuator_scales import UNITS, actuator_scales, to_control
+from mpcbox.core.contact import contact_points
 from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, CostTerm, StateCost
 from mpcbox.core.equilibrium import Equilibrium, find_equilibrium
 from mpcbox.core.model import (
@@ -25,7 +26,7 @@ from mpcbox.core.model import (
     object_id,
 )
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError
+from mpcbox.errors import InvalidArgumentError, UnknownNameError
 from mpcbox.sim.disturbances import ActuatorNoise
 from mpcbox.sim.effort_noise import effort_noise
 from mpcbox.sim.measures import Measure
@@ -253,9 +254,17 @@ class LeggedBalance(Problem):
             raise InvalidArgumentError("root: the root body needs a name for the cost sensors")
         self.feet: tuple[Foot, ...] = find_feet(base, feet, qpos)
         self.foot_frames = self.add_sole_sites(spec, base)
-        self.contacts = self._contacts() if contacts is None else tuple(contacts)
+        if contacts is None:
+            self.contacts = self._contacts()
+        else:
+            self.contacts = (contacts,) if isinstance(contacts, str) else tuple(contacts)
         self.support_points = self._add_support(spec, base, qpos)
         super().__init__(spec, keyframe=key, **kwargs)
+        if contacts is not None:  # QP-MPC reads them later: check the names now
+            try:
+                contact_points(self.model, self.contacts, self.qpos_ref)
+            except UnknownNameError as exc:
+                raise UnknownNameError(exc.kind, exc.name, exc.valid, "contacts") from None
         qp = type(self).controller_configs.get("qp")
         period = type(self).torque_qp_period
         if isinstance(qp, QPMPCConfig) and period and not position_feedback(self.model):

@@ -25,7 +25,7 @@ import numpy as np
 from mpcbox.core.model import frame_object, frame_position, object_id
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.sim.measures import Measure
-from mpcbox.validation import as_array, one_of, positive
+from mpcbox.validation import as_array, number, one_of, positive
 
 #: Default tolerance of a goal given by joints (rad) and by sites only (m).
 DEFAULT_TOLERANCE = {"rad": 0.2, "m": 0.1}
@@ -89,11 +89,14 @@ class UprightGoal:
         self.sites: dict[str, np.ndarray] = {}
         for name, target in sites.items():
             frame_object(model, name)  # raises UnknownNameError listing sites and bodies
-            value = np.asarray(target, dtype=np.float64)
+            try:
+                value = np.asarray(target, dtype=np.float64)
+            except (TypeError, ValueError):
+                value = np.zeros(0)  # not numbers: refused below
             if value.shape not in ((), (3,)):
                 raise InvalidArgumentError(
                     f"sites: target of {name!r} must be a height (number) or a position "
-                    f"(3,), got shape {value.shape}"
+                    f"(3,), got {target!r}"
                 )
             self.sites[str(name)] = as_array(f"sites[{name!r}]", value, value.shape)
         by = ("joints" if self.joints else "sites") if by is None else by
@@ -218,5 +221,5 @@ def joint_targets(joints: Mapping[str, float] | Sequence[str] | None) -> dict[st
             f"joints must be a sequence of names or a name -> angle mapping, got {joints!r}"
         )
     if isinstance(joints, Mapping):
-        return dict(joints)
+        return {name: number(f"joints[{name!r}]", target) for name, target in joints.items()}
     return {str(name): float(np.pi) for name in joints}
