@@ -20,6 +20,8 @@ run again over that many seeds (100, 101, ...), fixed before those runs; with ``
 the screen is skipped and the first variant and controller are the final ones.
 ``--task g1_getup`` (or any registered get-up task) runs the same on that task, e.g.
 Unitree's G1 (:class:`~mpcbox.tasks.humanoid.g1_getup.G1Getup`, needs ``MENAGERIE_ROOT``).
+``task.servo=KP/KV`` runs the task on a servo copy of the project's humanoid
+(:func:`servo_humanoid`): the planner samples joint set-points instead of torques.
 Also per run: when the torso was first up (``first_up_s``, :meth:`HumanoidGetup.is_up`), the
 hand-over's switches and their times, and the torso height every 0.1 s.
 """
@@ -65,6 +67,38 @@ def parse_variants(text: str) -> dict[str, tuple[dict, dict, dict]]:
                 ctrl[key] = _value(val)
         out[name.strip()] = (task, ctrl, hand)
     return out
+
+
+def servo_humanoid(kp: float, kv: float) -> str:
+    """The project's humanoid with each motor (gear ``g``) replaced by a position servo of
+    the same torque limit: ``kp * g`` N m/rad, ``kv * g`` N m s/rad, set-points over the
+    joint's range, force clamped to ``[-g, g]``. Returns the path of the written MJCF."""
+    import tempfile
+
+    import mujoco
+
+    from mpcbox.tasks import scene_path
+
+    spec = mujoco.MjSpec.from_file(str(scene_path("humanoid.xml")))
+    for act in spec.actuators:
+        gear = float(act.gear[0])
+        act.set_to_position(kp=kp * gear, kv=kv * gear)
+        act.gear[0] = 1.0
+        act.inheritrange = 1.0
+        act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        act.forcerange = [-gear, gear]
+    path = Path(tempfile.mkdtemp()) / f"humanoid_servo_kp{kp:g}_kv{kv:g}.xml"
+    path.write_text(spec.to_xml())
+    return str(path)
+
+
+def task_options(task_kw: dict) -> dict:
+    """``task_kw`` with ``servo="KP/KV"`` turned into the servo model's path."""
+    opts = dict(task_kw)
+    if "servo" in opts:
+        kp, _, kv = str(opts.pop("servo")).partition("/")
+        opts["model"] = servo_humanoid(float(kp), float(kv))
+    return opts
 
 
 def build(problem, name, ctrl_opts, hand, seed, backend):
@@ -164,7 +198,7 @@ def main() -> None:
     for vname, (task_kw, ctrl_kw, hand) in variants.items():
         if args.seeds == 0:
             break
-        problem = task_class(args.task)(**task_kw)
+        problem = task_class(args.task)(**task_options(task_kw))
         for name in args.controllers.split(","):
             rows = []
             for seed in range(args.first_seed, args.first_seed + args.seeds):
@@ -197,7 +231,7 @@ def main() -> None:
     if args.final_seeds and best is not None:
         vname, name = best
         task_kw, ctrl_kw, hand = variants[vname]
-        problem = task_class(args.task)(**task_kw)
+        problem = task_class(args.task)(**task_options(task_kw))
         rows = []
         for seed in range(100, 100 + args.final_seeds):
             rows.append(

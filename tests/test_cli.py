@@ -206,3 +206,16 @@ def test_compare_realtime_reports_kept_up(capsys, tmp_path):
     assert table and "kept up" in table[0] and "real time" in out, out
     groups = json.loads((tmp_path / "groups.json").read_text())
     assert 0.0 <= groups[0]["kept_up_mean"] <= 1.0
+
+
+def test_set_values_are_python_literals_or_json_words() -> None:
+    from mpcbox.cli.compare import parse_sets
+
+    sets = parse_sets(
+        ["qp.relinearize=true", "qp.warm_start=False", "qp.time_limit=null", "mppi.n=64"]
+    )
+    assert sets == {
+        "qp": {"relinearize": True, "warm_start": False, "time_limit": None},
+        "mppi": {"n": 64},
+    }
+    assert parse_sets(["cem.name=trueish"]) == {"cem": {"name": "trueish"}}

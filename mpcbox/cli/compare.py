@@ -236,8 +236,11 @@ def scenarios_from_args(args: argparse.Namespace):
 
 
 def parse_sets(items: Sequence[str]) -> dict[str, dict[str, Any]]:
-    """``["mppi.num_samples=64"]`` -> ``{"mppi": {"num_samples": 64}}`` (Python literals)."""
+    """``["mppi.num_samples=64"]`` -> ``{"mppi": {"num_samples": 64}}`` (Python literals;
+    ``true``, ``false``, ``none`` and ``null`` in any case too)."""
     import ast
+
+    words = {"true": True, "false": False, "none": None, "null": None}
 
     out: dict[str, dict[str, Any]] = {}
     for item in items:
@@ -248,7 +251,7 @@ def parse_sets(items: Sequence[str]) -> dict[str, dict[str, Any]]:
         try:
             value = ast.literal_eval(text)
         except (ValueError, SyntaxError):
-            value = text
+            value = words.get(text.strip().lower(), text)
         out.setdefault(name.strip(), {})[option.strip()] = value
     return out
 
