@@ -125,6 +125,11 @@ class PostureWarning(UserWarning):
     """A reference posture is doubtful (e.g. in self-collision); the message says why."""
 
 
+class PeriodWarning(UserWarning):
+    """A controller's period is not a whole number of simulation steps, so it is called at
+    the nearest whole number instead (the message gives both)."""
+
+
 class MujocoError(MpcboxError, RuntimeError):
     """MuJoCo stopped a computation with a fatal error (``mujoco.FatalError``)."""
 

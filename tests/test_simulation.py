@@ -150,3 +150,27 @@ def test_argument_errors():
         mpcbox.simulate(problem, Zero(), 0.1, pushes=[Push(force=(1, 0, 0), body="boxx")])
     with pytest.raises(mpcbox.ShapeError, match="initial_state"):
         mpcbox.simulate(problem, Zero(), 0.1, initial_state=np.zeros(2))
+
+
+def test_a_period_between_whole_steps_is_rounded_with_a_warning():
+    import warnings
+
+    from mpcbox.errors import PeriodWarning
+
+    problem = mpcbox.Problem(FREE_BODY)
+    calls = []
+
+    class Every(mpcbox.Controller):
+        def __init__(self, period):
+            self.period = period
+
+        def __call__(self, state, time):
+            calls.append(time)
+            return np.zeros(1)
+
+    with pytest.warns(PeriodWarning, match=r"controller.period 0.0123 s .* every 0.012 s"):
+        mpcbox.simulate(problem, Every(0.0123), 0.06)
+    np.testing.assert_allclose(np.diff(calls), 0.012, atol=1e-9)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PeriodWarning)
+        mpcbox.simulate(problem, Every(0.01), 0.05)  # a whole number of steps: no warning

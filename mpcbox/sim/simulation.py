@@ -8,6 +8,7 @@ controller statistics) in :class:`Metrics`, plus the task's own measures
 from __future__ import annotations
 
 import time as _time
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,7 +19,7 @@ import numpy as np
 
 from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
-from mpcbox.errors import MpcboxError
+from mpcbox.errors import MpcboxError, PeriodWarning
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.divergence import DivergenceMonitor
 from mpcbox.sim.measures import Measure
@@ -158,7 +159,8 @@ def simulate(
     """Simulate ``problem.model`` in closed loop with ``controller``.
 
     The controller is called every ``controller.period`` seconds (rounded to whole simulation
-    steps; every step when ``None``) and its control is held in between. Actuator noise is
+    steps, with a :class:`~mpcbox.errors.PeriodWarning` when that changes it; every step when
+    ``None``) and its control is held in between. Actuator noise is
     added to the held control at every step; MuJoCo clamps the sum to ``ctrlrange``.
 
     A run ends as one of :data:`OUTCOMES`:
@@ -220,6 +222,13 @@ def simulate(
     stop_on_failure, fallbacks0 = run.stop_on_failure, run.fallbacks0
     period = getattr(controller, "period", None)
     every = 1 if period is None else max(1, round(positive("controller.period", period) / dt))
+    if period is not None and abs(every * dt - period) > 1e-9 * max(1.0, period):
+        warnings.warn(
+            f"controller.period {period:g} s is not a whole number of simulation steps of "
+            f"{dt:g} s; the controller is called every {every * dt:g} s",
+            PeriodWarning,
+            stacklevel=2,
+        )
 
     times = np.empty(steps + 1)
     states = np.empty((steps + 1, problem.nstate))
