@@ -8,7 +8,9 @@ re-run by hand): the task by name on a Menagerie robot (``quadruped_stand`` on t
 A1 and ANYmal C; ``biped_stand`` on the G1 on two feet and on its left foot), ``--seeds``
 seeds from ``--seed`` (default 100-119: seeds no benchmark was tuned on), 10 s each, noise at
 x1, x1.5 and x2 of each task's recipe. The controllers: the task's LQR and QP-MPC with its
-defaults (``qp``, the soft stance), and QP-MPC with ``stance_model="rigid"`` (``qp_rigid``).
+defaults (``qp``: the soft stance, the first stage's forces free), QP-MPC with every stage's
+forces bounded (``qp_first_bounded``, the default before this sweep) and with
+``stance_model="rigid"`` (``qp_rigid``, every stage bounded); ``--variants`` picks some.
 Reported per case, controller and noise level: successes, mean time to fall, the compute
 time per call (mean of the runs' medians, largest p99; lock-step, so it does not change the
 outcome) and the fallbacks.
@@ -39,7 +41,12 @@ CASES: tuple[tuple[str, str, tuple[str, ...]], ...] = (
 #: (label, controllers, extra options) compared in each case.
 VARIANTS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("defaults", "lqr,qp", ()),
-    ("qp_rigid", "qp", ("--set", "qp.stance_model='rigid'")),
+    ("qp_first_bounded", "qp", ("--set", "qp.first_stage_forces='bounded'")),
+    (
+        "qp_rigid",
+        "qp",
+        ("--set", "qp.stance_model='rigid'", "--set", "qp.first_stage_forces='bounded'"),
+    ),
 )
 
 
@@ -53,6 +60,7 @@ def run_case(task: str, options: list[str], folder: Path) -> tuple[int, list[dic
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--cases", default=",".join(c[0] for c in CASES))
+    parser.add_argument("--variants", default=",".join(v[0] for v in VARIANTS))
     parser.add_argument("--seed", type=int, default=100)
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--duration", type=float, default=10.0)
@@ -75,6 +83,8 @@ def main() -> int:
             rows: dict = {}
             commands = []
             for label, controllers, extra in VARIANTS:
+                if label not in args.variants.split(","):
+                    continue
                 options = [*task_opts, "--controllers", controllers, *extra, *common]
                 commands.append(" ".join(["mpcbox compare", task, *options]))
                 status, groups = run_case(task, options, Path(tmp) / f"{case}_{label}")

@@ -8,13 +8,16 @@ x2 of the noise recipe on every Menagerie robot. This script runs QP-MPC on two 
 (the Go2 on four feet, the G1 on two) at ``--noise`` over ``--seeds`` seeds from 100, in
 lock-step, with one part of its QP changed at a time:
 
-* ``defaults``: the task's QP-MPC;
+* ``bounded``: the task's QP-MPC with every stage's force bounds
+  (``first_stage_forces="bounded"``, the tasks' default until this diagnosis);
+* ``first_stage_free``: ``first_stage_forces="free"`` (the legged tasks' default now): the
+  first stage's forces of touching points unbounded, later stages bounded;
 * ``no_force_bounds``: the friction-pyramid and normal-force rows of every stage left
   unbounded (a patch of ``QPFormulation.vectors`` in this script, not an option of the
   controller): the forces then follow the linearized soft-contact force law, as in LQR's
   model, and only the control limits remain;
 * ``no_pyramid``: only the pyramid rows unbounded (normal forces stay in ``[0, f_max]``);
-* ``rigid``: ``stance_model="rigid"``;
+* ``rigid``: ``stance_model="rigid"`` (with every stage bounded);
 * ``lqr``: the task's LQR, for reference.
 """
 
@@ -34,7 +37,7 @@ CASES = {
     "go2": ("quadruped_stand", {"model": "menagerie:unitree_go2"}),
     "g1_two_feet": ("biped_stand", {"model": "menagerie:unitree_g1"}),
 }
-VARIANTS = ("defaults", "no_force_bounds", "no_pyramid", "rigid", "lqr")
+VARIANTS = ("bounded", "first_stage_free", "no_force_bounds", "no_pyramid", "rigid", "lqr")
 
 
 def _unbound(variant: str) -> None:
@@ -64,7 +67,9 @@ def run(case: str, variant: str, seed: int, noise: float, duration: float) -> di
     if variant == "lqr":
         ctrl = mpcbox.make_controller("lqr", problem)
     else:
-        extra = {"stance_model": "rigid"} if variant == "rigid" else {}
+        extra = {"first_stage_forces": "free" if variant == "first_stage_free" else "bounded"}
+        if variant == "rigid":
+            extra["stance_model"] = "rigid"
         ctrl = mpcbox.make_controller("qp", problem, **extra)
     res = mpcbox.simulate(problem, ctrl, duration, noise=problem.noise(scale=noise), seed=seed)
     return {

@@ -505,3 +505,32 @@ def test_default_contacts_name_the_touching_body_or_refuse_an_unnamed_one():
     floating = Problem(BLOCK.format(name='name="block"').replace("0 0 0.1", "0 0 0.5"), threads=1)
     with pytest.raises(InvalidArgumentError, match=r"nothing touches the ground.*for LQR, iLQR"):
         QPMPC(floating)
+
+
+def test_free_first_stage_forces_unbound_only_the_touching_points_of_stage_zero(one_leg):
+    """``first_stage_forces="free"`` lifts the pyramid and normal bounds of the first stage's
+    touching points; the swing foot's points (lifted) keep their zero bound, later stages keep
+    all bounds, and at the reference, where no bound is active, the plan is the same."""
+    feet = ("body:foot_left", "body:foot_right")
+    bounded = QPMPC(one_leg, contacts=feet, lifted_points="keep")
+    free = QPMPC(one_leg, contacts=feet, lifted_points="keep", first_stage_forces="free")
+    state = one_leg.reference_state()
+    L = free.formulation.layout
+    k, F = L.points, L.facets
+    _, lo_b, hi_b = bounded.formulation.vectors(bounded.linearization, state)
+    _, lo_f, hi_f = free.formulation.vectors(free.linearization, state)
+    touching, _ = free.dynamics.activity(state)
+    assert 0 < touching.sum() < k  # the stance foot touches, the swing foot does not
+    fn = slice(L.r_fn, L.r_fn + k)
+    assert np.all(np.isinf(hi_f[fn][touching])) and np.all(np.isinf(lo_f[fn][touching]))
+    assert np.all(hi_f[fn][~touching] == 0.0) and np.all(lo_f[fn][~touching] == 0.0)
+    pyramid0 = hi_f[L.r_fr : L.r_fr + k * F].reshape(k, F)
+    assert np.all(np.isinf(pyramid0[touching])) and np.all(pyramid0[~touching] == 0.0)
+    later = np.r_[L.r_fr + k * F : L.r_fn, L.r_fn + k : L.r_u]
+    np.testing.assert_array_equal(hi_f[later], hi_b[later])
+    np.testing.assert_array_equal(lo_f[later], lo_b[later])
+    np.testing.assert_allclose(free.solve(state).ctrls[0], bounded.solve(state).ctrls[0], atol=1e-3)
+    with pytest.raises(InvalidArgumentError, match="first_stage_forces"):
+        QPMPCConfig(first_stage_forces="loose")
+    with pytest.raises(InvalidArgumentError, match="stance_model='soft'"):
+        QPMPCConfig(first_stage_forces="free", stance_model="rigid")

@@ -256,6 +256,7 @@ class QPMPC(Controller):
             self.ctrl_ref,
             cfg.stance_weight,
             control_scale(self.R, cfg.scale_controls),
+            free_first_forces=cfg.first_stage_forces == "free",
         )
         self.formulation.update_matrix(self.linearization)
         settings = dict(cfg.osqp_settings or {})

@@ -152,6 +152,8 @@ class QPFormulation:
         stance_weight: Weight of the stance slacks (``None``: no slacks).
         ctrl_scale: Scale :math:`s` of the control variables ``(nu,)`` (see the module
             docstring; default ones).
+        free_first_forces: Leave the first stage's forces of touching points unbounded
+            (``QPMPCConfig.first_stage_forces="free"``).
 
     Attributes:
         A: Constraint matrix ``(m, n)`` CSC; its values follow :meth:`update_matrix`.
@@ -174,6 +176,7 @@ class QPFormulation:
         ctrl_ref: np.ndarray,
         stance_weight: float | None,
         ctrl_scale: np.ndarray | None = None,
+        free_first_forces: bool = False,
     ) -> None:
         self.problem = problem
         self.layout = layout
@@ -185,6 +188,7 @@ class QPFormulation:
         self.fn_max = fn_max
         self.state_ref = state_ref
         self.ctrl_ref = ctrl_ref
+        self.free_first_forces = free_first_forces
         L = layout
         self.ctrl_scale = np.ones(L.nu) if ctrl_scale is None else np.asarray(ctrl_scale, float)
         self.scale = np.ones(L.nvar)
@@ -309,6 +313,10 @@ class QPFormulation:
         hi[L.r_fr : L.r_fr + N * k * F] = 0.0
         lo[L.r_fn : L.r_fn + N * k] = 0.0
         hi[L.r_fn : L.r_fn + N * k] = np.tile(np.where(active, self.fn_max, 0.0), N)
+        if self.free_first_forces:  # stage 0 comes first in both row blocks
+            hi[L.r_fr : L.r_fr + k * F][np.repeat(active, F)] = np.inf
+            lo[L.r_fn : L.r_fn + k][active] = -np.inf
+            hi[L.r_fn : L.r_fn + k][active] = np.inf
         lo[L.r_u : L.r_u + N * nu] = np.tile(p.ctrl_low - lin.ctrl, N)
         hi[L.r_u : L.r_u + N * nu] = np.tile(p.ctrl_high - lin.ctrl, N)
         if L.nl:
