@@ -55,6 +55,8 @@ def suite_path(name: str) -> Path:
 SWING_GUESSES: tuple[tuple[float, float], ...] = tuple(
     (w, phi) for w in (2.67, 4.0, 6.9) for phi in (0.0, np.pi / 2)
 )
+#: Tracking weights of the offline plan (and of the LQR holder) when none are given.
+TRACK_WEIGHTS = TrackingWeights(position_weight=100.0, velocity_weight=30.0, torque_weight=1.0)
 #: Holders of :meth:`DmAcrobotSwingup.offline_swingup` after the plan.
 HOLDERS: tuple[str, ...] = ("ilqr", "lqr")
 #: iLQR options of the acrobot's offline swing-up: Tassa's regularization schedule (factor
@@ -312,10 +314,6 @@ class DmAcrobotSwingup(Swingup):
             threads=1,
         )
         knots = round(positive("seconds", seconds) / planner.dt)
-        if weights is None:
-            weights = TrackingWeights(
-                position_weight=100.0, velocity_weight=30.0, torque_weight=1.0
-            )
         return OfflinePlanTracker(
             planner,
             self.swing_guesses(knots, planner.dt),
@@ -326,7 +324,7 @@ class DmAcrobotSwingup(Swingup):
                 else self.upright_error(plan.states[-1])
             ),
             polish_iterations=polish,
-            weights=weights,
+            weights=TRACK_WEIGHTS if weights is None else weights,
             **options,
         )
 
@@ -414,8 +412,7 @@ class DmAcrobotSwingup(Swingup):
         hold = make_controller("ilqr", self, **overrides)
 
         def engage(state: np.ndarray) -> bool:
-            slow = radius is not None and np.linalg.norm(state[2:4]) < speed
-            if tracker.finished or (slow and self.upright_error(state) < radius):
+            if self._hand_over_now(tracker, state, radius, speed):
                 hold.ctrls_init = tracker.ctrls_ahead(hold.horizon, hold.problem.dt)
                 return True
             return False
@@ -423,6 +420,15 @@ class DmAcrobotSwingup(Swingup):
         return HandOver(
             tracker, hold, engage=engage, release=lambda _: False, prime=False, name="ilqr_track"
         )
+
+    def _hand_over_now(
+        self, tracker: OfflinePlanTracker, state: np.ndarray, radius: float | None, speed: float
+    ) -> bool:
+        """Whether the holder of :meth:`offline_swingup` takes over at ``state``: the plan
+        has ended, or the tip is within ``radius`` of the upright with the joint speeds'
+        norm below ``speed``."""
+        slow = radius is not None and np.linalg.norm(state[2:4]) < speed
+        return tracker.finished or (slow and self.upright_error(state) < radius)
 
     def _lqr_swingup(
         self, radius: float | None, speed: float, overrides: dict[str, Any], **plan: Any
@@ -433,9 +439,7 @@ class DmAcrobotSwingup(Swingup):
                 f"overrides: holder='lqr' takes no iLQR config fields, got {sorted(overrides)}"
             )
         rest = integer("rest_iterations", plan.pop("rest"), minimum=1)
-        weights = plan.pop("weights") or TrackingWeights(
-            position_weight=100.0, velocity_weight=30.0, torque_weight=1.0
-        )
+        weights = plan.pop("weights") or TRACK_WEIGHTS
         fine = DmAcrobotSwingup(plan_rk4=True, threads=1)  # planning step = simulation step
         Q, R = weight_matrices(fine, weights, fine.reference_state())
         hold = LQR(fine, Q=Q, R=R, wrap=True)
@@ -449,14 +453,10 @@ class DmAcrobotSwingup(Swingup):
             period=hold.period,
         )
 
-        def engage(state: np.ndarray) -> bool:
-            slow = radius is not None and np.linalg.norm(state[2:4]) < speed
-            return tracker.finished or (slow and self.upright_error(state) < radius)
-
         return HandOver(
             tracker,
             hold,
-            engage=engage,
+            engage=lambda state: self._hand_over_now(tracker, state, radius, speed),
             release=lambda _: False,
             prime=False,
             name="ilqr_track_lqr",
