@@ -151,9 +151,10 @@ def test_rollout_sensordata_rows_match_forward(balance):
     assert costs[0] == pytest.approx(manual, rel=1e-9)
 
 
-def test_rollouts_that_mujoco_reset_after_diverging_are_marked_nan():
+def test_rollouts_that_mujoco_reset_after_diverging_are_marked_nan(capfd):
     """With one Newton iteration MuJoCo's CPU solver blows up on the humanoid: mj_step warns
-    (mjWARN_BADQACC) and resets. Those rollouts must not be scored from the reset pose."""
+    (mjWARN_BADQACC) and resets. Those rollouts must not be scored from the reset pose, and
+    the warning is read from the rollout, not printed."""
     from mpcbox.tasks.humanoid.stand import HumanoidStand
 
     problem = HumanoidStand().with_planning_timestep(0.01)
@@ -162,6 +163,8 @@ def test_rollouts_that_mujoco_reset_after_diverging_are_marked_nan():
     rng = np.random.default_rng(0)
     ctrls = np.repeat(problem.clip_ctrl(problem.ctrl_ref + rng.normal(0, 0.2, (8, 1, 21))), 40, 1)
     roll = problem.rollout(problem.initial_state(), ctrls)
+    printed = capfd.readouterr()
+    assert "QACC" not in printed.out + printed.err
     # Reference: step each sequence by hand and read MuJoCo's warning counter, over the T
     # steps of the states and over one more (the terminal sensors are read in step T + 1).
     data = mujoco.MjData(model)
@@ -262,3 +265,32 @@ def test_quadratic_value_term_is_half_dx_P_dx(balance):
         balance.with_cost(
             Cost([ControlCost(weight=0.0)], [mpcbox.QuadraticValue(balance.qpos_ref, P=-P)])
         )
+
+
+SERVO_RANGE_WITHOUT_ZERO = """
+<mujoco>
+  <worldbody>
+    <body>
+      <joint name="hinge" type="hinge" axis="0 1 0" range="-1 1"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -0.5" size="0.05"/>
+    </body>
+  </worldbody>
+  <actuator><position name="servo" joint="hinge" kp="10" ctrlrange="0.2 0.8"/></actuator>
+</mujoco>
+"""
+
+
+def test_default_reference_control_outside_ctrlrange_is_clipped_with_a_warning():
+    """Without a keyframe the reference control is zero; a servo whose range excludes zero
+    would be clamped by MuJoCo (no effect of that control in the linearization)."""
+    with pytest.warns(
+        mpcbox.errors.EquilibriumWarning, match=r"'servo' \(0 outside \[0.2, 0.8\]\)"
+    ):
+        problem = mpcbox.Problem(SERVO_RANGE_WITHOUT_ZERO)
+    assert problem.ctrl_ref == pytest.approx([0.2])
+    lin = problem.linearize(problem.reference_state(), problem.ctrl_ref)
+    assert np.abs(lin.B).max() > 0  # the servo acts in the linearization
+    # A reference control the user gives is not changed: it is named where it is used.
+    given = mpcbox.Problem(SERVO_RANGE_WITHOUT_ZERO, ctrl_ref=[0.0])
+    with pytest.raises(mpcbox.InvalidArgumentError, match="outside actuator 0's ctrlrange"):
+        given.linearize(given.reference_state(), given.ctrl_ref)

@@ -144,6 +144,10 @@ def test_argument_errors():
     problem = mpcbox.Problem(FREE_BODY)
     with pytest.raises(mpcbox.InvalidArgumentError, match="duration"):
         mpcbox.simulate(problem, Zero(), -1.0)
+    dt = problem.model.opt.timestep
+    with pytest.raises(mpcbox.InvalidArgumentError, match="duration must be at least one"):
+        mpcbox.simulate(problem, Zero(), 0.5 * dt)
+    assert len(mpcbox.simulate(problem, Zero(), dt).time) == 2  # one step is a run
     with pytest.raises(mpcbox.InvalidArgumentError, match="pushes"):
         mpcbox.simulate(problem, Zero(), 0.1, pushes=[(1, 2, 3)])
     with pytest.raises(mpcbox.UnknownNameError, match="box"):

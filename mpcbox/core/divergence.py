@@ -14,14 +14,13 @@ few dozen steps.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
-from contextlib import contextmanager
 from typing import Protocol
 
 import mujoco
 import numpy as np
 
 from mpcbox.core.dynamics import write_state
+from mpcbox.core.mujoco_warnings import captured_warnings
 from mpcbox.errors import PlanningDivergenceError
 
 
@@ -43,25 +42,6 @@ UNSTABLE = (
     mujoco.mjtWarning.mjWARN_BADQVEL,
     mujoco.mjtWarning.mjWARN_BADQPOS,
 )
-
-
-@contextmanager
-def captured_warnings() -> Iterator[list[str]]:
-    """Collect MuJoCo's warning messages in a list instead of printing them.
-
-    MuJoCo's warning handler (``mju_user_warning``) is process-wide: while the block runs,
-    warnings from any thread land in the list. The previous handler is restored on exit.
-
-    Yields:
-        The list the messages are appended to.
-    """
-    messages: list[str] = []
-    previous = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(messages.append)
-    try:
-        yield messages
-    finally:
-        mujoco.set_mju_user_warning(previous)
 
 
 def unstable_warning(data: mujoco.MjData) -> str | None:

@@ -20,6 +20,7 @@ from typing import NamedTuple, TypeVar
 import mujoco
 import numpy as np
 
+from mpcbox.core.mujoco_warnings import captured_warnings
 from mpcbox.core.step_fd import step_jacobians
 from mpcbox.errors import MujocoError
 from mpcbox.validation import positive_int
@@ -217,7 +218,8 @@ class Dynamics:
 
         Returns:
             The :class:`Rollout`; a rollout that MuJoCo reset after diverging holds NaN from
-            the reset on.
+            the reset on. MuJoCo's warning for it is kept from stderr
+            (:func:`~mpcbox.core.mujoco_warnings.captured_warnings`): the NaN rows report it.
         """
         from mujoco import rollout as mj_rollout
 
@@ -231,7 +233,7 @@ class Dynamics:
         if self._rollout_datas is None:
             self._rollout_datas = [mujoco.MjData(self.model) for _ in range(self.threads)]
         models = self.model if model is None else model
-        with mujoco_errors("rollout"):
+        with mujoco_errors("rollout"), captured_warnings():
             out_state, out_sens = mj_rollout.rollout(
                 models,
                 self._rollout_datas,

@@ -11,10 +11,17 @@ authority at all (:math:`B = 0`).
 
 from __future__ import annotations
 
+import warnings
+
 import mujoco
 import numpy as np
 
-from mpcbox.errors import DivergenceError, InvalidArgumentError, NoControlAuthorityError
+from mpcbox.errors import (
+    DivergenceError,
+    EquilibriumWarning,
+    InvalidArgumentError,
+    NoControlAuthorityError,
+)
 from mpcbox.validation import as_array
 
 #: MuJoCo's sanity limit on controls (``mjMAXVAL``): it zeroes every control beyond it.
@@ -80,6 +87,48 @@ def check_in_range(
             "the linearization there would show no effect of that control (a zero column "
             "of B); linearize at a control inside the range"
         )
+
+
+def default_ctrl_in_range(
+    ctrl: np.ndarray, model: mujoco.MjModel, keyframe: int | None
+) -> np.ndarray:
+    """A default reference control ``(nu,)`` clipped into ``ctrlrange``, with a warning.
+
+    A model without a keyframe gets zeros as its reference control, and zero may lie outside
+    an actuator's ``ctrlrange`` (a servo whose range excludes 0); a keyframe's ``ctrl`` may
+    too. MuJoCo would clamp it, and a linearization there would see no effect of that
+    control.
+
+    Args:
+        ctrl: The default reference control ``(nu,)``.
+        model: The model (its ``ctrlrange`` and actuator names).
+        keyframe: The keyframe ``ctrl`` came from, or ``None`` (zeros).
+
+    Warns:
+        EquilibriumWarning: Naming the actuators outside their range; the reference posture
+            may then not be held (pass ``ctrl_ref``, or find it with
+            :func:`~mpcbox.find_equilibrium`).
+    """
+    limited = model.actuator_ctrllimited.astype(bool)
+    low = np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf)
+    high = np.where(limited, model.actuator_ctrlrange[:, 1], np.inf)
+    clipped = np.clip(ctrl, low, high)
+    moved = np.flatnonzero(clipped != ctrl)
+    if moved.size:
+        source = "zeros: no keyframe" if keyframe is None else f"keyframe {keyframe}'s ctrl"
+        listed = ", ".join(
+            f"actuator {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or i!r} "
+            f"({ctrl[i]:.6g} outside [{low[i]:.6g}, {high[i]:.6g}])"
+            for i in moved[:5]
+        )
+        warnings.warn(
+            f"the reference control ({source}) lies outside ctrlrange for {moved.size} "
+            f"actuator(s): {listed}; it is clipped into the range, and the reference "
+            "posture may not be held there: pass ctrl_ref, or use mpcbox.find_equilibrium",
+            EquilibriumWarning,
+            stacklevel=4,
+        )
+    return clipped
 
 
 def check_authority(B: np.ndarray, what: str) -> None:

@@ -149,11 +149,11 @@ class Problem:
             self.qpos_ref = self.tangent.unit_quaternions(
                 "qpos_ref", finite_array("qpos_ref", qpos_ref, (self.nq,))
             )
-        self.ctrl_ref = (
-            key_ctrl if ctrl_ref is None else finite_array("ctrl_ref", ctrl_ref, (self.nu,))
-        )
-        self.qvel_ref = np.zeros(self.nv)
+        given = None if ctrl_ref is None else finite_array("ctrl_ref", ctrl_ref, (self.nu,))
+        self.ctrl_ref, self.qvel_ref = key_ctrl if given is None else given, np.zeros(self.nv)
         self.prepare(base)
+        if given is None:  # a given ctrl_ref is checked where it is used (linearize)
+            self.ctrl_ref = inputs.default_ctrl_in_range(self.ctrl_ref, base, self.keyframe)
 
         self.cost = instance("cost", self.build_cost(base) if cost is None else cost, Cost)
         requests = self.cost.sensors(base)

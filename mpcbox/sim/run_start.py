@@ -96,6 +96,11 @@ def start_run(
     model = problem.model if mismatch is None else mismatch.apply(problem.model)
     data = mujoco.MjData(model)
     dt = float(model.opt.timestep)
+    if duration < dt * (1 - 1e-9):
+        raise InvalidArgumentError(
+            f"duration must be at least one simulation step (the model's timestep, {dt:g} s), "
+            f"got {duration:g}"
+        )
     steps = math.ceil(duration / dt - 1e-9)
     state0 = problem.initial_state() if initial_state is None else initial_state
     state0 = problem.check_state(state0, "initial_state")
