@@ -186,8 +186,11 @@ class LeggedBalance(Problem):
     the Go2 20, 20 and 13 of 20 (``benchmarks/legged_noise_sweep.py``,
     ``benchmarks/results/legged_noise_sweep.json``). On one seed the smaller of the forward
     and backward push limits rose on every quadruped
-    (``benchmarks/results/legged_push_first_stage.json``); on the Go2 the outcome of a push
-    is not monotone in its force with either setting (60 N falls where 150 N stands).
+    (``benchmarks/results/legged_push_first_stage.json``). On the Go2 and the Go1 the
+    outcome of a push is not monotone in its force with either setting (Go2: 60-100 N fall
+    where 150-300 N stand; Go1: 200-250 N fall where 300 N stands), so check a bisected
+    limit with :func:`~mpcbox.comparison.push_limits.push_grid`
+    (``benchmarks/qp_push_window.py``, ``benchmarks/results/qp_push_window_*.json``).
 
     The humanoid presets keep their own measured QP settings (50 Hz, their stance weight and
     lifted-force law) with these OSQP settings.
