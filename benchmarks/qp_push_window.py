@@ -12,8 +12,8 @@ of ``--forces``, for every controller variant, and reports what stood, what fell
 the honest limit (the largest force below which nothing fell) and the **window**: the forces
 that fell while a larger one stood.
 
-Variants are ``label=controller`` or ``label=controller:option=value,...`` (values read as
-Python literals, as ``mpcbox compare --set`` does); the defaults compare LQR, the QP-MPC as
+Variants are ``label=controller`` or ``label=controller:option=value,...`` (values read
+as ``mpcbox compare --set`` reads them); the defaults compare LQR, the QP-MPC as
 the task configures it (the first stage's forces free), every stage bounded, a cheaper
 stance slack (``stance_weight=100``) and a 3 mm contact margin.
 """
@@ -21,12 +21,12 @@ stance slack (``stance_weight=100``) and a 3 mm contact margin.
 from __future__ import annotations
 
 import argparse
-import ast
 import time
 import warnings
 
 from json_report import finish
 
+from mpcbox.cli.compare import parse_sets
 from mpcbox.comparison.executors import ProcessExecutor
 from mpcbox.comparison.push_limits import push_grid
 from mpcbox.comparison.scenario import PushTest
@@ -43,14 +43,12 @@ DEFAULT_VARIANTS = (
 
 
 def parse_variant(text: str) -> tuple[str, str, dict]:
-    """``label=controller[:option=value,...]`` -> (label, controller, options)."""
+    """``label=controller[:option=value,...]`` -> (label, controller, options); the values
+    are read as ``mpcbox compare --set`` reads them (:func:`mpcbox.cli.compare.parse_sets`)."""
     label, _, rest = text.partition("=")
-    controller, _, opts = rest.partition(":")
-    options = {}
-    for item in filter(None, opts.split(",")):
-        key, _, value = item.partition("=")
-        options[key.strip()] = ast.literal_eval(value.strip())
-    return label.strip(), controller.strip(), options
+    controller, _, opts = (part.strip() for part in rest.partition(":"))
+    sets = parse_sets([f"{controller}.{item}" for item in opts.split(",") if item])
+    return label.strip(), controller, sets.get(controller, {})
 
 
 def main() -> int:

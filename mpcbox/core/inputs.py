@@ -89,6 +89,14 @@ def check_in_range(
         )
 
 
+def ctrl_limits(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper control limits ``(nu,)`` each; ``-inf`` and ``inf`` where an actuator
+    is not ``ctrllimited``."""
+    limited = model.actuator_ctrllimited.astype(bool)
+    low = np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf)
+    return low, np.where(limited, model.actuator_ctrlrange[:, 1], np.inf)
+
+
 def default_ctrl_in_range(
     ctrl: np.ndarray, model: mujoco.MjModel, keyframe: int | None
 ) -> np.ndarray:
@@ -109,9 +117,7 @@ def default_ctrl_in_range(
             may then not be held (pass ``ctrl_ref``, or find it with
             :func:`~mpcbox.find_equilibrium`).
     """
-    limited = model.actuator_ctrllimited.astype(bool)
-    low = np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf)
-    high = np.where(limited, model.actuator_ctrlrange[:, 1], np.inf)
+    low, high = ctrl_limits(model)
     clipped = np.clip(ctrl, low, high)
     moved = np.flatnonzero(clipped != ctrl)
     if moved.size:

@@ -163,9 +163,7 @@ class Problem:
         #: The simulation integrator that planning replaced (``"RK4"``), else ``None``.
         self.replaced_integrator = None if self.planning_model is pm else "RK4"
         self.cost.bind(self.planning_model)
-        limited, ctrlrange = pm.actuator_ctrllimited, pm.actuator_ctrlrange  # same in the copy
-        self.ctrl_low = np.where(limited, ctrlrange[:, 0], -np.inf)
-        self.ctrl_high = np.where(limited, ctrlrange[:, 1], np.inf)
+        self.ctrl_low, self.ctrl_high = inputs.ctrl_limits(pm)  # same in the copy
         self.dynamics = Dynamics(self.planning_model, self.threads)
         if planning_timestep is not None:
             check_planning_step(self)  # PlanningDivergenceError if the step is too coarse
