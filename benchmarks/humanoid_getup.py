@@ -16,7 +16,8 @@ of the lying start perturbed by N(0, 0.05) rad after the settle, controller seed
 Reported per run: outcome, the time it got up for good (``getup_time``), the highest torso
 height, tick p50/p99 and whether the planner kept up. With ``--final-seeds`` the best
 (variant, controller) of that screen (most successes, then highest mean torso height) is
-run again over that many seeds (100, 101, ...), fixed before those runs; with ``--seeds 0``
+run again over that many seeds (``--final-first-seed``, default 100, and on), fixed before
+those runs; with ``--seeds 0``
 the screen is skipped and the first variant and controller are the final ones.
 ``--task g1_getup`` (or any registered get-up task) runs the same on that task, e.g.
 Unitree's G1 (:class:`~mpcbox.tasks.humanoid.g1_getup.G1Getup`, needs ``MENAGERIE_ROOT``).
@@ -170,6 +171,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=2)
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--final-seeds", type=int, default=0)
+    parser.add_argument("--final-first-seed", type=int, default=100)
     parser.add_argument("--duration", type=float, default=5.0)
     parser.add_argument("--backend", default="warp")
     parser.add_argument("--loop", choices=("realtime", "lockstep"), default="realtime")
@@ -233,7 +235,8 @@ def main() -> None:
         task_kw, ctrl_kw, hand = variants[vname]
         problem = task_class(args.task)(**task_options(task_kw))
         rows = []
-        for seed in range(100, 100 + args.final_seeds):
+        first = args.final_first_seed
+        for seed in range(first, first + args.final_seeds):
             rows.append(
                 run(problem, name, ctrl_kw, hand, seed, args.duration, args.backend, args.loop)
             )

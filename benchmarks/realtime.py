@@ -20,8 +20,8 @@ force of ``F`` newtons whose direction turns by 90 degrees from seed to seed (+x
     python benchmarks/realtime.py --task humanoid_stand --backend warp --loops realtime \
         --seeds 10 --first-seed 100 --noise-scale 1.5 --push 40,2.0,0.1 --mass-scale 1.1
 
-``--task`` takes any registered task (default the cart-pole swing-up); ``--period`` defaults
-to each controller's tuned period.
+``--task`` takes any registered task (default the cart-pole swing-up), ``--task-set`` its
+keyword arguments; ``--period`` defaults to each controller's tuned period.
 """
 
 from __future__ import annotations
@@ -40,6 +40,18 @@ from mpcbox.sim.disturbances import ModelMismatch, Push
 from mpcbox.sim.realtime import simulate_realtime
 
 
+def _pairs(text: str) -> dict:
+    """``key=value,...`` with each value read as JSON where it parses, else as text."""
+    out: dict = {}
+    for pair in filter(None, text.split(",")):
+        key, _, value = pair.partition("=")
+        try:
+            out[key.strip()] = json.loads(value)
+        except json.JSONDecodeError:
+            out[key.strip()] = value.strip()
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--task", default="cartpole_swingup")
@@ -56,6 +68,11 @@ def main() -> None:
         default="",
         help="config fields for every controller, e.g. planning_timestep=0.015,horizon=0.48",
     )
+    parser.add_argument(
+        "--task-set",
+        default="",
+        help="keyword arguments of the task, e.g. com_velocity_cost=30",
+    )
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--noise-scale", type=float, default=None)
     parser.add_argument("--push", default=None, help="FORCE,START,DURATION on the root body")
@@ -71,7 +88,7 @@ def main() -> None:
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
 
-    problem = task_class(args.task)()
+    problem = task_class(args.task)(**_pairs(args.task_set))
     noise = problem.noise(args.noise_scale) if args.noise_scale is not None else None
     mismatch = ModelMismatch(mass_scale=args.mass_scale) if args.mass_scale else None
     push_spec = [float(v) for v in args.push.split(",")] if args.push else None
@@ -80,6 +97,7 @@ def main() -> None:
         "machine": args.machine,
         "gpu": args.gpu or (next(iter(gpu_names()), None) if args.backend == "warp" else None),
         "set": args.set,
+        "task_set": args.task_set,
         "platform": platform.platform(),
         "backend": args.backend,
         "duration_s": args.duration,
@@ -99,12 +117,7 @@ def main() -> None:
             options["period"] = args.period
         if args.num_samples is not None:
             options["num_samples"] = args.num_samples
-        for pair in filter(None, args.set.split(",")):
-            key, _, value = pair.partition("=")
-            try:
-                options[key.strip()] = json.loads(value)
-            except json.JSONDecodeError:
-                options[key.strip()] = value.strip()
+        options.update(_pairs(args.set))
         ctrl = mpcbox.make_controller(name, problem, **options)
         entry: dict = {}
         entry["period_s"] = ctrl.period

@@ -8,11 +8,13 @@ import pytest
 import mpcbox
 from mpcbox.core.cost import (
     ComOverSupport,
+    ComVelocity,
     ControlCost,
     Cost,
     CostTerm,
     FrameHeight,
     FramePosition,
+    HeightAbove,
     QuadraticValue,
     StateCost,
     Upright,
@@ -73,7 +75,9 @@ def test_humanoid_rows_sum_to_the_residual_cost():
         ComOverSupport("foot_left", weight=[3.0, 4.0], root="torso"),
         FramePosition("hand_right", np.array([0.2, -0.3, 1.0]), weight=[1.0, 0.0, 2.0]),
         FrameHeight("torso", 1.3, weight=5.0),
+        HeightAbove("torso", "foot_left", 1.2, weight=3.0),
         Upright("torso", weight=[2.0, 3.0]),
+        ComVelocity(weight=[2.0, 5.0], root="torso"),
     ]
     problem = mpcbox.Problem(humanoid, keyframe="stand", cost=Cost(terms))
     assert any(isinstance(row, QuaternionRow) for row in problem.cost.running[0].rows())
@@ -132,3 +136,29 @@ def test_weights_are_keyword_only():
         StateCost(np.zeros(2), None, 1.0)
     with pytest.raises(TypeError):
         WrappedAngle("hinge", np.pi, 1.0)
+
+
+def test_com_velocity_is_the_subtree_momentum_over_its_mass():
+    """The sensor term against the closed form sum_b m_b v_b / sum_b m_b (xy)."""
+    import mujoco
+
+    problem = mpcbox.Problem(
+        scene_path("humanoid.xml"),
+        keyframe="stand",
+        cost=Cost([ComVelocity(weight=1.0, root="torso")]),
+    )
+    rng = np.random.default_rng(3)
+    x = problem.state_add(problem.reference_state(), 0.5 * rng.standard_normal(problem.nx))
+    r = problem.cost.running[0].residual(problem.features(x, np.zeros(problem.nu)))[0]
+    model, data = problem.planning_model, problem.scratch_data()
+    problem.set_state(data, x)
+    mujoco.mj_forward(model, data)
+    momentum = np.zeros(3)
+    for body in range(1, model.nbody):
+        vel = np.zeros(6)
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, body, vel, 0)
+        # mjOBJ_BODY: the velocity at the body's centre of mass, world axes.
+        momentum += model.body_mass[body] * vel[3:]
+    want = momentum[:2] / model.body_mass[1:].sum()
+    assert np.linalg.norm(want) > 0.1
+    np.testing.assert_allclose(r, want, rtol=1e-9, atol=1e-9)

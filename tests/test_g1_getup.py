@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from mpcbox.errors import InvalidArgumentError, UnknownNameError
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError, UnknownNameError
 from mpcbox.registry import make_controller, task_class
 from mpcbox.tasks.humanoid.g1_getup import G1Getup, range_noise
 from mpcbox.tasks.humanoid.getup import HumanoidGetup
@@ -42,6 +42,42 @@ def test_stand_height_derived_from_the_keyframe_when_omitted() -> None:
     assert task.stand_height == pytest.approx(0.5 * task.torso_height)
     assert task.release_height == pytest.approx(0.8 * task.stand_height)
     assert task.handover_height == task.stand_height
+
+
+def test_height_above_feet_and_com_velocity_terms() -> None:
+    """Zero at the standing keyframe; lifting a foot costs height only above the feet."""
+    plain = HumanoidGetup(settle=0.0, height_above_feet=False, com_velocity_cost=0.0)
+    task = HumanoidGetup(settle=0.0)  # the defaults: both terms
+    names = {t.name for t in task.cost.running}
+    assert {"height_left", "height_right", "com_vel"} <= names and "height" not in names
+    assert "com_vel" not in {t.name for t in plain.cost.running}
+    stand = task.reference_state()
+    u = task.ctrl_ref
+    for term in task.cost.running:
+        if term.name.startswith("height") or term.name == "com_vel":
+            assert np.abs(term.residual(task.features(stand, u))).max() < 1e-9, term.name
+    # The standing keyframe with the left foot raised 0.2 m (the hip and knee bent).
+    data = mujoco.MjData(task.model)
+    data.qpos[:] = task.qpos_ref
+    mujoco.mj_kinematics(task.model, data)
+    foot = task.model.site("foot_left").id
+    z0 = data.site_xpos[foot, 2]
+    qpos = task.qpos_ref.copy()
+    for name, angle in (("hip_y_left", -1.0), ("knee_left", -1.6)):
+        qpos[task.model.joint(name).qposadr[0]] = angle
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(task.model, data)
+    assert data.site_xpos[foot, 2] - z0 > 0.15
+    lifted = np.concatenate([qpos, np.zeros(task.nv)])
+
+    def height_cost(problem):
+        terms = [t for t in problem.cost.running if t.name.startswith("height")]
+        feats = problem.features(lifted, u)
+        return sum(0.5 * np.sum(t.weight * t.residual(feats) ** 2) for t in terms)
+
+    assert height_cost(plain) < 1e-9 < 1.0 < height_cost(task)
+    with pytest.raises(InvalidTypeError, match="height_above_feet"):
+        HumanoidGetup(settle=0.0, height_above_feet="yes")
 
 
 def test_range_noise_is_a_fraction_of_each_control_range() -> None:

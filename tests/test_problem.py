@@ -13,6 +13,7 @@ from mpcbox.core.cost import (
     Cost,
     FrameHeight,
     FramePosition,
+    HeightAbove,
     StateCost,
     Upright,
 )
@@ -99,6 +100,7 @@ def test_linearize_trajectory_threads_match_serial(balance):
         ComOverSupport("foot_left", weight=10.0, root="torso"),
         Upright("torso", weight=[2.0, 3.0]),
         FrameHeight("hand_left", 1.5, weight=4.0),
+        HeightAbove("hand_left", "foot_right", 1.0, weight=2.0),
         FramePosition("hand_right", np.array([0.2, -0.3, 1.0]), weight=1.0),
         FramePosition("foot_right", np.zeros(3), weight=[1.0, 1.0, 0.0]),
     ],

@@ -47,6 +47,21 @@ def test_humanoid_costs_agree_with_the_cpu_backend(warp_device):
     assert warp.backend.nconmax >= 4 and warp.stats["resizes"] == 0
 
 
+def test_velocity_and_relative_height_sensor_terms_agree_with_the_cpu_backend(warp_device):
+    """A subtree's velocity (a velocity-stage sensor) and a height above a foot, alone."""
+    from mpcbox.core.cost import ComVelocity, Cost, HeightAbove
+    from mpcbox.tasks import scene_path
+
+    terms = [
+        ComVelocity(weight=10.0, root="torso"),
+        HeightAbove("torso", "foot_left", 1.2, weight=50.0),
+    ]
+    problem = mpcbox.Problem(scene_path("humanoid.xml"), keyframe="stand", cost=Cost(terms))
+    a, b, _ = _agreement(problem, warp_device, horizon_steps=10)
+    assert np.all(a > 0.1)
+    np.testing.assert_allclose(b, a, rtol=2e-4)
+
+
 def test_capped_euler_planning_model_stays_close_to_the_full_model(warp_device):
     """The humanoid's fast planning model (2 solver iterations, unrolled in the graph, Euler)
     predicts costs within a few percent of the full model and ranks candidates alike."""

@@ -1,4 +1,4 @@
-"""Center of mass over a support point."""
+"""Center of mass: over a support point, and its horizontal velocity."""
 
 from __future__ import annotations
 
@@ -79,3 +79,50 @@ class ComOverSupport(CostTerm):
         com = self.sensor_address(f"mpcbox_{self.name}_com").start
         foot = self.sensor_address(f"mpcbox_{self.name}_support").start
         return [SensorRow(com + i, foot + i, 0.0, self.weight[i]) for i in range(2)]
+
+
+class ComVelocity(CostTerm):
+    r"""Horizontal velocity of a subtree's center of mass: :math:`r = \dot c_{xy}`.
+
+    Damps the drift of the whole body (MJPC's humanoid tasks weigh it beside the balance
+    of the center of mass over the feet).
+
+    Args:
+        weight: Scalar or ``(2,)`` weights.
+        root: Body whose subtree's center of mass is used (default: body 1, the first body).
+        name: Short label used in sensor names and reports.
+    """
+
+    @checked_options
+    def __init__(
+        self, *, weight: float | np.ndarray, root: str | None = None, name: str = ""
+    ) -> None:
+        super().__init__(weight, name or "com_velocity")
+        self.root = root
+
+    def _root(self, model: mujoco.MjModel) -> str:
+        if self.root is not None:
+            return self.root
+        return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, 1)
+
+    def size(self, model: mujoco.MjModel) -> int:
+        return 2
+
+    def sensors(self, model: mujoco.MjModel) -> Sequence[SensorRequest]:
+        object_id(model, "body", self._root(model), "root")
+        return (
+            SensorRequest(
+                f"mpcbox_{self.name}",
+                mujoco.mjtSensor.mjSENS_SUBTREELINVEL,
+                mujoco.mjtObj.mjOBJ_BODY,
+                self._root(model),
+            ),
+        )
+
+    def residual(self, features: Features) -> np.ndarray:
+        return self.sensor_slice(features, f"mpcbox_{self.name}")[:, :2]
+
+    def rows(self) -> list[Row]:
+        """Sensor rows on the x and y components of the velocity."""
+        adr = self.sensor_address(f"mpcbox_{self.name}").start
+        return [SensorRow(adr + i, -1, 0.0, self.weight[i]) for i in range(2)]

@@ -1,4 +1,5 @@
-"""Cost terms on site and body frames: position, height and uprightness."""
+"""Cost terms on site and body frames: position, height (absolute or above another frame)
+and uprightness."""
 
 from __future__ import annotations
 
@@ -115,6 +116,63 @@ class FrameHeight(CostTerm):
         """One sensor row on the z coordinate."""
         adr = self.sensor_address(f"mpcbox_{self.name}").start
         return [SensorRow(adr + 2, -1, self.target, self.weight[0])]
+
+
+class HeightAbove(CostTerm):
+    """Height of a frame above another against a target: ``r = z - z_base - target``.
+
+    For example a humanoid's torso above a foot: unlike :class:`FrameHeight` it is not
+    met by lifting the foot.
+
+    Args:
+        frame: Site or body name.
+        base: Site or body name of the frame it is measured from.
+        target: Target height difference in meters.
+        weight: Scalar weight.
+        name: Short label used in sensor names and reports.
+    """
+
+    @checked_options
+    def __init__(
+        self, frame: str, base: str, target: float, *, weight: float, name: str = ""
+    ) -> None:
+        super().__init__(weight, name or f"height_{frame}_above_{base}")
+        self.frame = frame
+        self.base = base
+        self.target = finite("target", target)
+
+    def size(self, model: mujoco.MjModel) -> int:
+        return 1
+
+    def sensors(self, model: mujoco.MjModel) -> Sequence[SensorRequest]:
+        objtype, objname = frame_sensor(model, self.frame)
+        base_type, base_name = frame_sensor(model, self.base, "base")
+        return (
+            SensorRequest(
+                f"mpcbox_{self.name}", mujoco.mjtSensor.mjSENS_FRAMEPOS, objtype, objname
+            ),
+            SensorRequest(
+                f"mpcbox_{self.name}_base",
+                mujoco.mjtSensor.mjSENS_FRAMEPOS,
+                base_type,
+                base_name,
+            ),
+        )
+
+    def residual(self, features: Features) -> np.ndarray:
+        z = self.sensor_slice(features, f"mpcbox_{self.name}")[:, 2:3]
+        z_base = self.sensor_slice(features, f"mpcbox_{self.name}_base")[:, 2:3]
+        return z - z_base - self.target
+
+    def jacobian(self, model: mujoco.MjModel, data: mujoco.MjData) -> Jacobian:
+        jq = (point_jacobian(model, data, self.frame) - point_jacobian(model, data, self.base))[2:3]
+        return Jacobian(jq, np.zeros((1, model.nv)), np.zeros((1, model.nu)))
+
+    def rows(self) -> list[Row]:
+        """One sensor row: the two z coordinates' difference."""
+        adr = self.sensor_address(f"mpcbox_{self.name}").start
+        base = self.sensor_address(f"mpcbox_{self.name}_base").start
+        return [SensorRow(adr + 2, base + 2, self.target, self.weight[0])]
 
 
 class Upright(CostTerm):

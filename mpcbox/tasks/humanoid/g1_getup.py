@@ -81,7 +81,10 @@ class G1Getup(HumanoidGetup):
     radians, :func:`range_noise`), not the classic humanoid's 0.4 of a unit torque range.
     On an H100 no config tried gets it up within 5 s in the real-time loop (0/10, see
     :data:`G1_SAMPLING`): MJWarp's steps of the G1 (mesh collision geoms) make each tick
-    100-200 ms. The same task is ``HumanoidGetup(model="menagerie:unitree_g1", torso="torso_link",
+    100-200 ms. That was measured with the earlier cost (torso height above the floor, no
+    velocity term of the centre of mass); the task now inherits the two terms that got the
+    classic humanoid up, which have not been run on the G1.
+    The same task is ``HumanoidGetup(model="menagerie:unitree_g1", torso="torso_link",
     root="pelvis", feet=("left_foot", "right_foot"), stand_height=None,
     release_height=None)`` with the classic humanoid's controller configs.
 

@@ -7,7 +7,15 @@ from typing import Any, ClassVar
 import mujoco
 
 from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, PredictiveSamplingConfig
-from mpcbox.core.cost import ComOverSupport, ControlCost, Cost, FrameHeight, StateCost, Upright
+from mpcbox.core.cost import (
+    ComOverSupport,
+    ComVelocity,
+    ControlCost,
+    Cost,
+    FrameHeight,
+    StateCost,
+    Upright,
+)
 from mpcbox.core.model import ModelSource, dof_weights
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.base import HumanoidProblem
@@ -45,6 +53,8 @@ class HumanoidStand(HumanoidProblem):
         velocity_cost: Weight :math:`w_v` of all velocities.
         ctrl_cost: Weight :math:`w_c` of the control deviations.
         balance_cost: Weight :math:`w_b` of the centre of mass over each foot (0 drops it).
+        com_velocity_cost: Weight :math:`w_{cv}` of the horizontal velocity of the centre
+            of mass, :math:`\tfrac12 w_{cv} \|\dot c_{xy}\|^2` (0, the default, drops it).
         terminal_scale: Multiplier of the terminal cost.
         fall_height: The run fails when the torso is lower than this (m).
         **kwargs: Passed to :class:`~mpcbox.tasks.legged.balance.LeggedBalance` and
@@ -99,6 +109,7 @@ class HumanoidStand(HumanoidProblem):
         velocity_cost: float = 0.05,
         ctrl_cost: float = 0.1,
         balance_cost: float = 1000.0,
+        com_velocity_cost: float = 0.0,
         terminal_scale: float = 5.0,
         fall_height: float = 0.9,
         **kwargs: Any,
@@ -111,6 +122,7 @@ class HumanoidStand(HumanoidProblem):
             velocity_cost=velocity_cost,
             ctrl_cost=ctrl_cost,
             balance_cost=balance_cost,
+            com_velocity_cost=com_velocity_cost,
             terminal_scale=terminal_scale,
         )
         kwargs.setdefault("keyframe", "stand")
@@ -164,6 +176,15 @@ class HumanoidStand(HumanoidProblem):
                 weight_qpos=scale * wq,
                 weight_qvel=scale * w["velocity"],
                 name="posture" + suffix,
+            ),
+            *(
+                [
+                    ComVelocity(
+                        weight=scale * w["com_velocity"], root="torso", name="com_vel" + suffix
+                    )
+                ]
+                if w["com_velocity"] > 0
+                else []
             ),
         ]
 
