@@ -14,6 +14,13 @@ from mpcbox.core.model import object_id
 from mpcbox.validation import checked_options
 
 
+def root_body(model: mujoco.MjModel, root: str | None) -> str:
+    """``root``, or the name of body 1 (the first body after the world) when ``None``."""
+    if root is not None:
+        return root
+    return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, 1)
+
+
 class ComOverSupport(CostTerm):
     """Horizontal distance of a subtree's center of mass from a support point.
 
@@ -41,9 +48,7 @@ class ComOverSupport(CostTerm):
         self.root = root
 
     def _root(self, model: mujoco.MjModel) -> str:
-        if self.root is not None:
-            return self.root
-        return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, 1)
+        return root_body(model, self.root)
 
     def size(self, model: mujoco.MjModel) -> int:
         return 2
@@ -101,9 +106,7 @@ class ComVelocity(CostTerm):
         self.root = root
 
     def _root(self, model: mujoco.MjModel) -> str:
-        if self.root is not None:
-            return self.root
-        return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, 1)
+        return root_body(model, self.root)
 
     def size(self, model: mujoco.MjModel) -> int:
         return 2

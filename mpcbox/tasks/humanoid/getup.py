@@ -30,6 +30,7 @@ from mpcbox.registry import controller_class, make_controller
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.stand import HumanoidStand
 from mpcbox.validation import (
+    boolean,
     in_range,
     non_negative,
     non_negative_weights,
@@ -202,11 +203,7 @@ class HumanoidGetup(Problem):
                 raise InvalidTypeError(f"{label} must be a body name, got {value!r}")
         if isinstance(feet, str) or len(feet) != 2 or not all(isinstance(f, str) for f in feet):
             raise InvalidArgumentError(f"feet must name the (left, right) feet, got {feet!r}")
-        if not isinstance(height_above_feet, bool):
-            raise InvalidTypeError(
-                f"height_above_feet must be a bool, got {type(height_above_feet).__name__}"
-            )
-        self.height_above_feet = height_above_feet
+        self.height_above_feet = boolean("height_above_feet", height_above_feet)
         self.torso, self.root = torso, torso if root is None else root
         self.feet = tuple(feet)
         self._heights = {
