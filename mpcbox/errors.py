@@ -94,6 +94,14 @@ class SolverError(MpcboxError, RuntimeError):
     """A numerical solver (Riccati, QP, NLP) failed."""
 
 
+class RunError(MpcboxError, RuntimeError):
+    """A run of a sweep raised before or outside its closed loop (building the problem or
+    the controller, or a push search), so it measured nothing.
+
+    The message carries the original error's type and text.
+    """
+
+
 class BackendUnavailableError(MpcboxError, RuntimeError):
     """An optional backend (GPU, CasADi, ...) is not installed or has no device."""
 

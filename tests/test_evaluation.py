@@ -134,3 +134,20 @@ def test_sweeps_by_name_check_their_arguments():
         survival("no_such_task", "lqr", seeds=[0], duration=0.1, executor="serial")
     with pytest.raises(UnknownNameError, match="'ray'"):
         push_grid("pendulum_swingup", "lqr", [0.0], executor="dask")
+
+
+def test_sweeps_raise_when_a_run_could_not_start():
+    """A controller that cannot be built measured nothing: the sweep says so with the
+    original error instead of counting a fall at 0 s (or a NaN push limit)."""
+    from mpcbox.comparison.push_limits import survival
+    from mpcbox.errors import RunError
+
+    bad = dict(executor="serial", controller_options={"bogus": 1})
+    test = PushTest(settle=0.2, max_force=100.0, tolerance=50.0)
+    with pytest.raises(RunError, match=r"2 of 2 runs of the push grid.*UnknownOptionError.*Q, R"):
+        push_grid("humanoid_two_feet", "lqr", [0.0, 10.0], test, **bad)
+    with pytest.raises(RunError, match=r"1 of 1 runs of the survival.*'bogus'"):
+        survival("humanoid_two_feet", "lqr", seeds=[0], duration=0.1, **bad)
+    with pytest.raises(RunError, match=r"largest push.*error in push search.*'bogus'") as info:
+        largest_push("humanoid_two_feet", "lqr", test, **bad)
+    assert isinstance(info.value, RuntimeError)

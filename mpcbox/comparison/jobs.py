@@ -172,9 +172,10 @@ class Worker:
                 problem, controller = self.problem, self.controller(job.controller)
                 test = self.setup.push_tests[job.push]
                 limit = largest_push(problem, controller, test, seed=job.seed)
-            except Exception:  # one broken search must not end the sweep: NaN in the table
+            except Exception as exc:  # one broken search must not end the sweep: NaN
                 nan = float("nan")
-                return Done(job, PushLimit(nan, nan, nan, 0), (), _where())
+                reason = f"error in push search: {type(exc).__name__}: {exc}"
+                return Done(job, PushLimit(nan, nan, nan, 0, reason), (), _where())
             return Done(job, limit, tuple(problem.measures()), _where())
         try:
             problem, controller = self.problem, self.controller(job.controller)

@@ -37,7 +37,7 @@ from mpcbox.comparison.robustness import (
 from mpcbox.comparison.runner import ControllerSpec, pick_executor, resolve_controllers
 from mpcbox.comparison.scenario import PushTest, Scenario, check_noise_models
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError, InvalidTypeError, UnknownNameError
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError, RunError, UnknownNameError
 from mpcbox.registry import TASKS, task_class
 from mpcbox.sim.disturbances import MAX_FORCE, ActuatorNoise, ModelMismatch, Push
 from mpcbox.validation import checked_keywords, instance, integer, integers, number, positive
@@ -98,7 +98,28 @@ def _run(
         for item in runner.run(setup, jobs, built):
             done.append(item)
             bar.update()
+    _raise_errors(label, desc, done)
     return sorted(done, key=lambda item: order[item.job])
+
+
+def _raise_errors(label: str, desc: str, done: list[Done]) -> None:
+    """A job that raised outside the closed loop measured nothing: counting it as a fall
+    would report a setup error as the controller's failure, so it raises here.
+
+    Raises:
+        RunError: Naming how many jobs raised and the first error.
+    """
+    errors = [
+        item.result.failure
+        for item in done
+        if isinstance(item.result.failure, str)
+        and item.result.failure.startswith(("error in run:", "error in push search:"))
+    ]
+    if errors:
+        raise RunError(
+            f"{len(errors)} of {len(done)} runs of the {desc} of {label!r} raised before or "
+            f"outside the closed loop, so they measured nothing; the first: {errors[0]}"
+        )
 
 
 @checked_keywords

@@ -76,12 +76,15 @@ class PushLimit(NamedTuple):
         impulse: ``force * duration`` (N s).
         smallest_failed: Smallest force that was not survived (N), ``inf`` if none failed.
         simulations: Number of simulations run.
+        failure: Why the search raised (the error's type and text; the numbers are then
+            NaN), or ``None``.
     """
 
     force: float
     impulse: float
     smallest_failed: float
     simulations: int
+    failure: str | None = None
 
 
 @checked_keywords
