@@ -44,6 +44,8 @@ WARP_SAMPLES = 1024
 
 
 def parse_set(text: str) -> dict:
+    """``key=value,...`` with each value read as JSON where it parses, else as text (also
+    the ``--set``/``--task-set`` reader of ``realtime.py``)."""
     out: dict = {}
     for pair in filter(None, text.split(",")):
         key, _, value = pair.partition("=")

@@ -32,24 +32,13 @@ import platform
 from pathlib import Path
 
 import numpy as np
+from quadruped_walk import parse_set
 
 import mpcbox
 from mpcbox.comparison.records import gpu_names
 from mpcbox.registry import task_class
 from mpcbox.sim.disturbances import ModelMismatch, Push
 from mpcbox.sim.realtime import simulate_realtime
-
-
-def _pairs(text: str) -> dict:
-    """``key=value,...`` with each value read as JSON where it parses, else as text."""
-    out: dict = {}
-    for pair in filter(None, text.split(",")):
-        key, _, value = pair.partition("=")
-        try:
-            out[key.strip()] = json.loads(value)
-        except json.JSONDecodeError:
-            out[key.strip()] = value.strip()
-    return out
 
 
 def main() -> None:
@@ -88,7 +77,7 @@ def main() -> None:
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
 
-    problem = task_class(args.task)(**_pairs(args.task_set))
+    problem = task_class(args.task)(**parse_set(args.task_set))
     noise = problem.noise(args.noise_scale) if args.noise_scale is not None else None
     mismatch = ModelMismatch(mass_scale=args.mass_scale) if args.mass_scale else None
     push_spec = [float(v) for v in args.push.split(",")] if args.push else None
@@ -117,7 +106,7 @@ def main() -> None:
             options["period"] = args.period
         if args.num_samples is not None:
             options["num_samples"] = args.num_samples
-        options.update(_pairs(args.set))
+        options.update(parse_set(args.set))
         ctrl = mpcbox.make_controller(name, problem, **options)
         entry: dict = {}
         entry["period_s"] = ctrl.period

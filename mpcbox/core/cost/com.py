@@ -14,14 +14,33 @@ from mpcbox.core.model import object_id
 from mpcbox.validation import checked_options
 
 
-def root_body(model: mujoco.MjModel, root: str | None) -> str:
-    """``root``, or the name of body 1 (the first body after the world) when ``None``."""
-    if root is not None:
-        return root
-    return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, 1)
+class _SubtreeTerm(CostTerm):
+    """Base of the terms on the center of mass of a body's subtree: two horizontal
+    residuals, and the subtree sensor they read."""
+
+    def __init__(self, weight: float | np.ndarray, name: str, root: str | None) -> None:
+        super().__init__(weight, name)
+        self.root = root
+
+    def _root(self, model: mujoco.MjModel) -> str:
+        """``root``, or body 1 (the first body after the world) when it is ``None``."""
+        if self.root is not None:
+            return self.root
+        return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, 1)
+
+    def size(self, model: mujoco.MjModel) -> int:
+        return 2
+
+    def _subtree_sensor(
+        self, model: mujoco.MjModel, kind: mujoco.mjtSensor, name: str
+    ) -> SensorRequest:
+        """A subtree sensor of type ``kind`` on the root, which must exist."""
+        root = self._root(model)
+        object_id(model, "body", root, "root")
+        return SensorRequest(name, kind, mujoco.mjtObj.mjOBJ_BODY, root)
 
 
-class ComOverSupport(CostTerm):
+class ComOverSupport(_SubtreeTerm):
     """Horizontal distance of a subtree's center of mass from a support point.
 
     ``r = com_xy(root) - p_xy(support)``: zero when the center of mass is above the support
@@ -43,26 +62,16 @@ class ComOverSupport(CostTerm):
         root: str | None = None,
         name: str = "",
     ) -> None:
-        super().__init__(weight, name or f"com_over_{support}")
+        super().__init__(weight, name or f"com_over_{support}", root)
         self.support = support
-        self.root = root
-
-    def _root(self, model: mujoco.MjModel) -> str:
-        return root_body(model, self.root)
-
-    def size(self, model: mujoco.MjModel) -> int:
-        return 2
 
     def sensors(self, model: mujoco.MjModel) -> Sequence[SensorRequest]:
-        object_id(model, "body", self._root(model), "root")
+        com = self._subtree_sensor(
+            model, mujoco.mjtSensor.mjSENS_SUBTREECOM, f"mpcbox_{self.name}_com"
+        )
         objtype, objname = frame_sensor(model, self.support, "support")
         return (
-            SensorRequest(
-                f"mpcbox_{self.name}_com",
-                mujoco.mjtSensor.mjSENS_SUBTREECOM,
-                mujoco.mjtObj.mjOBJ_BODY,
-                self._root(model),
-            ),
+            com,
             SensorRequest(
                 f"mpcbox_{self.name}_support", mujoco.mjtSensor.mjSENS_FRAMEPOS, objtype, objname
             ),
@@ -86,7 +95,7 @@ class ComOverSupport(CostTerm):
         return [SensorRow(com + i, foot + i, 0.0, self.weight[i]) for i in range(2)]
 
 
-class ComVelocity(CostTerm):
+class ComVelocity(_SubtreeTerm):
     r"""Horizontal velocity of a subtree's center of mass: :math:`r = \dot c_{xy}`.
 
     Damps the drift of the whole body (MJPC's humanoid tasks weigh it beside the balance
@@ -102,25 +111,11 @@ class ComVelocity(CostTerm):
     def __init__(
         self, *, weight: float | np.ndarray, root: str | None = None, name: str = ""
     ) -> None:
-        super().__init__(weight, name or "com_velocity")
-        self.root = root
-
-    def _root(self, model: mujoco.MjModel) -> str:
-        return root_body(model, self.root)
-
-    def size(self, model: mujoco.MjModel) -> int:
-        return 2
+        super().__init__(weight, name or "com_velocity", root)
 
     def sensors(self, model: mujoco.MjModel) -> Sequence[SensorRequest]:
-        object_id(model, "body", self._root(model), "root")
-        return (
-            SensorRequest(
-                f"mpcbox_{self.name}",
-                mujoco.mjtSensor.mjSENS_SUBTREELINVEL,
-                mujoco.mjtObj.mjOBJ_BODY,
-                self._root(model),
-            ),
-        )
+        kind = mujoco.mjtSensor.mjSENS_SUBTREELINVEL
+        return (self._subtree_sensor(model, kind, f"mpcbox_{self.name}"),)
 
     def residual(self, features: Features) -> np.ndarray:
         return self.sensor_slice(features, f"mpcbox_{self.name}")[:, :2]

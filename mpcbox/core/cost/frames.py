@@ -118,7 +118,7 @@ class FrameHeight(CostTerm):
         return [SensorRow(adr + 2, -1, self.target, self.weight[0])]
 
 
-class HeightAbove(CostTerm):
+class HeightAbove(FrameHeight):
     """Height of a frame above another against a target: ``r = z - z_base - target``.
 
     For example a humanoid's torso above a foot: unlike :class:`FrameHeight` it is not
@@ -136,37 +136,26 @@ class HeightAbove(CostTerm):
     def __init__(
         self, frame: str, base: str, target: float, *, weight: float, name: str = ""
     ) -> None:
-        super().__init__(weight, name or f"height_{frame}_above_{base}")
-        self.frame = frame
+        super().__init__(frame, target, weight=weight, name=name or f"height_{frame}_above_{base}")
         self.base = base
-        self.target = finite("target", target)
-
-    def size(self, model: mujoco.MjModel) -> int:
-        return 1
 
     def sensors(self, model: mujoco.MjModel) -> Sequence[SensorRequest]:
-        objtype, objname = frame_sensor(model, self.frame)
         base_type, base_name = frame_sensor(model, self.base, "base")
         return (
+            *super().sensors(model),
             SensorRequest(
-                f"mpcbox_{self.name}", mujoco.mjtSensor.mjSENS_FRAMEPOS, objtype, objname
-            ),
-            SensorRequest(
-                f"mpcbox_{self.name}_base",
-                mujoco.mjtSensor.mjSENS_FRAMEPOS,
-                base_type,
-                base_name,
+                f"mpcbox_{self.name}_base", mujoco.mjtSensor.mjSENS_FRAMEPOS, base_type, base_name
             ),
         )
 
     def residual(self, features: Features) -> np.ndarray:
-        z = self.sensor_slice(features, f"mpcbox_{self.name}")[:, 2:3]
         z_base = self.sensor_slice(features, f"mpcbox_{self.name}_base")[:, 2:3]
-        return z - z_base - self.target
+        return super().residual(features) - z_base
 
     def jacobian(self, model: mujoco.MjModel, data: mujoco.MjData) -> Jacobian:
-        jq = (point_jacobian(model, data, self.frame) - point_jacobian(model, data, self.base))[2:3]
-        return Jacobian(jq, np.zeros((1, model.nv)), np.zeros((1, model.nu)))
+        jac = super().jacobian(model, data)
+        jq = jac.dq - point_jacobian(model, data, self.base)[2:3]
+        return jac._replace(dq=jq)
 
     def rows(self) -> list[Row]:
         """One sensor row: the two z coordinates' difference."""
