@@ -60,6 +60,12 @@ with the earlier 2 s MPPI planned in RK4 and hands over to the default near the 
 0/12 (median tick 81 ms). ``dm_acrobot_hold.json``'s MPPI row is the
 earlier config. ``--no-oracle`` skips the oracle (for dev starts).
 
+MPPI with the LQR catch (stop 30, the task's MPPI default since: 2 s, 10 knots, RK4,
+``catch="lqr"`` with ``catch_level`` 1500): 4/12 within 5 s and held (seeds 0, 1, 6, 7 at
+2.11-4.81 s), holds the 0.05 rad check; with the level estimated by the controller, 4/12
+but the check dropped and re-caught (``dm_acrobot_dm_starts_mppi_catch.json``,
+``..._mppi_catch_estimated.json``, each run as two processes of six seeds).
+
 Offline plan, tracked (issue #13): ``--controllers ilqr_track`` runs the task's
 :meth:`~mpcbox.tasks.swingup.dm_control.DmAcrobotSwingup.offline_swingup` with
 :data:`TRACK` (``--track`` JSON replaces its fields): the oracle's solve from the start

@@ -208,7 +208,7 @@ def test_dm_control_cartpole_swings_up_by_ilqr_within_3s_and_holds() -> None:
     assert "not upright" in problem.goal_failure(np.array([0.0, 3.0, 6.0]), idle)
 
 
-def test_dm_acrobot_plans_in_rk4_and_its_mppi_adds_the_lqr_value() -> None:
+def test_dm_acrobot_plans_in_rk4_and_its_mppi_catches_with_the_task_lqr() -> None:
     pytest.importorskip("dm_control")
     from mpcbox.controllers.sampling.planning import planning_problem
     from mpcbox.tasks.swingup.dm_control import DmAcrobotSwingup
@@ -218,16 +218,23 @@ def test_dm_acrobot_plans_in_rk4_and_its_mppi_adds_the_lqr_value() -> None:
         problem = DmAcrobotSwingup(threads=1)
     rk4 = mujoco.mjtIntegrator.mjINT_RK4
     assert problem.planning_model.opt.integrator == rk4
-    mppi = planning_problem(problem, problem.controller_configs["mppi"])
+    config = problem.controller_configs["mppi"]
+    mppi = planning_problem(problem, config)
     assert mppi.planning_model.opt.integrator == rk4
     assert mppi.dt == pytest.approx(0.02)
-    names = [term.name for term in mppi.cost.terminal]
-    assert names[-1] == "lqr_value" and "lqr_value" not in [t.name for t in problem.cost.terminal]
-    # The value is the LQR cost-to-go: zero at the upright, positive off it.
+    # The catch is the task's LQR: the loop's gain is make_controller("lqr")'s (both at
+    # the 0.01 s simulation step), the rollouts' the same weights at the 0.02 s step.
+    ctrl = mpcbox.make_controller("mppi", problem)
+    lqr = mpcbox.make_controller("lqr", problem)
+    np.testing.assert_allclose(ctrl.catch.loop_lqr.K, lqr.K, rtol=1e-9)
+    np.testing.assert_allclose(ctrl.catch.rollout_lqr.Q, lqr.Q)
+    assert ctrl.catch.level == config.catch_level
+    # The value is zero at the upright and grows off it; a whole turn away is upright too.
     upright = np.zeros(problem.nstate)
-    off = np.array([0.0, 0.05, 0.0, 0.0])
-    assert mppi.terminal_cost(upright) == pytest.approx(problem.terminal_cost(upright), abs=1e-9)
-    assert mppi.terminal_cost(off) > problem.terminal_cost(off) + 1.0
+    assert ctrl.catch.value(upright) == pytest.approx(0.0, abs=1e-12)
+    assert ctrl.catch.value(np.array([0.0, 0.05, 0.0, 0.0])) > 0.0
+    turned = np.array([2 * np.pi, -2 * np.pi, 0.0, 0.0])
+    assert ctrl.catch.value(turned) == pytest.approx(0.0, abs=1e-9)
 
 
 def _dm_acrobot_hold(controller: str):
@@ -245,11 +252,27 @@ def _dm_acrobot_hold(controller: str):
 def test_dm_acrobot_default_mppi_holds_the_upright_from_an_elbow_offset() -> None:
     _, _, result, errors = _dm_acrobot_hold("mppi")
     assert result.failure is None
-    # The same start falls without control (the iLQR test below checks it): caught (the tip
-    # swings out to about the 0.2 m tolerance while the chain is caught), then settled within
-    # 5 cm over the last second.
+    # The same start falls without control (the iLQR test below checks it): caught by the
+    # catch's LQR from the first step (the tip swings out to about 0.19 m while the chain is
+    # caught), then settled within 5 cm over the last second.
     assert errors.max() < 0.25
     assert errors[result.time >= 2.0].max() < 0.05
+
+
+def test_dm_acrobot_default_mppi_swings_up_from_a_dm_start_and_the_lqr_holds_it() -> None:
+    pytest.importorskip("dm_control")
+    from mpcbox.tasks.swingup.dm_control import DmAcrobotSwingup
+
+    # dm_control's swing-up start for seed 121 (a dev start, not one of the benchmark's
+    # seeds 0-11): both angles uniform, at rest, 5.3 J below the upright's energy.
+    start = np.r_[np.random.default_rng(121).uniform(-np.pi, np.pi, 2), 0.0, 0.0]
+    problem = DmAcrobotSwingup(initial=start, threads=1)
+    ctrl = mpcbox.make_controller("mppi", problem)
+    result = mpcbox.simulate(problem, ctrl, 4.0)
+    errors = problem.upright_errors(result.states)
+    assert errors[0] > 0.5  # starts 0.53 m from the target, outside the 0.2 m tolerance
+    assert errors[result.time >= 3.0].max() < 0.05, errors[result.time >= 3.0].max()
+    assert ctrl.stats["catch_calls"] > 50 and ctrl.last_call == "catch"
 
 
 def test_dm_acrobot_default_ilqr_holds_the_upright_from_an_elbow_offset() -> None:

@@ -257,6 +257,65 @@ class Dynamics:
             out_sens[after] = np.nan
         return Rollout(states, out_sens, ctrls)
 
+    def rollout_policy(
+        self,
+        state: np.ndarray,
+        ctrls: np.ndarray,
+        policy: Callable[[np.ndarray, np.ndarray], np.ndarray],
+        model: mujoco.MjModel | Sequence[mujoco.MjModel] | None = None,
+    ) -> Rollout:
+        """Roll out ``(B, T, nu)`` controls through a state feedback, one step at a time,
+        from one start state ``(nstate,)`` or one per rollout ``(B, nstate)``.
+
+        Before step ``t`` every rollout's control is ``policy(states[:, t], ctrls[:, t])``
+        (both batched, ``(B, nstate)`` and ``(B, nu)``; it returns ``(B, nu)`` controls inside
+        the control range), so a rollout can hand over to a feedback law where it applies.
+        With ``policy`` returning its second argument this is :meth:`rollout`. Each step is
+        one :func:`mujoco.rollout.rollout` call over the batch (``T + 1`` calls), so it costs
+        more than :meth:`rollout` on small models.
+
+        Returns:
+            The :class:`Rollout`, with ``ctrls`` the controls the policy applied; NaN from a
+            divergence on, as in :meth:`rollout`.
+        """
+        from mujoco import rollout as mj_rollout
+
+        nbatch, horizon = ctrls.shape[:2]
+        starts = np.broadcast_to(state, (nbatch, self.nstate))
+        current = np.stack([self.full_physics_state(s) for s in starts])
+        current[:, 0] = 1.0  # see rollout(): a reset then reads as time stepping back
+        if self._rollout_datas is None:
+            self._rollout_datas = [mujoco.MjData(self.model) for _ in range(self.threads)]
+        models = self.model if model is None else model
+        cols = slice(1, 1 + self.nstate)
+        states = np.empty((nbatch, horizon + 1, self.nstate))
+        states[:, 0] = starts
+        applied = np.empty_like(ctrls)
+        sensor = None
+        diverged = np.zeros(nbatch, dtype=bool)
+        with mujoco_errors("rollout"), captured_warnings():
+            for t in range(horizon + 1):
+                if t < horizon:
+                    applied[:, t] = policy(states[:, t], ctrls[:, t])
+                step = applied[:, min(t, horizon - 1)]
+                out_state, out_sens = mj_rollout.rollout(
+                    models,
+                    self._rollout_datas,
+                    current,
+                    step[:, None, :],
+                    persistent_pool=True,
+                )
+                if sensor is None:
+                    sensor = np.empty((nbatch, horizon + 1, out_sens.shape[-1]))
+                sensor[:, t] = out_sens[:, 0]
+                sensor[diverged, t] = np.nan
+                diverged |= out_state[:, 0, 0] <= current[:, 0]
+                current = out_state[:, 0]
+                if t < horizon:
+                    states[:, t + 1] = current[:, cols]
+                    states[diverged, t + 1] = np.nan
+        return Rollout(states, sensor, applied)
+
     def full_physics_state(self, state: np.ndarray) -> np.ndarray:
         """The ``mjSTATE_FULLPHYSICS`` vector (time, qpos, qvel, act, ...) of a state."""
         data = self.scratch_data()

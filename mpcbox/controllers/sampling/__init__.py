@@ -5,6 +5,8 @@ warm starts, noise, cost evaluation, statistics); an algorithm implements only `
 ``update``. Rollouts run on a :class:`RolloutBackend` (:func:`make_backend`): ``"cpu"``
 (:func:`mujoco.rollout` on all cores) or ``"warp"`` (MuJoCo Warp, thousands of worlds per
 tick, costs computed on the device). MJWarp is imported only when the warp backend is used.
+With ``catch="lqr"`` the CPU rollouts step through the reference's LQR inside its basin
+(:class:`LQRCatch`).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from mpcbox.controllers.sampling.backends import (
     make_backend,
 )
 from mpcbox.controllers.sampling.base import SamplingController, TickInfo, aggregate_risk
+from mpcbox.controllers.sampling.catch import LQRCatch, basin_level
 from mpcbox.controllers.sampling.cem import CEM
 from mpcbox.controllers.sampling.config import (
     CEMConfig,
@@ -34,6 +37,7 @@ __all__ = [
     "MPPI",
     "AsyncRolloutBackend",
     "CEMConfig",
+    "LQRCatch",
     "MPPIConfig",
     "PlannerTrace",
     "PredictiveSampling",
@@ -47,6 +51,7 @@ __all__ = [
     "TickInfo",
     "TraceRecorder",
     "aggregate_risk",
+    "basin_level",
     "make_backend",
     "mppi_weights",
 ]

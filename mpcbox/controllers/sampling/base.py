@@ -16,7 +16,10 @@ Every control tick, from the measured state :math:`x`:
    the nominal knots (:meth:`update`);
 3. the control returned is the nominal spline at the start of the horizon. With
    ``replan_period`` (and the controller called every simulation step, ``period=None``),
-   calls between replans return the nominal spline at the elapsed time instead;
+   calls between replans return the nominal spline at the elapsed time instead. With
+   ``catch="lqr"`` (:mod:`mpcbox.controllers.sampling.catch`) the rollouts step through the
+   reference's LQR inside its basin, and a call whose state is inside it returns the LQR's
+   control (counted in ``stats["catch_calls"]``);
 4. only after :meth:`SamplingController.record_traces`: the ``k`` best candidates of the
    last iteration are re-rolled on the CPU into :attr:`SamplingController.traces`
    (:mod:`mpcbox.controllers.sampling.traces`, for viewers).
@@ -37,7 +40,9 @@ import numpy as np
 
 from mpcbox.config import resolve_config
 from mpcbox.controllers.base import Controller, check_problem
+from mpcbox.controllers.lqr import LQRConfig
 from mpcbox.controllers.sampling.backends import RolloutBackend, make_backend
+from mpcbox.controllers.sampling.catch import LQRCatch
 from mpcbox.controllers.sampling.config import RISKS, SamplingConfig
 from mpcbox.controllers.sampling.planning import planning_models, planning_problem
 from mpcbox.controllers.sampling.splines import Spline
@@ -141,6 +146,17 @@ class SamplingController(Controller):
         self.replan_period = None if replan is None else float(replan)
         #: The ``M`` planning models (the nominal one first).
         self.models = planning_models(problem.planning_model, config.randomization)
+        #: The :class:`~mpcbox.controllers.sampling.catch.LQRCatch` (``catch="lqr"``) or
+        #: ``None``.
+        self.catch = None
+        if config.catch is not None:
+            self.catch = LQRCatch(
+                problem,
+                problem.model.opt.timestep if self.period is None else self.period,
+                config.catch_level,
+                lqr=_task_lqr_config(problem),
+                seed=config.seed,
+            )
         self.backend: RolloutBackend = make_backend(
             config.backend,
             problem,
@@ -149,6 +165,7 @@ class SamplingController(Controller):
             device=config.device,
             headroom=config.headroom,
             use_graph=config.use_graph,
+            policy=None if self.catch is None else self.catch.policy,
         )
         self.trace_recorder: TraceRecorder | None = None
         self.reset()
@@ -228,6 +245,7 @@ class SamplingController(Controller):
             "failed_iterations": 0,
             "tick_seconds_total": 0.0,
             "tick_seconds_max": 0.0,
+            "catch_calls": 0,
         }
         self.reset_algorithm()
 
@@ -365,6 +383,17 @@ class SamplingController(Controller):
         self.trace_recorder = TraceRecorder(self.problem, count, site=site, body=body)
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
+        ctrl = self._planned(state, time)
+        if self.catch is not None:
+            caught = self.catch.control(self.problem.check_state(state))
+            if caught is not None:
+                self.last_call = "catch"
+                self._stats["catch_calls"] += 1
+                return caught
+        return ctrl
+
+    def _planned(self, state: np.ndarray, time: float) -> np.ndarray:
+        """The plan's control at ``time``, replanning when due."""
         replan = self.replan_period
         self.last_call = "solve"
         if replan is None or self.knots is None or self._plan_time is None:
@@ -395,6 +424,12 @@ class SamplingController(Controller):
     def close(self) -> None:
         """Release backend resources."""
         self.backend.close()
+
+
+def _task_lqr_config(problem: Problem) -> LQRConfig | None:
+    """The task's ``"lqr"`` config (its tuned weights), if it has one."""
+    config = getattr(problem, "controller_configs", {}).get("lqr")
+    return config if isinstance(config, LQRConfig) else None
 
 
 __all__ = [

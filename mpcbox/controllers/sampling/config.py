@@ -41,6 +41,8 @@ ShiftMode = Literal["resample", "least_squares"]
 SHIFT_MODES: tuple[str, ...] = ("resample", "least_squares")
 TerminalValue = Literal["lqr"]
 TERMINAL_VALUES: tuple[str, ...] = ("lqr",)
+Catch = Literal["lqr"]
+CATCHES: tuple[str, ...] = ("lqr",)
 TemperatureMode = Literal["normalized", "absolute"]
 TEMPERATURE_MODES: tuple[str, ...] = ("normalized", "absolute")
 #: MuJoCo integrator names (``mjtIntegrator``) accepted by ``planning_integrator``.
@@ -135,6 +137,16 @@ class SamplingConfig:
             (:func:`~mpcbox.controllers.lqr.with_lqr_terminal_value`), so a short horizon
             still sees the cost-to-go; ``None`` (default) keeps the Problem's terminal cost.
             CPU backend (the warp backend's costs have no such term).
+        catch: ``"lqr"`` hands the control to the LQR of the planning model at the
+            reference (with the task's ``"lqr"`` config when it has one) wherever the state
+            is inside its estimated basin of attraction, in every rollout and in the closed
+            loop (:class:`~mpcbox.controllers.sampling.catch.LQRCatch`), so the planner sees
+            which samples reach a state the LQR holds; ``None`` (default): open-loop
+            rollouts. CPU backend only (each rollout step is one
+            :func:`mujoco.rollout.rollout` call).
+        catch_level: The basin level :math:`c` of ``catch`` (the LQR's value
+            :math:`V(x) < c`); ``None``: estimated by simulation when the controller is
+            built (:func:`~mpcbox.controllers.sampling.catch.basin_level`).
         shift: Warm start of the nominal spline at a tick: ``"resample"`` (default,
             :meth:`~.splines.Spline.shift`: re-evaluated at the shifted knot times) or
             ``"least_squares"`` (:meth:`~.splines.Spline.refit`: the least-squares fit, over
@@ -191,6 +203,8 @@ class SamplingConfig:
     iterations: int = 1
     shift: ShiftMode = "resample"
     terminal_value: TerminalValue | None = None
+    catch: Catch | None = None
+    catch_level: float | None = None
     planning_timestep: float | None = None
     planning_integrator: Integrator | None = None
     planning_disable: Sequence[str] = ()
@@ -232,6 +246,15 @@ class SamplingConfig:
         one_of("shift", self.shift, SHIFT_MODES)
         if self.terminal_value is not None:
             one_of("terminal_value", self.terminal_value, TERMINAL_VALUES)
+        if self.catch is not None:
+            one_of("catch", self.catch, CATCHES)
+            if self.backend != "cpu":
+                raise InvalidArgumentError(
+                    f"catch={self.catch!r} needs backend='cpu' (its rollouts step through a "
+                    f"state feedback), got backend={self.backend!r}"
+                )
+        if self.catch_level is not None:
+            positive("catch_level", self.catch_level)
         self.horizon_steps(dt)
         positive_int("num_knots", self.num_knots)
         one_of("interpolation", self.interpolation, INTERPOLATIONS)

@@ -7,7 +7,7 @@ built.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import mujoco
 import numpy as np
@@ -36,6 +36,7 @@ def make_backend(
     device: str | None = None,
     headroom: float = 2.0,
     use_graph: bool = True,
+    policy: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
 ) -> RolloutBackend:
     """The backend ``name`` for a Problem, an interpolation matrix and planning models.
 
@@ -48,9 +49,12 @@ def make_backend(
             only ``None`` or ``"cpu"`` with the cpu backend.
         headroom: Warp: contact and constraint capacity over the calibration maxima.
         use_graph: Warp: capture each tick as one CUDA graph (CUDA only).
+        policy: CPU: a state feedback every rollout step goes through (see
+            :class:`CpuBackend`).
 
     Raises:
-        InvalidArgumentError: For an unknown name, or a device with the cpu backend.
+        InvalidArgumentError: For an unknown name, a device with the cpu backend, or a
+            policy with the warp backend.
         BackendUnavailableError: If the warp backend's packages or CUDA device are missing.
     """
     one_of("backend", name, BACKENDS)
@@ -59,7 +63,11 @@ def make_backend(
             raise InvalidArgumentError(
                 f"device={device!r} needs backend='warp'; the cpu backend has no device"
             )
-        return CpuBackend(problem, weights, models)
+        return CpuBackend(problem, weights, models, policy)
+    if policy is not None:
+        raise InvalidArgumentError(
+            "policy: the warp backend rolls out open-loop controls only; use backend='cpu'"
+        )
     return WarpBackend(
         problem,
         weights,
