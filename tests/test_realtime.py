@@ -104,6 +104,25 @@ def test_executed_control_is_the_latest_spline_at_the_current_time(problem):
     np.testing.assert_array_equal(planner.control(1.05), before)
 
 
+def test_the_world_applies_a_sampling_controllers_catch_to_its_current_state(problem):
+    ctrl = mpcbox.make_controller(
+        "ps", problem, num_samples=8, horizon=0.3, num_knots=4, catch="lqr", catch_level=50.0
+    )
+    planner = PlannerThread(problem, ctrl, period=0.02, max_ticks=1)
+    upright = problem.reference_state()
+    planner.prime(problem.initial_state(), 0.0)
+    # Inside the basin the world gets the catch's LQR control for the state it passes, at
+    # any time; outside it (or without a state) the published spline.
+    near = upright.copy()
+    near[problem.nq] = 0.05
+    assert ctrl.catch.engaged(near)
+    np.testing.assert_allclose(planner.control(0.01, near), ctrl.catch.control(near))
+    hanging = problem.initial_state()
+    assert not ctrl.catch.engaged(hanging)
+    np.testing.assert_allclose(planner.control(0.01, hanging), ctrl.action(0.01), atol=1e-12)
+    np.testing.assert_allclose(planner.control(0.01), ctrl.action(0.01), atol=1e-12)
+
+
 @pytest.mark.parametrize(
     ("kwargs", "text"),
     [({"fail_at": 4}, "RuntimeError: planner broke"), ({"bad_at": 3}, "invalid control")],

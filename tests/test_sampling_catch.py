@@ -111,6 +111,26 @@ def test_mppi_with_a_catch_swings_the_cart_pole_up_and_holds_it_with_the_lqr() -
     assert ctrl.last_call == "catch"
 
 
+def test_traces_follow_the_catch_the_planner_scored() -> None:
+    problem = CartpoleSwingup()
+    ctrl = mpcbox.make_controller("mppi", problem, catch="lqr", num_samples=16, seed=2)
+    ctrl.record_traces(3)
+    state = problem.reference_state()
+    state[problem.nq] = 0.05  # inside the basin: the LQR overrides every sample
+    assert ctrl.catch.engaged(state)
+    ctrl.plan(state, 0.0)
+    paths = ctrl.traces.positions
+    np.testing.assert_allclose(paths[1:], np.broadcast_to(paths[0], paths[1:].shape))
+    assert np.ptp(ctrl.traces.costs) == pytest.approx(0.0, abs=1e-9)
+    # ... and that path is the LQR's closed loop, not the open-loop spline's
+    steps = ctrl.horizon_steps
+    lqr_only = ctrl.problem.dynamics.rollout_policy(
+        state, np.zeros((1, steps, problem.nu)), ctrl.catch.policy
+    )
+    held = ctrl.trace_recorder.positions(lqr_only.states)
+    np.testing.assert_allclose(paths[0], held[0], atol=1e-12)
+
+
 @pytest.mark.parametrize(
     ("options", "match"),
     [

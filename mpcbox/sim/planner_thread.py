@@ -79,8 +79,18 @@ class PlannerThread:
             self._state = (state.copy(), float(time))
         self._new_state.set()
 
-    def control(self, time: float) -> np.ndarray:
-        """The latest plan's control at simulated ``time`` ``(nu,)``."""
+    def control(self, time: float, state: np.ndarray | None = None) -> np.ndarray:
+        """The latest plan's control at simulated ``time`` ``(nu,)``.
+
+        For a controller with a catch (a sampling controller's ``catch``, see
+        :mod:`mpcbox.controllers.sampling.catch`) and the world's ``state`` ``(nstate,)``,
+        the catch's feedback wherever it engages, as in the controller's own calls.
+        """
+        catch = getattr(self.controller, "catch", None)
+        if catch is not None and state is not None:
+            caught = catch.control(state)
+            if caught is not None:
+                return caught
         with self._lock:
             plan = self._plan
         if plan.knots is None or plan.spline is None:

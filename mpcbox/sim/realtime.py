@@ -15,7 +15,9 @@ as on a robot:
 - the **executed control** at world time :math:`t` is the latest plan at :math:`t`: for a
   controller with a spline plan (the sampling controllers: ``spline`` and ``knots``
   attributes) the plan's knots, copied when published, evaluated :math:`t - t_s` seconds
-  into the plan; for any other controller the control it returned, held.
+  into the plan; for any other controller the control it returned, held. A sampling
+  controller's LQR catch (``catch="lqr"``) is applied by the world to its current state at
+  every step, as the controller applies it in :func:`simulate`.
 
 Latency is part of the experiment. For tick :math:`i` started at simulated time
 :math:`t_{s,i}` and taking :math:`\ell_i` wall seconds, the simulated time that passes is
@@ -233,7 +235,7 @@ def simulate_realtime(
                 break
             if view is not None:
                 view.step(data)
-            data.ctrl[:] = problem.clip_ctrl(planner.control(now) + noise_seq[k])
+            data.ctrl[:] = problem.clip_ctrl(planner.control(now, states[k]) + noise_seq[k])
             ctrls[k] = data.ctrl
             data.xfrc_applied[:] = 0.0
             for push, bid in zip(pushes, push_ids):

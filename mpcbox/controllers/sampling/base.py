@@ -380,7 +380,10 @@ class SamplingController(Controller):
         if count is None or (type(count) is int and count == 0):
             self.trace_recorder = None
             return
-        self.trace_recorder = TraceRecorder(self.problem, count, site=site, body=body)
+        policy = None if self.catch is None else self.catch.policy
+        self.trace_recorder = TraceRecorder(
+            self.problem, count, site=site, body=body, policy=policy
+        )
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
         ctrl = self._planned(state, time)

@@ -22,6 +22,7 @@ no recorder is set.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import NamedTuple
 
 import mujoco
@@ -72,6 +73,8 @@ class TraceRecorder:
         count: How many of the lowest-cost candidates to trace (``k >= 1``).
         site: A site to trace, by name or id.
         body: A body whose frame origin to trace, by name or id (not with ``site``).
+        policy: The controller's rollout feedback (its catch), so the traces are the paths
+            the planner scored; ``None``: open-loop rollouts.
 
     Attributes:
         rollouts: Candidates re-rolled so far (``k`` per recorded tick).
@@ -88,8 +91,10 @@ class TraceRecorder:
         *,
         site: str | int | None = None,
         body: str | int | None = None,
+        policy: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
     ) -> None:
         self.problem = problem
+        self.policy = policy
         self.count = positive_int("count", count)
         model = problem.planning_model
         if site is not None and body is not None:
@@ -128,7 +133,11 @@ class TraceRecorder:
             return None
         order = finite[np.argsort(costs[finite], kind="stable")][: self.count]
         ctrls = np.einsum("tk,nkj->ntj", weights, candidates[order])
-        rollout = self.problem.rollout(state, ctrls)
+        if self.policy is None:
+            rollout = self.problem.rollout(state, ctrls)
+        else:  # the paths the planner scored: through its catch
+            ctrls = self.problem.clip_ctrl(ctrls)
+            rollout = self.problem.dynamics.rollout_policy(state, ctrls, self.policy)
         self.rollouts += len(order)
         steps = ctrls.shape[1]
         return PlannerTrace(
