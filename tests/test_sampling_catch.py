@@ -8,7 +8,7 @@ import pytest
 import mpcbox
 from mpcbox.controllers.sampling.catch import LQRCatch, basin_level, linear_level
 from mpcbox.errors import InvalidArgumentError
-from mpcbox.tasks.swingup import CartpoleSwingup, PendulumSwingup
+from mpcbox.tasks.swingup import AcrobotSwingup, CartpoleSwingup, PendulumSwingup
 
 
 @pytest.fixture(scope="module")
@@ -108,6 +108,18 @@ def test_mppi_with_a_catch_swings_the_cart_pole_up_and_holds_it_with_the_lqr() -
     err = np.array([problem.upright_error(s) for s in res.states])
     assert np.all(err[-100:] < 0.05)
     assert ctrl.stats["catch_calls"] > 0
+    assert ctrl.last_call == "catch"
+
+
+def test_acrobot_mppi_default_swings_up_from_hanging_and_the_catch_holds_it() -> None:
+    problem = AcrobotSwingup()
+    ctrl = mpcbox.make_controller("mppi", problem)
+    assert ctrl.catch is not None
+    result = mpcbox.simulate(problem, ctrl, 5.0)
+    assert result.survived, result.failure
+    errors = problem.upright_errors(result.states)
+    assert errors[0] > 3.0  # hanging
+    assert errors[result.time >= 4.0].max() < 0.01
     assert ctrl.last_call == "catch"
 
 

@@ -208,6 +208,18 @@ class AcrobotSwingup(Swingup):
             ctrls_init=np.cos(5.0 * 0.02 * np.arange(ACROBOT_HORIZON))[:, None],
             threads=1,
         ),
+        #: MPPI over 2 s (10 knots, 128 samples, CPU backend), replanning every 0.02 s, with
+        #: the upright's LQR as catch (basin level estimated when built): from hanging and 4
+        #: perturbed starts 5/5 upright (3.1-5.2 s) and held to 1e-4 rad; the same options
+        #: without the catch 0/5, passing within 0.03-0.06 rad of upright but dropping it
+        #: (``benchmarks/sampling_catch.py``, ``benchmarks/results/sampling_catch.json``).
+        "mppi": MPPIConfig(
+            horizon=2.0,
+            num_knots=10,
+            planning_timestep=0.02,
+            replan_period=0.02,
+            catch="lqr",
+        ),
     }
 
     def __init__(self, **kwargs: Any) -> None:
