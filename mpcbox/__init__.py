@@ -46,6 +46,7 @@ _LAZY: dict[str, str] = {
     "ControlCost": "mpcbox.core.cost",
     "ComOverSupport": "mpcbox.core.cost",
     "ComVelocity": "mpcbox.core.cost",
+    "Energy": "mpcbox.core.cost",
     "FramePosition": "mpcbox.core.cost",
     "FrameHeight": "mpcbox.core.cost",
     "HeightAbove": "mpcbox.core.cost",

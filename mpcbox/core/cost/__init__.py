@@ -5,7 +5,8 @@ A cost term is a weighted least-squares residual,
 running and terminal terms. One file per concept: the protocol and the :class:`Cost`
 (:mod:`~mpcbox.core.cost.base`), the row vocabulary of the GPU kernels
 (:mod:`~mpcbox.core.cost.rows`), and the terms (state, control, frames, center of mass
-position and velocity, quadratic value, wrapped angle, clearance from a sphere, actuator effort).
+position and velocity, quadratic value, wrapped angle, clearance from a sphere, actuator effort,
+total energy).
 """
 
 from mpcbox.core.cost.actuator_force import ActuatorForce
@@ -14,6 +15,7 @@ from mpcbox.core.cost.base import Cost, CostTerm, Features, Jacobian, SensorRequ
 from mpcbox.core.cost.clearance import SphereClearance
 from mpcbox.core.cost.com import ComOverSupport, ComVelocity
 from mpcbox.core.cost.control import ControlCost
+from mpcbox.core.cost.energy import Energy, rest_energy
 from mpcbox.core.cost.frames import FrameHeight, FramePosition, HeightAbove, Upright
 from mpcbox.core.cost.state import StateCost
 from mpcbox.core.cost.value import QuadraticValue
@@ -25,6 +27,7 @@ __all__ = [
     "ControlCost",
     "Cost",
     "CostTerm",
+    "Energy",
     "Features",
     "FrameHeight",
     "FramePosition",
@@ -36,4 +39,5 @@ __all__ = [
     "StateCost",
     "Upright",
     "WrappedAngle",
+    "rest_energy",
 ]

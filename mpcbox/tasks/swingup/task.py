@@ -30,10 +30,12 @@ from mpcbox.core.cost import (
     ControlCost,
     Cost,
     CostTerm,
+    Energy,
     FrameHeight,
     FramePosition,
     StateCost,
     WrappedAngle,
+    rest_energy,
 )
 from mpcbox.core.model import ModelSource, frame_position, object_id
 from mpcbox.core.problem import Problem
@@ -154,6 +156,9 @@ class Swingup(Problem):
         ctrl_weight = w.ctrl / self.ctrl_scale**2
         if np.any(ctrl_weight > 0):
             running.append(ControlCost(self.ctrl_ref, weight=ctrl_weight))
+        if w.energy > 0:
+            target = rest_energy(model, self.qpos_ref)
+            running.append(Energy(target, weight=w.energy))
         terminal = self._terms(
             model,
             named,

@@ -26,6 +26,9 @@ class SwingupWeights:
         position: On the position of every joint that is not named (e.g. a cart).
         velocity: On every velocity.
         ctrl: On every control, as a fraction of its half range.
+        energy: On the total mechanical energy's distance (J) from the goal posture's at
+            rest (:class:`~mpcbox.core.cost.Energy`), running only; 0 (default) leaves the
+            term out.
         terminal_angle: Terminal counterpart of ``angle``.
         terminal_site: Terminal counterpart of ``site``.
         terminal_position: Terminal counterpart of ``position``.
@@ -40,6 +43,7 @@ class SwingupWeights:
     position: float = 1.0
     velocity: float = 0.5
     ctrl: float = 1.0
+    energy: float = 0.0
     terminal_angle: float = 100.0
     terminal_site: float = 100.0
     terminal_position: float = 10.0
