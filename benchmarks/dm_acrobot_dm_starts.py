@@ -115,6 +115,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import dataclasses
 import json
 import os
 import platform
@@ -246,14 +247,18 @@ def closed_loop(
     state: np.ndarray,
     duration: float,
     plan_rk4: bool | None = None,
+    weights: dict | None = None,
     **overrides: object,
 ) -> dict:
     """The task's tuned ``controller`` (config fields replaced by ``overrides``) from
-    ``state`` over ``duration`` s; ``plan_rk4`` replaces the task's default when given.
+    ``state`` over ``duration`` s; ``plan_rk4`` replaces the task's default when given, and
+    ``weights`` fields of its :class:`SwingupWeights` (``--weights``).
     ``"ilqr_track"`` and ``"ilqr_track_lqr"`` are the task's
     :meth:`~DmAcrobotSwingup.offline_swingup` with the settings of :data:`TRACK` and the
     holder of :data:`TRACKED`."""
-    options = {} if plan_rk4 is None else {"plan_rk4": plan_rk4}
+    options: dict = {} if plan_rk4 is None else {"plan_rk4": plan_rk4}
+    if weights:
+        options["weights"] = dataclasses.replace(DmAcrobotSwingup.WEIGHTS, **weights)
     problem = DmAcrobotSwingup(initial=state, threads=1, **options)
     if controller == "mppi_handover":
         ctrl = mppi_handover(problem, **overrides)
@@ -495,12 +500,16 @@ def main() -> None:
     )
     parser.add_argument("--oracle-from", default=None, help="reuse the oracle of this results JSON")
     parser.add_argument("--track", default="{}", help="JSON settings replacing TRACK's")
+    parser.add_argument(
+        "--weights", default="{}", help="JSON SwingupWeights fields replacing the task's"
+    )
     parser.add_argument("--out", default=str(RESULTS))
     args = parser.parse_args()
     warnings.simplefilter("ignore", PlanningModelWarning)
     controllers = args.controllers.split(",")
     TRACK.update(json.loads(args.track))
     overrides = json.loads(args.overrides)
+    weights = json.loads(args.weights)
     reused = {}
     if args.oracle_from:
         reused = {r["seed"]: r for r in json.loads(Path(args.oracle_from).read_text())["runs"]}
@@ -528,14 +537,18 @@ def main() -> None:
         if name in TRACKED:  # its holder's hold check: "ilqr" here, "lqr" in --catch-check
             continue
         hold[name] = closed_loop(
-            name, np.array([0.0, args.hold_offset, 0.0, 0.0]), 3.0, args.plan_rk4, **overrides
+            name,
+            np.array([0.0, args.hold_offset, 0.0, 0.0]),
+            3.0,
+            args.plan_rk4,
+            weights,
+            **overrides,
         )
         print(json.dumps({"hold": name, **hold[name]}), flush=True)
     hanging = {}
     for name in [] if args.no_hanging else controllers:
-        hanging[name] = closed_loop(
-            name, DmAcrobotSwingup(threads=1).initial_state(), 10.0, args.plan_rk4, **overrides
-        )
+        start = DmAcrobotSwingup(threads=1).initial_state()
+        hanging[name] = closed_loop(name, start, 10.0, args.plan_rk4, weights, **overrides)
         print(json.dumps({"hanging": name, **hanging[name]}), flush=True)
 
     runs = []
@@ -554,7 +567,7 @@ def main() -> None:
             ),
         }
         for name in controllers:
-            row[name] = closed_loop(name, state, args.duration, args.plan_rk4, **overrides)
+            row[name] = closed_loop(name, state, args.duration, args.plan_rk4, weights, **overrides)
         runs.append(row)
         print(json.dumps(row), flush=True)
 

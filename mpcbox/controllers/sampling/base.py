@@ -148,7 +148,7 @@ class SamplingController(Controller):
         self.models = planning_models(problem.planning_model, config.randomization)
         #: The :class:`~mpcbox.controllers.sampling.catch.LQRCatch` (``catch="lqr"``) or
         #: ``None``.
-        self.catch = None
+        self.catch: LQRCatch | None = None
         if config.catch is not None:
             self.catch = LQRCatch(
                 problem,
