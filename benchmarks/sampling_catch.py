@@ -4,13 +4,15 @@ For each task, MPPI on the CPU backend with the task's MPPI config when it has o
 :data:`OPTIONS`), once as configured without a catch and once with ``catch="lqr"`` (the
 basin level estimated when the controller is built, unless the task's config sets it),
 from the task's hanging start (seed 0) and from ``--seeds`` starts with every joint angle
-perturbed by N(0, 0.05) rad (seeds 1..N), ``--duration`` seconds in lock-step
+perturbed by N(0, 0.05) rad (seeds 1..N; with ``--start random`` the unlimited hinges
+uniform in [-pi, pi) at rest instead, as dm_control's swing-ups start), ``--duration``
+seconds in lock-step
 (:func:`mpcbox.simulate`). Success is the task's own goal (upright within its tolerance over
 the last second); also the first time after which it stays upright, the closest approach,
 the final error, the calls the catch answered and the median tick.
 
     nice -n 5 python benchmarks/sampling_catch.py [--tasks acrobot_swingup,cartpole_swingup]
-        [--seeds 4] [--duration 8]
+        [--seeds 4] [--duration 8] [--start perturbed|random] [--out PATH]
 
 Prints the JSON and writes it to ``benchmarks/results/sampling_catch.json``.
 """
@@ -27,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 import mpcbox
+from mpcbox.controllers.lqr import unlimited_hinges
 from mpcbox.registry import task_class
 
 RESULTS = Path(__file__).parent / "results" / "sampling_catch.json"
@@ -40,17 +43,25 @@ OPTIONS: dict = {
 }
 
 
-def start_state(name: str, seed: int) -> np.ndarray:
-    """The task's initial state, angles perturbed by N(0, 0.05) rad for ``seed > 0``."""
-    start = task_class(name)(threads=1).initial_state()
-    if seed:
-        problem = task_class(name)(threads=1)
-        start[: problem.nq] += np.random.default_rng(seed).normal(0.0, 0.05, problem.nq)
-    return start
+def start_state(name: str, seed: int, start: str = "perturbed") -> np.ndarray:
+    """The task's initial state for ``seed > 0``: every joint angle perturbed by N(0, 0.05)
+    rad (``"perturbed"``), or, for the hinges without a range, uniform in ``[-pi, pi)`` at
+    rest as dm_control's swing-ups start (``"random"``). Seed 0: the initial state."""
+    problem = task_class(name)(threads=1)
+    state = problem.initial_state()
+    if not seed:
+        return state
+    rng = np.random.default_rng(seed)
+    if start == "perturbed":
+        state[: problem.nq] += rng.normal(0.0, 0.05, problem.nq)
+        return state
+    hinges = unlimited_hinges(problem.model)
+    state[problem.model.jnt_qposadr[hinges]] = rng.uniform(-np.pi, np.pi, hinges.size)
+    return state
 
 
-def run(name: str, seed: int, catch: bool, duration: float) -> dict:
-    problem = task_class(name)(initial=start_state(name, seed), threads=1)
+def run(name: str, seed: int, catch: bool, duration: float, start: str = "perturbed") -> dict:
+    problem = task_class(name)(initial=start_state(name, seed, start), threads=1)
     options = {} if "mppi" in problem.controller_configs else dict(OPTIONS)
     options["catch"] = "lqr" if catch else None
     if not catch:
@@ -82,6 +93,12 @@ def main() -> None:
     parser.add_argument("--tasks", default="acrobot_swingup,cartpole_swingup")
     parser.add_argument("--seeds", type=int, default=4)
     parser.add_argument("--duration", type=float, default=8.0)
+    parser.add_argument(
+        "--start",
+        choices=("perturbed", "random"),
+        default="perturbed",
+        help="seeds > 0: perturbed initial state, or unlimited hinges uniform at rest",
+    )
     parser.add_argument("--out", default=str(RESULTS))
     args = parser.parse_args()
     report: dict = {
@@ -99,7 +116,7 @@ def main() -> None:
         rows = []
         for catch in (False, True):
             for seed in range(args.seeds + 1):
-                rows.append(run(name, seed, catch, args.duration))
+                rows.append(run(name, seed, catch, args.duration, args.start))
                 print(json.dumps({"task": name, **rows[-1]}), flush=True)
         summary = {
             label: f"{sum(r['success'] for r in rows if r['catch'] == on)}/{args.seeds + 1}"
