@@ -175,9 +175,10 @@ class DmAcrobotSwingup(Swingup):
     with the basin level estimated instead of 1500 the same 4/12
     (``dm_acrobot_dm_starts_mppi_catch.json``, ``..._mppi_catch_estimated.json``); on
     held-out starts 12-23 (the oracle reaching 11/12) 3/12, 4/12 by the end
-    (``..._mppi_catch_heldout.json``): over both sets it swings up every start within 14.1
-    J of the upright's potential energy (7) and none further below (17), so energy pumping
-    under this cost, not the catch, limits it; it holds
+    (``..._mppi_catch_heldout.json``), and 24-35 (oracle 8/12) 3/12, 5/12 by the end
+    (``..._heldout2.json``): over all 36 starts it swings up 10 of the 12 within 14.1 J of
+    the upright's potential energy in time and none of the 24 further below, so energy
+    pumping under this cost, not the catch, limits it; it holds
     the upright from a 0.05 rad elbow offset at rest (within 0.19 m, then 5 mm); its tick
     (about 95 ms median on a shared 2-core CPU) is slower than its 0.02 s replan period, so
     it runs in lock-step, not in real time. The default iLQR-MPC is upright within 5 s and
