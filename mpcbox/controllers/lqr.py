@@ -293,11 +293,16 @@ class LQR(Controller):
         """Largest closed-loop eigenvalue magnitude (< 1 means locally stable)."""
         return float(np.max(np.abs(self.closed_loop_eigenvalues)))
 
-    def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
-        dx = self.problem.state_difference(state, self.state0)
+    def deviation(self, states: np.ndarray) -> np.ndarray:
+        """Tangent deviations ``(..., nx)`` of states ``(..., nstate)`` from the operating
+        point, the wrapped hinges' taken modulo a whole turn (see ``wrap``)."""
+        dx = self.problem.state_difference(states, self.state0)
         if self.wrapped.size:
-            dx[self.wrapped] = np.mod(dx[self.wrapped] + np.pi, 2.0 * np.pi) - np.pi
-        return self.problem.clip_ctrl(self.ctrl0 - self.K @ dx)
+            dx[..., self.wrapped] = np.mod(dx[..., self.wrapped] + np.pi, 2.0 * np.pi) - np.pi
+        return dx
+
+    def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
+        return self.problem.clip_ctrl(self.ctrl0 - self.K @ self.deviation(state))
 
 
 def unlimited_hinges(model: mujoco.MjModel) -> np.ndarray:

@@ -230,13 +230,11 @@ class Dynamics:
         # stepping back, even on the first step. The state carries no time, so nothing else
         # sees the offset.
         init[0] = 1.0
-        if self._rollout_datas is None:
-            self._rollout_datas = [mujoco.MjData(self.model) for _ in range(self.threads)]
         models = self.model if model is None else model
         with mujoco_errors("rollout"), captured_warnings():
             out_state, out_sens = mj_rollout.rollout(
                 models,
-                self._rollout_datas,
+                self.rollout_datas(),
                 np.tile(init, (nbatch, 1)),
                 padded,
                 persistent_pool=True,
@@ -282,16 +280,17 @@ class Dynamics:
 
         nbatch, horizon = ctrls.shape[:2]
         starts = np.broadcast_to(state, (nbatch, self.nstate))
-        current = np.stack([self.full_physics_state(s) for s in starts])
+        if np.ndim(state) == 1:
+            current = np.tile(self.full_physics_state(state), (nbatch, 1))
+        else:
+            current = np.stack([self.full_physics_state(s) for s in starts])
         current[:, 0] = 1.0  # see rollout(): a reset then reads as time stepping back
-        if self._rollout_datas is None:
-            self._rollout_datas = [mujoco.MjData(self.model) for _ in range(self.threads)]
         models = self.model if model is None else model
         cols = slice(1, 1 + self.nstate)
         states = np.empty((nbatch, horizon + 1, self.nstate))
         states[:, 0] = starts
         applied = np.empty_like(ctrls)
-        sensor = None
+        sensor = np.empty((nbatch, horizon + 1, self.model.nsensordata))
         diverged = np.zeros(nbatch, dtype=bool)
         with mujoco_errors("rollout"), captured_warnings():
             for t in range(horizon + 1):
@@ -300,13 +299,11 @@ class Dynamics:
                 step = applied[:, min(t, horizon - 1)]
                 out_state, out_sens = mj_rollout.rollout(
                     models,
-                    self._rollout_datas,
+                    self.rollout_datas(),
                     current,
                     step[:, None, :],
                     persistent_pool=True,
                 )
-                if sensor is None:
-                    sensor = np.empty((nbatch, horizon + 1, out_sens.shape[-1]))
                 sensor[:, t] = out_sens[:, 0]
                 sensor[diverged, t] = np.nan
                 diverged |= out_state[:, 0, 0] <= current[:, 0]
@@ -315,6 +312,12 @@ class Dynamics:
                     states[:, t + 1] = current[:, cols]
                     states[diverged, t + 1] = np.nan
         return Rollout(states, sensor, applied)
+
+    def rollout_datas(self) -> list[mujoco.MjData]:
+        """The ``MjData`` list of :func:`mujoco.rollout.rollout`, one per thread, made once."""
+        if self._rollout_datas is None:
+            self._rollout_datas = [mujoco.MjData(self.model) for _ in range(self.threads)]
+        return self._rollout_datas
 
     def full_physics_state(self, state: np.ndarray) -> np.ndarray:
         """The ``mjSTATE_FULLPHYSICS`` vector (time, qpos, qvel, act, ...) of a state."""

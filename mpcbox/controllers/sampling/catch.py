@@ -90,17 +90,13 @@ class LQRCatch:
 
     def deviation(self, states: np.ndarray) -> np.ndarray:
         """Tangent deviations ``(..., nx)`` of states ``(..., nstate)`` from the reference,
-        unlimited hinges wrapped to ``[-pi, pi)``."""
-        lqr = self.rollout_lqr
-        dx = self.problem.state_difference(states, lqr.state0)
-        if lqr.wrapped.size:
-            dx[..., lqr.wrapped] = np.mod(dx[..., lqr.wrapped] + np.pi, 2.0 * np.pi) - np.pi
-        return dx
+        unlimited hinges wrapped to ``[-pi, pi)`` (:meth:`LQR.deviation
+        <mpcbox.controllers.lqr.LQR.deviation>`)."""
+        return self.rollout_lqr.deviation(states)
 
     def value(self, states: np.ndarray) -> np.ndarray:
         """:math:`V` of states ``(..., nstate)``: shape ``(...)``, NaN for NaN states."""
-        dx = self.deviation(states)
-        return np.einsum("...i,ij,...j->...", dx, self.P, dx)
+        return _value(self.rollout_lqr, self.P, states)
 
     def engaged(self, states: np.ndarray) -> np.ndarray:
         """Whether each state ``(..., nstate)`` is inside the basin, :math:`V < c`."""
@@ -187,8 +183,11 @@ def basin_level(
     keep = w > 1e-12 * max(float(w.max()), 1e-300)
     root = v[:, keep] / np.sqrt(w[keep])  # dx = root @ z has dx^T P dx = |z|^2
     rng = np.random.default_rng(seed)
-    catch = _FullCatch(problem, lqr, P)
     zeros = np.tile(lqr.ctrl0, (samples, steps, 1))
+
+    def saturated(states: np.ndarray, ctrls: np.ndarray) -> np.ndarray:
+        """The LQR everywhere, clipped to the control range."""
+        return problem.clip_ctrl(lqr.ctrl0 - lqr.deviation(states) @ lqr.K.T)
 
     def converges(level: float) -> bool:
         z = rng.standard_normal((samples, root.shape[1]))
@@ -196,8 +195,8 @@ def basin_level(
             z, axis=1, keepdims=True
         )
         starts = np.stack([problem.state_add(lqr.state0, root @ (np.sqrt(level) * zi)) for zi in z])
-        roll = problem.dynamics.rollout_policy(starts, zeros, catch.policy)
-        return bool(np.all(catch.value(roll.states[:, -1]) < 1e-3 * level))
+        roll = problem.dynamics.rollout_policy(starts, zeros, saturated)
+        return bool(np.all(_value(lqr, P, roll.states[:, -1]) < 1e-3 * level))
 
     base = linear_level(lqr, problem)
     best, failed = None, None
@@ -218,12 +217,11 @@ def basin_level(
     return best
 
 
-class _FullCatch(LQRCatch):
-    """The saturated LQR everywhere (no basin): :func:`basin_level`'s closed loop."""
-
-    def __init__(self, problem: Problem, lqr: LQR, P: np.ndarray) -> None:
-        self.problem, self.rollout_lqr, self.loop_lqr, self.P = problem, lqr, lqr, P
-        self.level = np.inf
+def _value(lqr: LQR, P: np.ndarray, states: np.ndarray) -> np.ndarray:
+    """:math:`V` ``(...)`` of states ``(..., nstate)`` for ``lqr`` with the value matrix
+    ``P``."""
+    dx = lqr.deviation(states)
+    return np.einsum("...i,ij,...j->...", dx, P, dx)
 
 
 __all__ = ["LQRCatch", "basin_level", "linear_level"]
