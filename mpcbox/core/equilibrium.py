@@ -7,7 +7,6 @@ from typing import NamedTuple
 
 import mujoco
 import numpy as np
-from scipy.optimize import brentq
 
 from mpcbox.core.actuation import (
     ActuationMap,
@@ -20,7 +19,8 @@ from mpcbox.core.actuation import (
 )
 from mpcbox.core.equality_span import equality_span
 from mpcbox.core.model import check_mjmodel
-from mpcbox.errors import EquilibriumWarning, InfeasibleEquilibriumError, SolverError
+from mpcbox.core.root_support import MAX_TILT, ROOT_ADJUSTMENTS, free_root, support_root
+from mpcbox.errors import EquilibriumWarning, InfeasibleEquilibriumError
 from mpcbox.validation import checked_keywords, finite_array, one_of, positive
 
 __all__ = ["Equilibrium", "actuator_moment", "find_equilibrium"]
@@ -54,6 +54,9 @@ class Equilibrium(NamedTuple):
             constraints, :math:`J_{eq}^T \\lambda` (a tendon or joint coupling, a weld): the
             part of ``qfrc - qfrc_actuator`` in the span of their Jacobian rows (zeros
             without equality constraints).
+        root_tilt: Rotations ``(2,)`` of the root about the world's x and y axes through
+            its origin (rad) that balance the contacts' moments (``root_adjust="pose"``;
+            zeros otherwise).
     """
 
     qpos: np.ndarray
@@ -68,13 +71,7 @@ class Equilibrium(NamedTuple):
     actuated: np.ndarray
     shortfall: float
     qfrc_equality: np.ndarray | None = None
-
-
-def _free_root(model: mujoco.MjModel) -> tuple[int, int] | None:
-    for j in range(model.njnt):
-        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE and model.jnt_bodyid[j] != 0:
-            return int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
-    return None
+    root_tilt: np.ndarray | None = None
 
 
 @checked_keywords
@@ -86,13 +83,17 @@ def find_equilibrium(
     search_range: float = 0.2,
     feasibility_tolerance: float = 1e-6,
     on_infeasible: str = "warn",
+    root_adjust: str = "pose",
 ) -> Equilibrium:
-    """Adjust the root height until the contacts carry the weight, then solve for the control.
+    """Move the root until the contacts carry the body, then solve for the control.
 
-    For a floating base the vertical root force from inverse dynamics,
-    :math:`f_z(h)` (with :math:`\\ddot q = 0`), decreases as the body is lowered by :math:`h`
-    into the soft contacts. A bracketing root-find (Brent) solves :math:`f_z(h) = 0` to
-    ``tolerance`` newtons.
+    For a floating base, inverse dynamics at rest leaves a wrench on the root that only the
+    contacts can supply (:mod:`mpcbox.core.root_support`). With ``root_adjust="height"``
+    the root is lowered or raised until the vertical force vanishes (a bracketing root-find
+    to ``tolerance`` newtons); with ``"pose"`` (the default) it is then also tilted about
+    the world's x and y axes until the horizontal moments vanish too, so the posture is a
+    static equilibrium even when the keyframe's feet are not level or its center of mass
+    is off the middle of their load. The joints are kept as given.
 
     The control then goes through each actuator's full model. At the posture, with zero
     velocity, MuJoCo's actuation is affine in one variable per control
@@ -113,12 +114,18 @@ def find_equilibrium(
     Args:
         model: The model.
         qpos: Posture ``(nq,)``.
-        tolerance: Target vertical residual force (N).
+        tolerance: Target residual root force (N); with ``"pose"`` the moments count as
+            balanced within the larger of this (N m) and the weight times 1 mm
+            (:data:`~mpcbox.core.root_support.BALANCE_OFFSET`).
         search_range: Largest height change tried in either direction (m).
         feasibility_tolerance: Largest residual generalized force on an actuated dof that
             still counts as held (N or N m).
         on_infeasible: ``"warn"`` (an :class:`~mpcbox.errors.EquilibriumWarning`),
-            ``"raise"`` (:class:`~mpcbox.errors.InfeasibleEquilibriumError`) or ``"ignore"``.
+            ``"raise"`` (:class:`~mpcbox.errors.InfeasibleEquilibriumError`) or ``"ignore"``;
+            also when tilting the root cannot balance the contacts' moments.
+        root_adjust: ``"pose"`` (height and tilt) or ``"height"`` (height only: the root
+            keeps the keyframe's orientation and any moment is left in
+            ``residual_wrench``).
 
     Returns:
         An :class:`Equilibrium`.
@@ -126,7 +133,7 @@ def find_equilibrium(
     Raises:
         SolverError: If no height within ``search_range`` brings the vertical force to zero.
         InfeasibleEquilibriumError: With ``on_infeasible="raise"``, if the actuators cannot
-            hold the posture.
+            hold the posture, or the contacts cannot balance it.
         UnsupportedModelError: If an actuator's force is not affine in its control at rest
             (e.g. user dynamics, delays).
     """
@@ -136,48 +143,30 @@ def find_equilibrium(
     search_range = positive("search_range", search_range)
     feasibility_tolerance = positive("feasibility_tolerance", feasibility_tolerance)
     on_infeasible = one_of("on_infeasible", on_infeasible, ON_INFEASIBLE)
+    root_adjust = one_of("root_adjust", root_adjust, ROOT_ADJUSTMENTS)
     data = mujoco.MjData(model)
-    root = _free_root(model)
+    root = free_root(model)
+    support = support_root(
+        model, qpos, adjust=root_adjust, tolerance=tolerance, search_range=search_range
+    )
+    if support is not None:
+        qpos = support.qpos
+        if not support.balanced and on_infeasible != "ignore":
+            message = (
+                "find_equilibrium: the contacts cannot balance the posture: tilting the root "
+                f"by up to {MAX_TILT} rad leaves a vertical force of {support.wrench[0]:+.4g} N"
+                f" and moments of ({support.wrench[1]:+.4g}, {support.wrench[2]:+.4g}) N m "
+                "about the world's x and y axes; it is not a static equilibrium"
+            )
+            if on_infeasible == "raise":
+                raise InfeasibleEquilibriumError(message)
+            warnings.warn(message, EquilibriumWarning, stacklevel=2)
 
-    def inverse(offset: float) -> np.ndarray:
-        data.qpos[:] = qpos
-        if root is not None:
-            data.qpos[root[0] + 2] += offset
-        data.qvel[:] = 0
-        mujoco.mj_forward(model, data)
-        data.qacc[:] = 0
-        mujoco.mj_inverse(model, data)
-        return data.qfrc_inverse.copy()
-
-    offset, vertical = 0.0, 0.0
-    if root is not None:
-        zdof = root[1] + 2
-
-        def f(h: float) -> float:
-            return float(inverse(h)[zdof])
-
-        f0 = f(0.0)
-        if abs(f0) > tolerance:
-            # Walk away from 0 in growing steps until the sign changes, then bracket-solve.
-            direction = -1.0 if f0 > 0 else 1.0
-            lo, flo, step = 0.0, f0, 1e-4
-            hi, fhi = lo, flo
-            while abs(hi) < search_range:
-                hi = direction * min(abs(hi) + step, search_range)
-                fhi = f(hi)
-                if np.sign(fhi) != np.sign(flo):
-                    break
-                lo, flo, step = hi, fhi, step * 2.0
-            if np.sign(fhi) == np.sign(flo):
-                raise SolverError(
-                    f"find_equilibrium: the vertical root force stays {fhi:+.3g} N within "
-                    f"±{search_range} m of the given height; is the body touching the floor?"
-                )
-            offset = brentq(f, min(lo, hi), max(lo, hi), xtol=1e-14, rtol=1e-15, maxiter=200)
-            vertical = f(offset)
-        else:
-            vertical = f0
-    qfrc = inverse(offset)
+    data.qpos[:] = qpos
+    mujoco.mj_forward(model, data)  # at rest: qvel = 0
+    data.qacc[:] = 0
+    mujoco.mj_inverse(model, data)
+    qfrc = data.qfrc_inverse.copy()
     amap = actuation_map(model, data)
     # Active equality constraints (a tendon coupling of joints, a weld) carry load at any
     # force along their Jacobian rows: only the part of the needed force outside that span
@@ -205,14 +194,15 @@ def find_equilibrium(
         ctrl=ctrl,
         qfrc=qfrc,
         residual_wrench=wrench,
-        height_offset=float(offset),
-        vertical_residual=float(vertical),
+        height_offset=0.0 if support is None else support.height_offset,
+        vertical_residual=0.0 if support is None else float(support.wrench[0]),
         act=act,
         actuator_force=data.actuator_force.copy(),
         residual=residual,
         actuated=actuated,
         shortfall=shortfall,
         qfrc_equality=qfrc_equality,
+        root_tilt=np.zeros(2) if support is None else support.tilt,
     )
 
 

@@ -26,6 +26,7 @@ from mpcbox.core.model import (
     object_id,
 )
 from mpcbox.core.problem import Problem
+from mpcbox.core.root_support import ROOT_ADJUSTMENTS
 from mpcbox.errors import InvalidArgumentError, UnknownNameError
 from mpcbox.sim.disturbances import ActuatorNoise
 from mpcbox.sim.effort_noise import effort_noise
@@ -160,6 +161,11 @@ class LeggedBalance(Problem):
         recovery_tilt: The tilt measure also reports the recovery time (its
             ``"settle_time"``): when the root's tilt is back within this many degrees of its
             reference tilt for good. ``None`` leaves it out.
+        root_adjust: How the reference posture is put on the floor
+            (:func:`~mpcbox.find_equilibrium`): ``"pose"`` moves the root's height and tilts
+            it until the contacts carry the weight and balance its moments; ``"height"``
+            moves its height only, leaving any moment in the equilibrium's
+            ``residual_wrench``.
         **kwargs: Passed to :class:`~mpcbox.Problem` (``planning_timestep``, ``qpos_ref``...).
 
     QP-MPC runs with OSQP at ``rho = 0.3`` and without OSQP 1.x's duality-gap test
@@ -241,8 +247,10 @@ class LeggedBalance(Problem):
         noise_fraction: float | np.ndarray | None = 0.05,
         noise_torque: float | np.ndarray | None = None,
         recovery_tilt: float | None = 2.0,
+        root_adjust: str = "pose",
         **kwargs: Any,
     ) -> None:
+        self.root_adjust = one_of("root_adjust", root_adjust, ROOT_ADJUSTMENTS)
         self.support = one_of("support", support, SUPPORTS)
         self.ctrl_units = one_of("ctrl_units", ctrl_units, UNITS)
         self.fall_fraction = positive("fall_fraction", fall_fraction)
@@ -341,7 +349,7 @@ class LeggedBalance(Problem):
         return (name,)
 
     def prepare(self, model: mujoco.MjModel) -> None:
-        self.equilibrium = find_equilibrium(model, self.qpos_ref)
+        self.equilibrium = find_equilibrium(model, self.qpos_ref, root_adjust=self.root_adjust)
         self.qpos_ref = self.equilibrium.qpos
         self.ctrl_ref = self.equilibrium.ctrl
         data = mujoco.MjData(model)
