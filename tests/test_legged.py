@@ -334,7 +334,12 @@ def test_qp_mpc_stands_the_g1_on_eight_friction_cones(g1_two_feet):
 def test_g1_ilqr_mpc_feedback_is_the_lqr_gain_despite_joint_friction(g1_two_feet):
     # The G1's joints have dry friction: Jacobians along a trajectory belong to other
     # stick-slip modes than the reference's, and the preset linearizes at the reference, so
-    # the replan's gains are the LQR gain (the terminal value's).
+    # the replan's gains are the LQR gain (the terminal value's) on every motion a control
+    # can change. Sliding or turning the whole robot is not one (Pi_u, rank 3): the LQR
+    # ignores it, while the replan's running cost (the center of mass over a world-fixed
+    # point) still answers it.
+    from mpcbox.controllers.uncontrollable import uncontrollable_marginal_projector
+
     problem = g1_two_feet
     assert np.all(problem.model.dof_frictionloss[6:] > 0)
     lqr = mpcbox.LQR(problem)
@@ -343,7 +348,11 @@ def test_g1_ilqr_mpc_feedback_is_the_lqr_gain_despite_joint_friction(g1_two_feet
     x0[7:36] += 0.01 * np.random.default_rng(0).standard_normal(29)
     ilqr(x0, 0.0)
     K = ilqr.last_result.K
-    rel = np.linalg.norm(K + lqr.K, axis=(1, 2)) / np.linalg.norm(lqr.K)
+    sliding = uncontrollable_marginal_projector(lqr.A, lqr.B)
+    assert np.linalg.matrix_rank(sliding, 1e-6) == 3
+    np.testing.assert_allclose(lqr.K @ sliding, 0.0, atol=1e-9 * np.abs(lqr.K).max())
+    keep = np.eye(problem.nx) - sliding
+    rel = np.linalg.norm((K + lqr.K) @ keep, axis=(1, 2)) / np.linalg.norm(lqr.K)
     assert rel.max() < 0.01, rel.max()
 
 

@@ -7,6 +7,7 @@ import pytest
 
 import mpcbox
 from mpcbox.controllers.lqr import LQRConfig, dlqr
+from mpcbox.controllers.uncontrollable import uncontrollable_marginal_projector
 from mpcbox.errors import InvalidTypeError, UnknownOptionError
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.balance import HumanoidBalance, classic_humanoid_path
@@ -57,9 +58,13 @@ def test_humanoid_gain_matches_python_control(balance):
     K_ctrl, S_ctrl, _ = control.dlqr(ours.A, ours.B, ours.Q, ours.R)
     np.testing.assert_allclose(ours.K, K_ctrl, rtol=1e-8, atol=1e-10 * np.abs(K_ctrl).max())
     np.testing.assert_allclose(ours.P, S_ctrl, rtol=1e-8, atol=1e-10 * np.abs(S_ctrl).max())
-    # The humanoid on one leg (54 states, with the floating base's marginal modes).
-    K_h, _, _ = control.dlqr(lqr.A, lqr.B, lqr.Q, lqr.R, method="scipy")
-    np.testing.assert_allclose(lqr.K, K_h, rtol=1e-8, atol=1e-8 * np.abs(K_h).max())
+    # The humanoid on one leg (54 states, with the floating base's marginal modes): sliding
+    # and turning the whole body are uncontrollable, so dlqr weighs the rest of the state,
+    # (I - Pi_u) x; python-control solves the same weights to the same gain.
+    keep = np.eye(len(lqr.A)) - uncontrollable_marginal_projector(lqr.A, lqr.B)
+    Q = keep.T @ lqr.Q @ keep
+    K_h, _, _ = control.dlqr(lqr.A, lqr.B, 0.5 * (Q + Q.T), lqr.R, method="scipy")
+    np.testing.assert_allclose(lqr.K, K_h @ keep, rtol=1e-6, atol=1e-7 * np.abs(K_h).max())
     assert lqr.spectral_radius <= 1.0 + 1e-6
 
 

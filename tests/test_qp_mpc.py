@@ -353,15 +353,19 @@ def test_bad_input(one_leg):
 def test_terminal_matrices(two_feet, stance_model):
     """Every terminal choice builds for both stance models (two feet: 12 stance-twist rows, 24
     force rows). ``"cost"`` is the running ``Q``; the Riccati ones solve their DARE, so they
-    dominate ``Q`` (``P - Q = A^T (P^{-1} + B R^{-1} B^T)^{-1} A >= 0``)."""
+    dominate the ``Q`` they weigh (``P - Q = A^T (P^{-1} + B R^{-1} B^T)^{-1} A >= 0``). On
+    the soft-contact model sliding the whole body is uncontrollable, and ``"lqr"`` weighs
+    the rest of the state, ``(I - Pi_u) x``."""
     from mpcbox.controllers.qp_mpc.dynamics import compose
+    from mpcbox.controllers.uncontrollable import uncontrollable_marginal_projector
 
     opts = dict(contacts=two_feet.contacts, stance_model=stance_model, horizon=3)
     for terminal in ("cost", "lqr", "stance"):
         qp = QPMPC(two_feet, terminal=terminal, terminal_scale=2.0, **opts)
         P = qp.P_terminal / 2.0
         np.testing.assert_allclose(P, P.T, atol=1e-12 * np.abs(P).max())
-        assert np.linalg.eigvalsh(P - qp.Q).min() > -1e-6 * np.abs(P).max()
+        if terminal != "lqr":
+            assert np.linalg.eigvalsh(P - qp.Q).min() > -1e-6 * np.abs(P).max()
         if terminal == "cost":
             np.testing.assert_allclose(P, qp.Q, atol=1e-9 * np.abs(qp.Q).max())
         if terminal == "lqr":  # the soft-contact model at dt, composed of its substeps
@@ -375,8 +379,14 @@ def test_terminal_matrices(two_feet, stance_model):
             mujoco.mjd_transitionFD(soft, d, two_feet.fd_eps, True, Ah, Bh, None, None)
             A, S = compose(Ah, qp.substeps)
             B = S @ Bh
+            sliding = uncontrollable_marginal_projector(A, B)
+            assert sliding is not None and np.linalg.matrix_rank(sliding, 1e-6) >= 2
+            keep = np.eye(nx) - sliding
+            Q = keep.T @ qp.Q @ keep
+            assert np.linalg.eigvalsh(P - Q).min() > -1e-6 * np.abs(P).max()
+            np.testing.assert_allclose(P @ sliding, 0.0, atol=1e-9 * np.abs(P).max())
             G = qp.R + B.T @ P @ B
-            rhs = qp.Q + A.T @ P @ A - A.T @ P @ B @ np.linalg.solve(G, B.T @ P @ A)
+            rhs = Q + A.T @ P @ A - A.T @ P @ B @ np.linalg.solve(G, B.T @ P @ A)
             np.testing.assert_allclose(rhs, P, atol=1e-6 * np.abs(P).max())
 
 

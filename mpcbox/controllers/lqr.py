@@ -37,6 +37,11 @@ import scipy.linalg
 
 from mpcbox.config import resolve_config
 from mpcbox.controllers.base import Controller, check_problem
+from mpcbox.controllers.uncontrollable import (
+    INPUT_GAIN_TOL,
+    uncontrollable_marginal_projector,
+    uncontrollable_modes,
+)
 from mpcbox.core.cost import Cost, QuadraticValue
 from mpcbox.core.problem import Problem
 from mpcbox.errors import (
@@ -78,39 +83,35 @@ def check_weights(Q: np.ndarray, R: np.ndarray, rtol: float = 1e-9) -> None:
 
 
 def check_stabilizable(
-    A: np.ndarray, B: np.ndarray, tol: float = 1e-8, margin: float = 1e-6
+    A: np.ndarray, B: np.ndarray, tol: float = INPUT_GAIN_TOL, margin: float = 1e-6
 ) -> int:
-    r"""PBH test: every eigenvalue :math:`|\lambda| \ge 1` of A must satisfy
-    :math:`\operatorname{rank}[A - \lambda I,\ B] = n`.
+    r"""Every mode of A with :math:`|\lambda| \ge 1` must be controllable (the PBH
+    condition :math:`\operatorname{rank}[A - \lambda I,\ B] = n`, tested on each
+    eigenvalue's own coordinates: :func:`~mpcbox.controllers.uncontrollable.uncontrollable_modes`).
 
     Modes on the unit circle to within ``margin`` that are uncontrollable are tolerated and
     counted: a floating base on a flat floor has them (moving the whole body sideways or
-    turning it about the vertical is again an equilibrium), the cost does not act on them,
-    and the Riccati solution leaves them alone. Strictly unstable ones raise.
+    turning it about the vertical is again an equilibrium); :func:`dlqr` takes them out of
+    the cost. Strictly unstable ones raise.
 
     Returns:
-        The number of uncontrollable marginal modes.
+        The number of uncontrollable marginal modes (distinct eigenvalues).
 
     Raises:
         NotStabilizableError: Naming the uncontrollable unstable eigenvalue.
     """
-    n = A.shape[0]
-    eigvals = np.linalg.eigvals(A)
-    scale = max(1.0, float(np.linalg.norm(A, 2)), float(np.linalg.norm(B, 2)))
     marginal = 0
-    for lam in eigvals:
+    for mode in uncontrollable_modes(A, B, tol, margin):
+        lam = mode.eigenvalue
         if abs(lam) < 1.0 - margin:
             continue
-        pbh = np.hstack([A - lam * np.eye(n), B])
-        sv = np.linalg.svd(pbh, compute_uv=False)
-        if sv[-1] <= tol * scale:
-            if abs(lam) <= 1.0 + margin:
-                marginal += 1
-                continue
-            raise NotStabilizableError(
-                f"(A, B) is not stabilizable: eigenvalue {lam:.6g} (|λ| = {abs(lam):.6g} > 1) is "
-                f"uncontrollable (PBH smallest singular value {sv[-1]:.3g})"
-            )
+        if abs(lam) <= 1.0 + margin:
+            marginal += 1
+            continue
+        raise NotStabilizableError(
+            f"(A, B) is not stabilizable: eigenvalue {lam:.6g} (|λ| = {abs(lam):.6g} > 1) is "
+            "uncontrollable: no input reaches it"
+        )
     return marginal
 
 
@@ -128,7 +129,13 @@ def nearest_psd(P: np.ndarray) -> np.ndarray:
 def dlqr(
     A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, N: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Checked discrete LQR: the gain ``K`` ``(nu, nx)`` and Riccati solution ``P`` ``(nx, nx)``.
+    r"""Checked discrete LQR: the gain ``K`` ``(nu, nx)`` and Riccati solution ``P`` ``(nx, nx)``.
+
+    Uncontrollable modes on the unit circle
+    (:func:`~mpcbox.controllers.uncontrollable.uncontrollable_marginal_projector`) are left
+    out: no gain can change them, and a weight on them would make ``P`` unbounded there. The
+    equation is solved on the rest of the state, and ``K`` and ``P`` act on
+    :math:`(I - \Pi_u)\,x` (zero along those modes).
 
     Raises:
         ShapeError: An array has the wrong shape, or ``A`` or ``B`` is not finite.
@@ -150,6 +157,30 @@ def dlqr(
     check_weights(Q, R)
     check_stabilizable(A, B)
     Q, R = 0.5 * (Q + Q.T), 0.5 * (R + R.T)
+    # Modes no control reaches and that neither grow nor decay (a floating robot moved
+    # sideways or turned as a whole) have no stabilizing Riccati solution where the cost
+    # weighs them: weigh only the rest, x_c = (I - Pi_u) x, an invariant complement that
+    # holds the range of B, so that K and P act on x_c alone.
+    uncontrollable = uncontrollable_marginal_projector(A, B)
+    if uncontrollable is None:
+        return _solve_dare(A, B, Q, R, N)
+    keep = np.eye(n) - uncontrollable
+    try:
+        K, P = _solve_dare(A, B, keep.T @ Q @ keep, R, None if N is None else keep.T @ N)
+    except SolverError:
+        # SciPy's reordering can fail on the full pencil: solve in an orthonormal basis T
+        # of the complement instead (x_c = T z).
+        U, sv, _ = np.linalg.svd(keep)
+        T = U[:, : int(np.sum(sv > 1e-9 * sv[0]))]
+        K, P = _solve_dare(T.T @ A @ T, T.T @ B, T.T @ Q @ T, R, None if N is None else T.T @ N)
+        keep = T.T @ keep
+    return K @ keep, keep.T @ P @ keep
+
+
+def _solve_dare(
+    A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, N: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """``K`` and ``P`` of the discrete Riccati equation (arguments already checked)."""
     try:
         P = scipy.linalg.solve_discrete_are(A, B, Q, R, s=N)
     except (np.linalg.LinAlgError, ValueError) as exc:
@@ -158,7 +189,7 @@ def dlqr(
         # moves it off the circle without changing the gain elsewhere.
         delta = 1e-9 * max(1.0, float(np.max(np.abs(np.diag(Q)))))
         try:
-            P = scipy.linalg.solve_discrete_are(A, B, Q + delta * np.eye(n), R, s=N)
+            P = scipy.linalg.solve_discrete_are(A, B, Q + delta * np.eye(len(A)), R, s=N)
         except (np.linalg.LinAlgError, ValueError):
             P = None
         if P is None or not np.all(np.isfinite(P)):
