@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from mpcbox.core.contact import (
+    collision_geoms,
     cone_violation,
     contact_jacobian,
     contact_points,
@@ -49,6 +50,66 @@ def test_geom_site_and_prefixes(model):
     assert contact_points(model, "foot_left").count == 4
     both = contact_points(model, ["body:foot_left", "body:foot_right"])
     assert both.count == 8 and len(both.groups()) == 2
+
+
+# A foot body with a mesh sole (a 20 x 8 x 4 cm box as a mesh, yawed 30 deg), a cylinder
+# standing upright, a tilted ellipsoid, and a box that collides only through a <pair>.
+SHAPES = """
+<mujoco>
+  <asset>
+    <mesh name="sole" vertex="-.1 -.04 -.02  .1 -.04 -.02  .1 .04 -.02  -.1 .04 -.02
+                               -.1 -.04 .02  .1 -.04 .02  .1 .04 .02  -.1 .04 .02"/>
+  </asset>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 .1"/>
+    <body name="foot" pos="0 0 .1" euler="0 0 30">
+      <geom name="sole" type="mesh" mesh="sole"/>
+    </body>
+    <body name="can" pos="1 0 .1"><geom name="can" type="cylinder" size=".05 .1"/></body>
+    <body name="egg" pos="2 0 .1" euler="40 0 0">
+      <geom name="egg" type="ellipsoid" size=".03 .05 .08"/>
+    </body>
+    <body name="paired" pos="3 0 .1">
+      <geom name="paired" type="box" size=".05 .05 .05" contype="0" conaffinity="0"/>
+    </body>
+  </worldbody>
+  <contact><pair geom1="floor" geom2="paired"/></contact>
+</mujoco>
+"""
+
+
+def test_mesh_cylinder_and_ellipsoid_feet_stand_on_their_lowest_points():
+    model = mujoco.MjModel.from_xml_string(SHAPES)
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    # The mesh sole: its four bottom corners, in the foot's frame.
+    sole = contact_points(model, "body:foot")
+    np.testing.assert_allclose(
+        sorted(map(tuple, np.round(sole.local, 9))),
+        sorted((x, y, -0.02) for x in (-0.1, 0.1) for y in (-0.04, 0.04)),
+        atol=1e-9,
+    )
+    # The upright cylinder: four points of its bottom rim, 0.05 m from its axis.
+    can = contact_points(model, "can").world(data)
+    assert len(can) == 4
+    np.testing.assert_allclose(can[:, 2], 0.0, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(can[:, :2] - [1.0, 0.0], axis=1), 0.05)
+    # The tilted ellipsoid: its support point along -z, c - S e_z / sqrt(e_z' S e_z).
+    (egg,) = contact_points(model, "egg").world(data)
+    rot = data.geom_xmat[model.geom("egg").id].reshape(3, 3)
+    shape = rot @ np.diag([0.03, 0.05, 0.08]) ** 2 @ rot.T
+    lowest = 0.1 - np.sqrt(shape[2, 2])
+    assert egg[2] == pytest.approx(lowest, abs=1e-12)
+    assert egg[2] < 0.1 - 0.05  # lower than the middle radius would put it
+
+
+def test_a_geom_that_touches_only_through_a_pair_is_a_collision_geom():
+    model = mujoco.MjModel.from_xml_string(SHAPES)
+    assert collision_geoms(model)[model.geom("paired").id]
+    assert contact_points(model, "body:paired").count == 4
+    bare = SHAPES.replace('<contact><pair geom1="floor" geom2="paired"/></contact>', "")
+    with pytest.raises(InvalidArgumentError, match="no collision geom to stand on"):
+        contact_points(mujoco.MjModel.from_xml_string(bare), "body:paired")
 
 
 def test_unknown_names_list_the_valid_ones(model):

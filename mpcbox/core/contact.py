@@ -29,6 +29,9 @@ from mpcbox.validation import positive, positive_int
 _CAPSULE = int(mujoco.mjtGeom.mjGEOM_CAPSULE)
 _SPHERE = int(mujoco.mjtGeom.mjGEOM_SPHERE)
 _BOX = int(mujoco.mjtGeom.mjGEOM_BOX)
+_CYLINDER = int(mujoco.mjtGeom.mjGEOM_CYLINDER)
+_ELLIPSOID = int(mujoco.mjtGeom.mjGEOM_ELLIPSOID)
+_MESH = int(mujoco.mjtGeom.mjGEOM_MESH)
 
 
 class ContactPoints(NamedTuple):
@@ -62,27 +65,93 @@ class ContactPoints(NamedTuple):
         return [np.array(v, dtype=int) for v in out.values()]
 
 
+#: Geom types that can stand on the ground: their lowest points become contact points.
+STANDING_GEOMS = frozenset(
+    int(t)
+    for t in (
+        mujoco.mjtGeom.mjGEOM_CAPSULE,
+        mujoco.mjtGeom.mjGEOM_SPHERE,
+        mujoco.mjtGeom.mjGEOM_BOX,
+        mujoco.mjtGeom.mjGEOM_CYLINDER,
+        mujoco.mjtGeom.mjGEOM_ELLIPSOID,
+        mujoco.mjtGeom.mjGEOM_MESH,
+    )
+)
+
+#: Points of a flat sole (a box's or cylinder's bottom, a mesh foot) within this height of
+#: its lowest point, as a fraction of the geom's bounding radius, stand on the ground.
+SOLE_BAND = 0.05
+
+#: Directions of the rim points sampled around each end of a cylinder.
+_RIM = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+
+
+def _sole(points: np.ndarray, rot: np.ndarray, band: float) -> list[np.ndarray]:
+    """The corners of the lowest part of a geom: of the world ``points`` ``(p, 3)`` within
+    ``band`` of the lowest, the extreme ones along the four diagonals of the geom's
+    horizontal axes (``rot``: geom to world), so a flat sole gives its four corners."""
+    low = points[points[:, 2] <= points[:, 2].min() + band]
+    if len(low) <= 4:
+        return list(low)
+    axes = rot[:2, :2]  # the geom's x and y axes, horizontal components
+    picked: list[int] = []
+    for sx in (-1.0, 1.0):
+        for sy in (-1.0, 1.0):
+            direction = sx * axes[:, 0] + sy * axes[:, 1]
+            i = int(np.argmax(low[:, :2] @ direction))
+            if i not in picked:
+                picked.append(i)
+    return [low[i] for i in picked]
+
+
 def _geom_points(model: mujoco.MjModel, data: mujoco.MjData, gid: int) -> list[np.ndarray]:
-    """World points at the bottom of a geom: capsule and box ends, sphere bottom."""
+    """World points at the bottom of a geom: capsule ends, sphere and ellipsoid bottoms, the
+    corners of a box's, cylinder's or mesh's lowest part."""
     down = np.array([0.0, 0.0, -1.0])
     pos = data.geom_xpos[gid]
     rot = data.geom_xmat[gid].reshape(3, 3)
     size = model.geom_size[gid]
     gtype = model.geom_type[gid]
+    band = SOLE_BAND * float(model.geom_rbound[gid])
     if gtype == _CAPSULE:
         axis = rot[:, 2] * size[1]
         return [pos + axis + size[0] * down, pos - axis + size[0] * down]
     if gtype == _SPHERE:
         return [pos + size[0] * down]
+    if gtype == _ELLIPSOID:
+        # Support point along -z: c - S e_z / sqrt(e_z^T S e_z), S = R diag(r^2) R^T.
+        shape = (rot * size**2) @ rot.T
+        return [pos - shape[:, 2] / np.sqrt(shape[2, 2])]
     if gtype == _BOX:
         corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
         world = pos + (corners * size) @ rot.T
         lowest = np.argsort(world[:, 2])[:4]
         return list(world[lowest])
+    if gtype == _CYLINDER:
+        rim = np.stack([np.cos(_RIM), np.sin(_RIM), np.zeros_like(_RIM)], axis=1) * size[0]
+        end = np.array([0.0, 0.0, size[1]])
+        local = np.vstack([rim + end, rim - end])
+        return _sole(pos + local @ rot.T, rot, band)
+    if gtype == _MESH and model.geom_dataid[gid] >= 0:
+        mesh = int(model.geom_dataid[gid])
+        start, count = int(model.mesh_vertadr[mesh]), int(model.mesh_vertnum[mesh])
+        local = model.mesh_vert[start : start + count]  # in the geom's frame
+        return _sole(pos + local @ rot.T, rot, band)
     raise InvalidArgumentError(
         f"contacts: geom {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, gid)!r} has a type "
-        "without contact points (use a capsule, sphere or box geom, or a site)"
+        "without contact points (use a capsule, sphere, ellipsoid, box, cylinder or mesh "
+        "geom, or a site)"
     )
+
+
+def collision_geoms(model: mujoco.MjModel) -> np.ndarray:
+    """Whether each geom ``(ngeom,)`` takes part in collisions: a nonzero ``contype`` or
+    ``conaffinity``, or a member of an explicit ``<pair>`` (Apptronik's Apollo touches the
+    floor only through pairs)."""
+    out = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+    out[model.pair_geom1] = True
+    out[model.pair_geom2] = True
+    return out
 
 
 def contact_points(
@@ -93,11 +162,14 @@ def contact_points(
     Names are looked up as a geom, then a body, then a site; a prefix ``"geom:"``,
     ``"body:"`` or ``"site:"`` restricts the lookup to one kind.
 
-    * a **geom** gives the bottom of each end of a capsule, the bottom of a sphere, or the four
-      lowest corners of a box, at posture ``qpos``;
+    * a **geom** gives the bottom of each end of a capsule, the bottom of a sphere or
+      ellipsoid, the four lowest corners of a box, or the (up to four) corners of the lowest
+      part of a cylinder or a mesh (its vertices within :data:`SOLE_BAND` of its bounding
+      radius above the lowest, extreme along the diagonals of the geom's axes), at posture
+      ``qpos``;
     * a **site** gives its own position;
-    * a **body** gives the points of each of its collision geoms (``contype`` or
-      ``conaffinity`` non-zero) that is a capsule, sphere or box.
+    * a **body** gives the points of each of its collision geoms (:func:`collision_geoms`)
+      of those types.
 
     Args:
         model: The model.
@@ -152,16 +224,18 @@ def contact_points(
                 add(int(model.geom_bodyid[gid]), p, name)
         elif hit == "body":
             bid = found["body"]
+            colliding = collision_geoms(model)
             geoms = [
                 g
                 for g in range(model.ngeom)
                 if model.geom_bodyid[g] == bid
-                and (model.geom_contype[g] or model.geom_conaffinity[g])
-                and model.geom_type[g] in (_CAPSULE, _SPHERE, _BOX)
+                and colliding[g]
+                and int(model.geom_type[g]) in STANDING_GEOMS
             ]
             if not geoms:
                 raise InvalidArgumentError(
-                    f"contacts: body {name!r} has no capsule, sphere or box collision geom"
+                    f"contacts: body {name!r} has no collision geom to stand on (a capsule, "
+                    "sphere, ellipsoid, box, cylinder or mesh)"
                 )
             for g in geoms:
                 for p in _geom_points(model, data, g):

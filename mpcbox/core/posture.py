@@ -8,6 +8,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
+from mpcbox.core.contact import collision_geoms
 from mpcbox.core.model import check_mjmodel, frame_object, free_body, object_id
 from mpcbox.errors import InvalidArgumentError, PostureWarning, SolverError
 from mpcbox.validation import (
@@ -298,9 +299,7 @@ def reach_posture(
     posture.set_target(qpos_init)
     limits: list = [mink.ConfigurationLimit(model)]
     if avoid_collisions:
-        colliding = [
-            g for g in range(model.ngeom) if model.geom_contype[g] or model.geom_conaffinity[g]
-        ]
+        colliding = np.flatnonzero(collision_geoms(model)).tolist()
         if colliding:
             limits.append(mink.CollisionAvoidanceLimit(model, [(colliding, colliding)]))
 

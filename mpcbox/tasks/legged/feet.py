@@ -85,8 +85,8 @@ def find_feet(
 
     Raises:
         UnknownNameError: If a name is no site, body or geom (lists those that exist).
-        InvalidArgumentError: If no foot is given, a foot repeats, or a geom or body has no
-            capsule, sphere or box to stand on.
+        InvalidArgumentError: If no foot is given, a foot repeats, or a geom or body has
+            nothing to stand on (see :func:`~mpcbox.core.contact.contact_points`).
     """
     if isinstance(feet, str):
         feet = [feet]
