@@ -87,6 +87,45 @@ def test_range_noise_is_a_fraction_of_each_control_range() -> None:
         range_noise(ranges, 0.0)
 
 
+LINKS = """
+<mujoco>
+  <asset>
+    <mesh name="rod" vertex="-.02 -.02 -.1  .02 -.02 -.1  .02 .02 -.1  -.02 .02 -.1
+                              -.02 -.02 .1  .02 -.02 .1  .02 .02 .1  -.02 .02 .1"/>
+  </asset>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 .1"/>
+    <body name="a" pos="0 0 .5"><freejoint/><geom name="a" type="mesh" mesh="rod"/></body>
+    <body name="b" pos="0 0 .7"><freejoint/><geom name="b" type="mesh" mesh="rod"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize("capsules", [False, True])
+def test_planning_meshes_touch_the_floor_only_and_can_become_fitted_capsules(capsules) -> None:
+    from mpcbox.tasks.humanoid.g1_getup import floor_only_meshes
+
+    model = floor_only_meshes(LINKS, capsules=capsules).compile()
+    a, b, floor = (model.geom(n).id for n in ("a", "b", "floor"))
+    want = mujoco.mjtGeom.mjGEOM_CAPSULE if capsules else mujoco.mjtGeom.mjGEOM_MESH
+    assert model.geom_type[a] == model.geom_type[b] == want
+    if capsules:  # fitted to the 4 x 4 x 20 cm rod, along its long axis
+        assert 0.015 < model.geom_size[a, 0] < 0.03 and 0.05 < model.geom_size[a, 1] < 0.1
+
+    # Each link meets the floor, not the other link (contype & conaffinity rule).
+    def touches(i: int, j: int) -> bool:
+        ct, ca = model.geom_contype, model.geom_conaffinity
+        return bool((ct[i] & ca[j]) or (ct[j] & ca[i]))
+
+    assert touches(a, floor) and touches(b, floor) and not touches(a, b)
+
+
+def test_planning_geoms_is_checked_by_name() -> None:
+    with pytest.raises(InvalidArgumentError, match="planning_geoms"):
+        G1Getup(model=LINKS, planning_geoms="spheres")
+
+
 @pytest.fixture(scope="module")
 def g1():
     return task_class("g1_getup")(settle=0.5)
