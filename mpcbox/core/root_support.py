@@ -17,11 +17,10 @@ vanish:
 - ``"pose"``: then the root is also tilted, by angles :math:`(\alpha, \beta)` about the
   world's x and y axes through its origin, until :math:`(m_x, m_y) = 0` too (one axis at a
   time, bracketed in the direction the body would fall, the height re-solved at every tilt
-  tried; see :func:`_balance`). A keyframe whose
-  feet are not level, or whose center of mass is not over the middle of its contacts' load,
-  is then leaned until the contacts balance it, as the robot would settle on the floor.
-  When no tilt within :data:`MAX_TILT` does, the height-only posture is kept and reported
-  as not balanced.
+  tried; see :func:`_balance`). A keyframe whose feet are not level, or whose center of
+  mass is not over the middle of its contacts' load, is then leaned until the contacts
+  balance it, as the robot would settle on the floor. When no tilt within
+  :data:`MAX_TILT` does, the height-only posture is kept and reported as not balanced.
 """
 
 from __future__ import annotations
