@@ -1,0 +1,151 @@
+"""Legged robots nobody here tuned for (MuJoCo Menagerie), standing by name: LQR and QP-MPC.
+
+For each robot the script builds the task a new user would (:class:`BipedStand` or
+:class:`QuadrupedStand` with the feet named), records the equilibrium (root residual wrench,
+tilt, actuator shortfall, warnings, build time), and simulates each controller for
+``--duration`` s under the robot-independent noise recipe on ``--seeds`` seeds. A robot or
+controller that cannot be built is recorded with its error. Results are stored under
+``--label`` in ``--out`` (merged with the labels already there), so runs of other code (the
+``before`` label: ``git archive <commit> mpcbox | tar -x -C /tmp/base`` and
+``PYTHONPATH=/tmp/base``) sit beside this one::
+
+    MENAGERIE_ROOT=... python benchmarks/menagerie_robots.py --label after --workers 2
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+import traceback
+import warnings
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+OUT = Path(__file__).parent / "results" / "menagerie_robots.json"
+
+#: Robot (``"name"`` or ``"name/entry"``) -> feet. Four feet: a quadruped.
+ROBOTS: dict[str, tuple[str, ...]] = {
+    "unitree_h1": ("body:left_ankle_link", "body:right_ankle_link"),
+    "booster_t1": ("body:left_foot_link", "body:right_foot_link"),
+    "berkeley_humanoid": ("body:ll_faa", "body:lr_faa"),
+    "apptronik_apollo": ("body:l_foot_link", "body:r_foot_link"),
+    "fourier_n1": ("body:left_foot_pitch_link", "body:right_foot_pitch_link"),
+    "pal_talos/scene_motor": ("body:leg_left_6_link", "body:leg_right_6_link"),
+    "pal_talos/scene_position": ("body:leg_left_6_link", "body:leg_right_6_link"),
+    "pndbotics_adam_lite": ("body:toeLeft", "body:toeRight"),
+    "robotis_op3": ("body:l_ank_roll_link", "body:r_ank_roll_link"),
+    "agility_cassie": ("body:left-foot", "body:right-foot"),
+    "anybotics_anymal_b": ("body:LF_SHANK", "body:RF_SHANK", "body:LH_SHANK", "body:RH_SHANK"),
+    "unitree_go2": ("geom:FR", "geom:FL", "geom:RR", "geom:RL"),
+}
+
+
+def _error(exc: BaseException) -> str:
+    return f"{type(exc).__name__}: {str(exc)[:300]}"
+
+
+def run_robot(robot: str, seeds: int, duration: float, controllers: tuple[str, ...]) -> dict:
+    import mpcbox
+    from mpcbox.tasks.legged.biped import BipedStand
+    from mpcbox.tasks.legged.quadruped import QuadrupedStand
+
+    feet = ROBOTS[robot]
+    task = QuadrupedStand if len(feet) == 4 else BipedStand
+    out: dict = {"task": task.name, "feet": list(feet)}
+    start = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            problem = task(f"menagerie:{robot}", feet=feet, threads=1)
+        except Exception as exc:  # recorded, not raised: the point is what breaks
+            out["build_error"] = _error(exc)
+            return out
+    out["build_s"] = round(time.perf_counter() - start, 2)
+    out["warnings"] = [
+        f"{w.category.__name__}: {str(w.message)[:200]}"
+        for w in caught
+        if "mesh" not in str(w.message)
+    ]
+    eq = problem.equilibrium
+    out["residual_wrench"] = np.round(eq.residual_wrench, 4).tolist()
+    tilt = getattr(eq, "root_tilt", None)  # absent before stop 31
+    out["root_tilt_deg"] = np.round(np.degrees(np.zeros(2) if tilt is None else tilt), 4).tolist()
+    out["shortfall"] = float(eq.shortfall)
+    for name in controllers:
+        runs = []
+        for seed in range(seeds):
+            try:
+                controller = mpcbox.make_controller(name, problem)
+                noise = problem.noise()
+                res = mpcbox.simulate(problem, controller, duration, noise=noise, seed=seed)
+                runs.append(
+                    {
+                        "seed": seed,
+                        "success": bool(res.metrics.success),
+                        "failure": res.failure,
+                        "tilt_rms_deg": round(float(res.metrics.measures["tilt_rms_deg"]), 2),
+                        "fallbacks": int(res.metrics.fallbacks),
+                    }
+                )
+            except Exception as exc:
+                runs.append({"seed": seed, "success": False, "error": _error(exc)})
+                break
+        out[name] = {"successes": sum(r["success"] for r in runs), "runs": runs}
+    problem.close()
+    return out
+
+
+def _job(args: tuple) -> tuple[str, dict]:
+    robot = args[0]
+    try:
+        return robot, run_robot(*args)
+    except Exception:
+        return robot, {"crash": traceback.format_exc()[-1500:]}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robots", default=",".join(ROBOTS))
+    parser.add_argument("--controllers", default="lqr,qp")
+    parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--duration", type=float, default=3.0)
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--label", default="after")
+    parser.add_argument("--out", default=str(OUT))
+    args = parser.parse_args()
+    if not os.environ.get("MENAGERIE_ROOT"):
+        parser.error("set MENAGERIE_ROOT to an offline Menagerie copy")
+    robots = [r for r in args.robots.split(",") if r]
+    controllers = tuple(c for c in args.controllers.split(",") if c)
+    jobs = [(r, args.seeds, args.duration, controllers) for r in robots]
+    started = time.perf_counter()
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        results = dict(pool.map(_job, jobs))
+    path = Path(args.out)
+    stored = json.loads(path.read_text()) if path.exists() else {}
+    stored[args.label] = {
+        "command": "MENAGERIE_ROOT=... python benchmarks/menagerie_robots.py "
+        f"--label {args.label} --seeds {args.seeds} --duration {args.duration} "
+        f"--controllers {args.controllers}",
+        "seeds": args.seeds,
+        "duration_s": args.duration,
+        "noise": "each task's robot-independent recipe (5 % of each actuator's half range)",
+        "machine": "2-core sandbox CPU, shared",
+        "wall_time_s": round(time.perf_counter() - started, 1),
+        "robots": results,
+    }
+    path.write_text(json.dumps(stored, indent=1) + "\n")
+    summary = {}
+    for robot, found in results.items():
+        summary[robot] = {"build": "build_error" not in found}
+        summary[robot].update({c: found.get(c, {}).get("successes") for c in controllers})
+    print(json.dumps(summary, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
