@@ -170,6 +170,18 @@ def test_cpu_reduced_settings_are_marked_next_to_their_row() -> None:
     assert mark_reduced(table, {}) == table
 
 
+@pytest.mark.skipif(Path("/dev/nvidia0").exists(), reason="with a GPU the quick runs use it")
+def test_quick_cpu_runs_shrink_only_the_gpu_sized_sampling_configs() -> None:
+    """The humanoid's 1024-2048 samples become 16 over 0.15 s; the cart-pole's CPU-sized
+    128 over 1 s stay (cut to 0.15 s, its plan never swung the pole up: `mpcbox simulate
+    cartpole_swingup --controller ps` ended hanging, 3.14 rad from upright)."""
+    from mpcbox.cli import quick_sampling_options
+
+    assert quick_sampling_options("humanoid_stand")["mppi"] == {"num_samples": 16, "horizon": 0.15}
+    assert quick_sampling_options("cartpole_swingup") == {}
+    assert set(quick_sampling_options()) == {"ps", "mppi", "cem"}
+
+
 @pytest.mark.parametrize(
     ("extra", "needle"),
     [

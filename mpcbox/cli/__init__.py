@@ -115,10 +115,13 @@ def _simulate(rest: Sequence[str], command: Sequence[str]) -> int:
     args.controllers = known.controller
     if args.viewer is not None:
         return run_watched(
-            known.task, args, controller_defaults=quick_sampling_options(), stream=sys.stdout
+            known.task,
+            args,
+            controller_defaults=quick_sampling_options(known.task),
+            stream=sys.stdout,
         )
     return run_comparison(
-        known.task, args, controller_defaults=quick_sampling_options(), command=command
+        known.task, args, controller_defaults=quick_sampling_options(known.task), command=command
     )
 
 
@@ -202,7 +205,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise UnknownNameError("task", task, TASKS)
         args = build_parser(task, prog=f"mpcbox compare {task}").parse_args(rest[1:])
         return run_comparison(
-            task, args, controller_defaults=quick_sampling_options(), command=line
+            task, args, controller_defaults=quick_sampling_options(task), command=line
         )
     except (MpcboxError, ImportError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -399,16 +399,33 @@ def _executor(args: argparse.Namespace) -> Any:
     return name
 
 
-def quick_sampling_options() -> dict[str, dict]:
+#: Sampling configs with at most this many samples are sized for the CPU already (the
+#: swing-ups, the quadruped walk): a quick CPU run keeps them as tuned.
+CPU_SIZED_SAMPLES = 256
+
+
+def quick_sampling_options(task: str | None = None) -> dict[str, dict]:
     """Sampling-controller options for a quick run: the GPU backend when there is an NVIDIA
-    device, otherwise a handful of samples so that the CPU finishes in about a minute.
+    device, otherwise a handful of samples over a short horizon so that the CPU finishes in
+    about a minute, except for the controllers that ``task`` tunes with at most
+    :data:`CPU_SIZED_SAMPLES` samples, which keep their config (a cart-pole's 1 s plan cut
+    to 0.15 s never swings it up).
 
     ``--set NAME.OPTION=VALUE`` overrides them, e.g. ``--set mppi.num_samples=256``.
     """
     if Path("/dev/nvidia0").exists():  # cheap check; importing warp takes seconds
         return {name: {"backend": "warp"} for name in ("ps", "mppi", "cem")}
     small = {"num_samples": 16, "horizon": 0.15}
-    return {"ps": small, "mppi": small, "cem": {**small, "num_elites": 4}}
+    options = {"ps": small, "mppi": small, "cem": {**small, "num_elites": 4}}
+    if task is not None:
+        from mpcbox.registry import task_class
+
+        configs = task_class(task).controller_configs
+        for name in list(options):
+            samples = getattr(configs.get(name), "num_samples", None)
+            if samples is not None and samples <= CPU_SIZED_SAMPLES:
+                del options[name]
+    return options
 
 
 def run_task_script(
