@@ -127,6 +127,56 @@ def test_no_display_is_a_named_error_before_any_window(problem, tmp_path, monkey
     assert isinstance(make_viewer(tmp_path / "run.gif", width=64), LiveViewer)
 
 
+class FakeWindow:
+    """What ``mujoco.viewer.launch_passive`` returns, without a window."""
+
+    def __init__(self, model, data, **_):
+        import contextlib
+        import threading
+
+        self.cam = mujoco.MjvCamera()
+        self.user_scn = mujoco.MjvScene(model, maxgeom=1000)
+        self.lock = lambda: contextlib.nullcontext(threading.Lock())
+        self.syncs = 0
+        self.most_geoms = 0
+
+    def is_running(self) -> bool:
+        return True
+
+    def sync(self) -> None:
+        self.syncs += 1
+        self.most_geoms = max(self.most_geoms, self.user_scn.ngeom)
+
+    def close(self) -> None:
+        pass
+
+
+def test_live_window_frames_the_model_and_draws_the_traces(problem, monkeypatch) -> None:
+    """Tried for real under Xvfb (docs/tutorials/img/live_viewer_cartpole.png); here the
+    window is a stand-in: it gets MuJoCo's free camera of the whole model (its own default
+    left the cart-pole's pole out of view) and the planner's traces in its scene."""
+    import mujoco.viewer
+
+    from mpcbox.sim.rendering import free_camera
+
+    windows = []
+
+    def launch(model, data, **kw):
+        windows.append(FakeWindow(model, data, **kw))
+        return windows[-1]
+
+    monkeypatch.setenv("DISPLAY", ":0")
+    monkeypatch.setattr(mujoco.viewer, "launch_passive", launch)
+    viewer = LiveViewer(traces=4, realtime=False)
+    simulate(problem, make_controller("ps", problem, **SMALL), 0.2, viewer=viewer)
+    (window,) = windows
+    want = free_camera(problem.model)
+    np.testing.assert_allclose(window.cam.lookat, want.lookat)
+    assert window.cam.distance == pytest.approx(want.distance)
+    assert window.cam.type == mujoco.mjtCamera.mjCAMERA_FREE  # a fixed base: no tracking
+    assert window.syncs > 0 and window.most_geoms > 0
+
+
 VIDEO = """
 import sys
 import mujoco

@@ -19,6 +19,7 @@ from mpcbox.controllers.base import Controller
 from mpcbox.controllers.sampling.traces import PlannerTrace
 from mpcbox.core.problem import Problem
 from mpcbox.errors import BackendUnavailableError
+from mpcbox.sim.rendering import free_camera, tracked_body
 from mpcbox.sim.trace_geoms import add_trace_geoms
 from mpcbox.sim.viewer import Viewer
 from mpcbox.validation import boolean
@@ -101,6 +102,19 @@ class LiveViewer(Viewer):
                 f"cannot open a MuJoCo viewer window: {type(exc).__name__}: {exc} (on macOS, "
                 f"run the script with mjpython); {OFFSCREEN_HINT}"
             ) from exc
+        # Frame the whole model as the offscreen viewer does (the window's own default
+        # looked down at the cart-pole's rail with the pole out of view), following a
+        # floating base; the mouse still moves the camera.
+        default = free_camera(self.model)
+        body = tracked_body(self.model)
+        with self.handle.lock():
+            cam = self.handle.cam
+            cam.lookat[:] = default.lookat
+            cam.distance, cam.azimuth = default.distance, default.azimuth
+            cam.elevation = default.elevation
+            if body:
+                cam.type = mujoco.mjtCamera.mjCAMERA_TRACKING
+                cam.trackbodyid = body
         self._clock = None
 
     def draw(self, trace: PlannerTrace | None) -> None:
