@@ -33,7 +33,8 @@ class Equilibrium(NamedTuple):
     """A posture and the control that holds it.
 
     Attributes:
-        qpos: Posture ``(nq,)`` with the root height adjusted so the contacts carry the weight.
+        qpos: Posture ``(nq,)`` with the root moved so the contacts carry the weight (its
+            height, and with ``root_adjust="pose"`` its tilt).
         ctrl: Control ``(nu,)`` that holds it, through each actuator's gain, bias,
             transmission and activation dynamics, within the control and force limits.
         qfrc: Generalized force ``(nv,)`` needed to hold the posture (``qfrc_inverse``).

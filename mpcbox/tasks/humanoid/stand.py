@@ -26,8 +26,9 @@ class HumanoidStand(HumanoidProblem):
     r"""Keep a humanoid standing on both feet (keyframe ``stand`` of the humanoid scene): a
     preset of :class:`~mpcbox.tasks.legged.balance.LeggedBalance` with a cost of its own.
 
-    The reference posture is the keyframe with the root height adjusted until the contacts
-    carry the weight, and the reference control holds it (:func:`~mpcbox.find_equilibrium`).
+    The reference posture is the keyframe with the root lowered (and tilted by 0.05 deg) until
+    the contacts carry the weight and balance it, and the reference control holds it
+    (:func:`~mpcbox.find_equilibrium`).
     The running cost (and, ``terminal_scale`` times heavier, the terminal cost) is
 
     .. math::

@@ -108,7 +108,8 @@ class LeggedBalance(Problem):
     The feet are sites, bodies or geoms, in any mix (:func:`~mpcbox.tasks.legged.feet.find_feet`:
     a body or geom stands on the lowest points of its collision geoms, and a site is added
     there so the cost and measures can follow it). The reference posture is the keyframe with
-    the root height adjusted until the contacts carry the weight; the control that holds it
+    the root's height and tilt adjusted until the contacts carry the weight and balance its
+    moments (``root_adjust``); the control that holds it
     comes through each actuator's model (:func:`~mpcbox.find_equilibrium`: torques for
     motors, set-points for position servos).
 
