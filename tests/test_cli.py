@@ -170,6 +170,31 @@ def test_cpu_reduced_settings_are_marked_next_to_their_row() -> None:
     assert mark_reduced(table, {}) == table
 
 
+def test_push_body_defaults_to_the_tasks_root() -> None:
+    """A G1 has no body called ``torso`` (its root is ``pelvis``): ``--push`` without
+    ``--push-body`` pushed a body that did not exist."""
+    import argparse
+    import types
+
+    import mujoco
+
+    from mpcbox.cli.compare import default_push_body
+
+    free = mujoco.MjModel.from_xml_string(
+        '<mujoco><worldbody><body name="base"><freejoint/><geom size=".1"/></body>'
+        "</worldbody></mujoco>"
+    )
+    cases = [
+        (types.SimpleNamespace(root="pelvis", model=free), None, "pelvis"),
+        (types.SimpleNamespace(model=free), None, "base"),
+        (types.SimpleNamespace(root="pelvis", model=free), "torso_link", "torso_link"),
+    ]
+    for problem, given, expected in cases:
+        args = argparse.Namespace(push_body=given)
+        default_push_body(args, problem)
+        assert args.push_body == expected
+
+
 @pytest.mark.skipif(Path("/dev/nvidia0").exists(), reason="with a GPU the quick runs use it")
 def test_quick_cpu_runs_shrink_only_the_gpu_sized_sampling_configs() -> None:
     """The humanoid's 1024-2048 samples become 16 over 0.15 s; the cart-pole's CPU-sized

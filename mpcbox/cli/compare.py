@@ -43,7 +43,7 @@ DEFAULTS: dict[str, Any] = {
     "push": 0.0,
     "push_time": 2.0,
     "push_duration": 0.1,
-    "push_body": "torso",
+    "push_body": None,
     "mass_scale": 1.0,
     "friction_scale": 1.0,
     "largest_push": False,
@@ -136,7 +136,11 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
     add("--push", type=float, default=d["push"], help="forward push force (N), 0 for none")
     add("--push-time", type=float, default=d["push_time"], help="push start (s)")
     add("--push-duration", type=float, default=d["push_duration"], help="push duration (s)")
-    add("--push-body", default=d["push_body"], help="pushed body")
+    add(
+        "--push-body",
+        default=d["push_body"],
+        help="pushed body (default: the task's root body, such as a humanoid's torso)",
+    )
     add("--mass-scale", type=float, default=d["mass_scale"], help="model mismatch: body masses")
     add(
         "--friction-scale",
@@ -199,6 +203,27 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
             else:
                 group.add_argument(_flag(name), type=type(default), default=default)
     return parser
+
+
+def default_push_body(args: argparse.Namespace, problem: Any) -> None:
+    """Fill ``--push-body`` when it was not given: the task's root body (``problem.root``,
+    the legged tasks' and the humanoid presets'), else the model's floating body, else
+    ``"torso"``. A Unitree G1 has no body called ``torso``: its root is ``pelvis``."""
+    if args.push_body is not None:
+        return
+    import mujoco
+
+    from mpcbox.core.model import free_body
+
+    root = getattr(problem, "root", None)
+    if not root:
+        body = free_body(problem.model)
+        root = (
+            None
+            if body is None
+            else mujoco.mj_id2name(problem.model, mujoco.mjtObj.mjOBJ_BODY, body)
+        )
+    args.push_body = root or "torso"
 
 
 def scenarios_from_args(args: argparse.Namespace):
@@ -307,6 +332,7 @@ def run_comparison(
     # Built here (write_outputs needs it anyway) so that a bad task option or --set value
     # stops the command before any run, instead of failing every run.
     problem = task_class(task)(**task_options)
+    default_push_body(args, problem)
     for name, options in overrides.items():
         cls = controller_class(name).config_class
         resolve_config(cls, problem.controller_configs.get(name), options, f"--set {name}")

@@ -80,7 +80,12 @@ def run_watched(
         The exit status (0).
     """
     from mpcbox.cli.checks import check_arguments, check_options, check_output_folder
-    from mpcbox.cli.compare import parse_sets, scenarios_from_args, task_parameters
+    from mpcbox.cli.compare import (
+        default_push_body,
+        parse_sets,
+        scenarios_from_args,
+        task_parameters,
+    )
     from mpcbox.cli.outputs import check_single_run_flags
     from mpcbox.comparison.runner import resolve_controllers
     from mpcbox.registry import make_controller, task_class
@@ -101,6 +106,7 @@ def run_watched(
     viewer = viewer_from_args(args, out)
     task_options = {k: getattr(args, k) for k in task_parameters(task)}
     problem = task_class(task)(**task_options)
+    default_push_body(args, problem)
     controller = make_controller(name, problem, **options)
     scenario = scenarios_from_args(args)[0]
     result = scenario.run(problem, controller, args.seed, viewer=viewer)

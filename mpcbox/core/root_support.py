@@ -31,6 +31,7 @@ import mujoco
 import numpy as np
 from scipy.optimize import brentq
 
+from mpcbox.core.model import free_body
 from mpcbox.errors import SolverError
 
 #: How :func:`support_root` moves the root.
@@ -73,11 +74,13 @@ class RootSupport(NamedTuple):
 
 
 def free_root(model: mujoco.MjModel) -> tuple[int, int, int] | None:
-    """``(qpos address, dof address, body)`` of the first free joint of a non-world body."""
-    for j in range(model.njnt):
-        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE and model.jnt_bodyid[j] != 0:
-            return int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j]), int(model.jnt_bodyid[j])
-    return None
+    """``(qpos address, dof address, body)`` of the floating root
+    (:func:`~mpcbox.core.model.free_body`; a free joint is its body's only joint)."""
+    body = free_body(model)
+    if body is None:
+        return None
+    joint = int(model.body_jntadr[body])
+    return int(model.jnt_qposadr[joint]), int(model.jnt_dofadr[joint]), body
 
 
 def _tilted(quat: np.ndarray, tilt: np.ndarray) -> np.ndarray:
