@@ -39,7 +39,8 @@ from mpcbox.config import resolve_config
 from mpcbox.controllers.base import Controller, check_problem
 from mpcbox.controllers.uncontrollable import (
     INPUT_GAIN_TOL,
-    uncontrollable_marginal_projector,
+    UncontrollableMode,
+    marginal_projector,
     uncontrollable_modes,
 )
 from mpcbox.core.cost import Cost, QuadraticValue
@@ -82,8 +83,12 @@ def check_weights(Q: np.ndarray, R: np.ndarray, rtol: float = 1e-9) -> None:
         )
 
 
+#: Distance from the unit circle within which a mode counts as on it.
+_MARGIN = 1e-6
+
+
 def check_stabilizable(
-    A: np.ndarray, B: np.ndarray, tol: float = INPUT_GAIN_TOL, margin: float = 1e-6
+    A: np.ndarray, B: np.ndarray, tol: float = INPUT_GAIN_TOL, margin: float = _MARGIN
 ) -> int:
     r"""Every mode of A with :math:`|\lambda| \ge 1` must be controllable (the PBH
     condition :math:`\operatorname{rank}[A - \lambda I,\ B] = n`, tested on each
@@ -100,8 +105,13 @@ def check_stabilizable(
     Raises:
         NotStabilizableError: Naming the uncontrollable unstable eigenvalue.
     """
+    return _count_marginal(uncontrollable_modes(A, B, tol, margin), margin)
+
+
+def _count_marginal(modes: list[UncontrollableMode], margin: float) -> int:
+    """How many of the uncontrollable ``modes`` lie on the unit circle; raise on one outside."""
     marginal = 0
-    for mode in uncontrollable_modes(A, B, tol, margin):
+    for mode in modes:
         lam = mode.eigenvalue
         if abs(lam) < 1.0 - margin:
             continue
@@ -155,13 +165,14 @@ def dlqr(
     if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
         raise ShapeError("A and B must be finite")
     check_weights(Q, R)
-    check_stabilizable(A, B)
+    modes = uncontrollable_modes(A, B)
+    _count_marginal(modes, _MARGIN)  # raises on an uncontrollable unstable mode
     Q, R = 0.5 * (Q + Q.T), 0.5 * (R + R.T)
     # Modes no control reaches and that neither grow nor decay (a floating robot moved
     # sideways or turned as a whole) have no stabilizing Riccati solution where the cost
     # weighs them: weigh only the rest, x_c = (I - Pi_u) x, an invariant complement that
     # holds the range of B, so that K and P act on x_c alone.
-    uncontrollable = uncontrollable_marginal_projector(A, B)
+    uncontrollable = marginal_projector(modes, _MARGIN)
     if uncontrollable is None:
         return _solve_dare(A, B, Q, R, N)
     keep = np.eye(n) - uncontrollable

@@ -134,19 +134,24 @@ def uncontrollable_modes(
     return modes
 
 
-def uncontrollable_marginal_projector(
-    A: np.ndarray, B: np.ndarray, tol: float = INPUT_GAIN_TOL, margin: float = 1e-6
-) -> np.ndarray | None:
-    r"""The projector :math:`\Pi_u` ``(n, n)`` onto the uncontrollable modes with
-    :math:`\bigl||\lambda| - 1\bigr| \le` ``margin`` (see the module and
-    :func:`uncontrollable_modes`), or ``None`` when there are none (defective ones are left
-    out: they have no such projector).
-    """
+def marginal_projector(modes: list[UncontrollableMode], margin: float = 1e-6) -> np.ndarray | None:
+    r"""The projector :math:`\Pi_u` ``(n, n)`` onto those of ``modes`` (from
+    :func:`uncontrollable_modes`) with :math:`\bigl||\lambda| - 1\bigr| \le` ``margin``, or
+    ``None`` when there are none (defective ones are left out: they have no projector)."""
     parts = [
         mode.projector
-        for mode in uncontrollable_modes(A, B, tol, margin)
+        for mode in modes
         if mode.projector is not None and abs(abs(mode.eigenvalue) - 1.0) <= margin
     ]
     if not parts:
         return None
     return np.sum(parts, axis=0).real
+
+
+def uncontrollable_marginal_projector(
+    A: np.ndarray, B: np.ndarray, tol: float = INPUT_GAIN_TOL, margin: float = 1e-6
+) -> np.ndarray | None:
+    r"""The projector :math:`\Pi_u` ``(n, n)`` onto the uncontrollable modes of ``(A, B)`` on
+    the unit circle (see the module, :func:`uncontrollable_modes` and
+    :func:`marginal_projector`), or ``None`` when there are none."""
+    return marginal_projector(uncontrollable_modes(A, B, tol, margin), margin)

@@ -11,6 +11,7 @@ A state is ``[qpos (nq), qvel (nv), act (na)]``; a linearization maps tangent-sp
 
 from __future__ import annotations
 
+import copy
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -198,9 +199,9 @@ class Dynamics:
         )  # fmt: skip
         with self._fd_lock:
             if self._fd is None or self._fd[0] != signature:
-                copy = mujoco.MjModel.__copy__(model)
-                copy.opt.tolerance = FD_SOLVER_TOLERANCE
-                self._fd = (signature, copy)
+                tight = copy.copy(model)
+                tight.opt.tolerance = FD_SOLVER_TOLERANCE
+                self._fd = (signature, tight)
             return self._fd[1]
 
     def _linearize(self, state, ctrl, eps, centered) -> Linearization:
