@@ -36,11 +36,18 @@ import scipy.linalg
 _CLUSTER = 1e-6
 
 #: Input gain :math:`\|w^H B\|` (``w`` of unit length, ``B``'s columns scaled to unit length)
-#: below which a mode counts as uncontrollable. Finite-difference Jacobians put up to 2e-5 of
-#: noise on the motions that no input reaches (a standing robot slid or turned as a whole:
-#: Unitree's H1, PAL's Talos), where every real motion of the robots measured (H1, Talos,
-#: Go2, G1, Cassie) had 1e-3 or more.
+#: below which a mode on the unit circle counts as uncontrollable (and is left out of the
+#: LQR's cost). Finite-difference Jacobians put up to 2e-5 of noise on the motions that no
+#: input reaches (a standing robot slid or turned as a whole: Unitree's H1, PAL's Talos),
+#: where every real motion of the robots measured (H1, Talos, Go2, G1, Cassie) had 1e-3 or
+#: more.
 INPUT_GAIN_TOL = 1e-4
+
+#: The same off the unit circle, where "uncontrollable" means no stabilizing gain exists
+#: (:class:`~mpcbox.errors.NotStabilizableError`): only a gain at rounding level counts. A
+#: generic Problem of Unitree's A1 at its keyframe (not an equilibrium) drifts sideways at
+#: eigenvalues up to 1.0007 with gains of 7e-5, which the LQR still stabilizes.
+UNSTABLE_GAIN_TOL = 1e-8
 
 #: Relative tolerance of the PBH rank test, used for defective eigenvalues.
 PBH_TOL = 1e-8
@@ -86,14 +93,18 @@ class UncontrollableMode(NamedTuple):
 
 
 def uncontrollable_modes(
-    A: np.ndarray, B: np.ndarray, tol: float = INPUT_GAIN_TOL, margin: float = 1e-6
+    A: np.ndarray,
+    B: np.ndarray,
+    tol: float = INPUT_GAIN_TOL,
+    margin: float = 1e-6,
+    unstable_tol: float = UNSTABLE_GAIN_TOL,
 ) -> list[UncontrollableMode]:
     r"""Uncontrollable modes of ``A`` with :math:`|\lambda| \ge 1 -` ``margin``.
 
     Eigenvalues within :data:`_CLUSTER` of each other are one repeated eigenvalue. For a
     semisimple one the test is on its left eigenspace :math:`W` (orthonormalized): the
     unit left eigenvectors :math:`w` with :math:`\|w^H B\| \le` ``tol`` (``B``'s columns
-    scaled to unit length) are uncontrollable. This is
+    scaled to unit length; ``unstable_tol`` off the unit circle) are uncontrollable. This is
     what the PBH rank test asks, without its blind spot: the smallest singular value of
     :math:`[A - \lambda I,\ B]` is also small when other eigenvalues are near
     :math:`\lambda` (a robot at rest has dozens within 1e-4 of 1), which made well-controlled
@@ -103,9 +114,11 @@ def uncontrollable_modes(
     Args:
         A: State matrix ``(n, n)``.
         B: Input matrix ``(n, m)``.
-        tol: Input gain below which a unit left eigenvector is uncontrollable.
+        tol: Input gain below which a unit left eigenvector on the unit circle is
+            uncontrollable.
         margin: Modes with :math:`|\lambda| < 1 -` ``margin`` are not examined; those
             within ``margin`` of the unit circle are on it.
+        unstable_tol: The same for modes with :math:`|\lambda| > 1 +` ``margin``.
     """
     B = unit_columns(B)
     values, left, right = scipy.linalg.eig(A, left=True, right=True)
@@ -125,7 +138,7 @@ def uncontrollable_modes(
         # Left eigenvectors of unit length that the (unit-column) input barely moves.
         Wo = np.linalg.qr(W)[0]
         U, sv, _ = np.linalg.svd(Wo.conj().T @ B, full_matrices=True)
-        rank = int(np.sum(sv > tol))
+        rank = int(np.sum(sv > (tol if abs(lam) <= 1.0 + margin else unstable_tol)))
         L = Wo @ U[:, rank:]
         if L.shape[1]:
             # The part of the state those coordinates see, in the eigenspace: V X L^H with
