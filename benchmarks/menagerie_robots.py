@@ -44,11 +44,38 @@ ROBOTS: dict[str, tuple[str, ...]] = {
 }
 
 
+#: Robots the other QP benchmarks measure besides :data:`ROBOTS`.
+MORE_ROBOTS: dict[str, tuple[str, ...]] = {
+    "unitree_g1": ("body:left_ankle_roll_link", "body:right_ankle_roll_link"),
+    "unitree_go1": ("geom:FR", "geom:FL", "geom:RR", "geom:RL"),
+    "anybotics_anymal_c": ("body:LF_SHANK", "body:RF_SHANK", "body:LH_SHANK", "body:RH_SHANK"),
+}
+
+
+def stand_task(robot: str, **kwargs):
+    """The task a new user would build for ``robot`` (a key of :data:`ROBOTS` or
+    :data:`MORE_ROBOTS`): ``BipedStand`` or ``QuadrupedStand`` with only its feet named,
+    one thread, warnings silenced."""
+    from mpcbox.registry import task_class
+
+    feet = {**ROBOTS, **MORE_ROBOTS}[robot]
+    task = task_class("quadruped_stand" if len(feet) == 4 else "biped_stand")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return task(f"menagerie:{robot}", feet=feet, threads=1, **kwargs)
+
+
 def _error(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {str(exc)[:300]}"
 
 
-def run_robot(robot: str, seeds: int, duration: float, controllers: tuple[str, ...]) -> dict:
+def run_robot(
+    robot: str,
+    seeds: int,
+    duration: float,
+    controllers: tuple[str, ...],
+    qp_time_limit: str = "preset",
+) -> dict:
     import mpcbox
     from mpcbox.tasks.legged.biped import BipedStand
     from mpcbox.tasks.legged.quadruped import QuadrupedStand
@@ -79,7 +106,9 @@ def run_robot(robot: str, seeds: int, duration: float, controllers: tuple[str, .
         runs = []
         for seed in range(seeds):
             try:
-                controller = mpcbox.make_controller(name, problem)
+                unlimited = name == "qp" and qp_time_limit == "none"
+                overrides = {"time_limit": None} if unlimited else {}
+                controller = mpcbox.make_controller(name, problem, **overrides)
                 noise = problem.noise()
                 res = mpcbox.simulate(problem, controller, duration, noise=noise, seed=seed)
                 runs.append(
@@ -89,6 +118,7 @@ def run_robot(robot: str, seeds: int, duration: float, controllers: tuple[str, .
                         "failure": res.failure,
                         "tilt_rms_deg": round(float(res.metrics.measures["tilt_rms_deg"]), 2),
                         "fallbacks": int(res.metrics.fallbacks),
+                        **_qp_counts(controller),
                     }
                 )
             except Exception as exc:
@@ -97,6 +127,15 @@ def run_robot(robot: str, seeds: int, duration: float, controllers: tuple[str, .
         out[name] = {"successes": sum(r["success"] for r in runs), "runs": runs}
     problem.close()
     return out
+
+
+def _qp_counts(controller: object) -> dict:
+    """A QP-MPC's solves, truncated solves and failures by status (empty for others)."""
+    stats = getattr(controller, "stats", None)
+    if not isinstance(stats, dict) or "truncated_solves" not in stats:
+        return {}
+    keep = ("solves", "truncated_solves", "failed_solves")
+    return {k: v for k, v in stats.items() if k in keep or k.startswith("failed:")}
 
 
 def _job(args: tuple) -> tuple[str, dict]:
@@ -114,6 +153,12 @@ def main() -> int:
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--duration", type=float, default=3.0)
     parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument(
+        "--qp-time-limit",
+        choices=("preset", "none"),
+        default="preset",
+        help="QP-MPC's OSQP time budget: the task's (BipedStand: 15 ms) or none",
+    )
     parser.add_argument("--label", default="after")
     parser.add_argument("--out", default=str(OUT))
     args = parser.parse_args()
@@ -121,7 +166,7 @@ def main() -> int:
         parser.error("set MENAGERIE_ROOT to an offline Menagerie copy")
     robots = [r for r in args.robots.split(",") if r]
     controllers = tuple(c for c in args.controllers.split(",") if c)
-    jobs = [(r, args.seeds, args.duration, controllers) for r in robots]
+    jobs = [(r, args.seeds, args.duration, controllers, args.qp_time_limit) for r in robots]
     started = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         results = dict(pool.map(_job, jobs))
@@ -130,7 +175,7 @@ def main() -> int:
     stored[args.label] = {
         "command": "MENAGERIE_ROOT=... python benchmarks/menagerie_robots.py "
         f"--label {args.label} --seeds {args.seeds} --duration {args.duration} "
-        f"--controllers {args.controllers}",
+        f"--controllers {args.controllers} --qp-time-limit {args.qp_time_limit}",
         "seeds": args.seeds,
         "duration_s": args.duration,
         "noise": "each task's robot-independent recipe (5 % of each actuator's half range)",

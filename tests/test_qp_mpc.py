@@ -8,9 +8,10 @@ import mujoco
 import numpy as np
 import pytest
 
+from mpcbox.controllers.lqr import LQR
 from mpcbox.controllers.qp_mpc.config import QPMPCConfig
-from mpcbox.controllers.qp_mpc.controller import QPMPC
-from mpcbox.controllers.qp_mpc.solvers import load_qp, to_qpsolvers
+from mpcbox.controllers.qp_mpc.controller import QPMPC, TRUNCATED_UNUSABLE
+from mpcbox.controllers.qp_mpc.solvers import constraint_residual, load_qp, to_qpsolvers
 from mpcbox.core.contact import cone_violation
 from mpcbox.core.equilibrium import actuator_moment
 from mpcbox.errors import InvalidArgumentError, UnknownNameError, UnknownOptionError
@@ -229,13 +230,14 @@ def test_rescue_backend_solves_what_osqp_fails(one_leg):
 
 
 def test_time_limit_uses_the_last_iterate(one_leg):
-    """A solve stopped at its time budget is not a failure: its warm-started last iterate is
-    the plan (no fallback) and is counted as truncated; without a budget nothing is."""
+    """A solve stopped at its time budget is not a failure while its last iterate is close
+    to feasible (``truncated_residual``): the iterate is the plan (no fallback) and is
+    counted as truncated; without a budget nothing is."""
     state = one_leg.reference_state()
     state[one_leg.nq + 3] = 0.05  # roll rate of the root
     full = QPMPC(one_leg)
     full(state, 0.0)
-    cut = QPMPC(one_leg, time_limit=1e-7)
+    cut = QPMPC(one_leg, time_limit=1e-7, truncated_residual=1e9)
     u = cut(state, 0.0)
     assert "time limit" in cut.last_status
     assert cut.stats["truncated_solves"] == cut.stats["solves"] == 1
@@ -245,6 +247,34 @@ def test_time_limit_uses_the_last_iterate(one_leg):
     res = simulate(one_leg, cut, 0.1)
     assert res.metrics.fallbacks == 0
     assert cut.stats["truncated_solves"] == cut.stats["solves"] == res.metrics.solve_ticks
+
+
+def test_time_limit_rejects_an_iterate_far_from_feasible(one_leg):
+    """A truncated iterate whose first stage violates its rows by more than
+    ``truncated_residual`` is a failed solve: the fallback (LQR) runs, and the status and
+    counts say why."""
+    state = one_leg.reference_state()
+    state[one_leg.nq + 3] = 0.05
+    probe = QPMPC(one_leg, time_limit=1e-7, truncated_residual=1e9)
+    probe(state, 0.0)
+    first = constraint_residual(probe.qp, probe._prev_z, probe.layout.first_stage_rows)
+    whole = constraint_residual(probe.qp, probe._prev_z)
+    assert 1e-9 < first <= whole  # one iteration from a cold start is not feasible
+    converged = QPMPC(one_leg)
+    converged(state, 0.0)
+    assert constraint_residual(converged.qp, converged._prev_z) < 1e-3
+    strict = QPMPC(one_leg, time_limit=1e-7, truncated_residual=first / 2)
+    u = strict(state, 0.0)
+    assert strict.last_status == TRUNCATED_UNUSABLE
+    stats = strict.stats
+    assert stats["fallbacks"] == stats["failed_solves"] == stats[f"failed:{TRUNCATED_UNUSABLE}"]
+    assert stats["fallbacks"] == 1 and stats["truncated_solves"] == 0
+    np.testing.assert_allclose(u, LQR(one_leg)(state, 0.0), atol=1e-9)
+    loose = QPMPC(one_leg, time_limit=1e-7, truncated_residual=first * 2)
+    loose(state, 0.0)
+    assert loose.stats["truncated_solves"] == 1 and loose.stats["fallbacks"] == 0
+    with pytest.raises(InvalidArgumentError, match="truncated_residual"):
+        QPMPCConfig(truncated_residual=0.0)
 
 
 def test_lqr_feedback_between_ticks_tracks_the_plan(one_leg):

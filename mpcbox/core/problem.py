@@ -31,6 +31,7 @@ from mpcbox.core.divergence import check_planning_step
 from mpcbox.core.dynamics import Dynamics, Linearization, Rollout, mujoco_errors
 from mpcbox.core.dynamics import read_state as _read_state
 from mpcbox.core.dynamics import write_state as _write_state
+from mpcbox.core.joint_limits import LIMIT_CLEARANCE, clear_of_limits
 from mpcbox.core.model import (
     ModelSource,
     build_planning_model,
@@ -49,6 +50,7 @@ from mpcbox.validation import (
     checked_options,
     finite_array,
     instance,
+    non_negative,
     positive,
     positive_int,
     string,
@@ -60,18 +62,13 @@ __all__ = ["Linearization", "Problem", "Quadratization", "Rollout"]
 class Problem:
     """A control problem on a MuJoCo model.
 
-    A Problem owns two compiled models built from the same MJCF: ``model`` is the simulation
-    model and ``planning_model`` the one controllers predict with (by default identical; a
-    coarser ``planning_timestep`` makes planning cheaper). It also owns the :class:`Cost`.
-
-    An RK4 model is planned with ``implicitfast`` (MuJoCo cannot differentiate an RK4 step),
-    said by a :class:`~mpcbox.errors.PlanningModelWarning` and the repr; it simulates in RK4.
-    With ``plan_rk4`` it is planned in RK4 too, linearized by finite differences of steps.
-
-    Subclasses typically override :meth:`build_cost` (and :meth:`prepare` to compute a
-    reference posture before the cost is built) and :meth:`failure` (what counts as a fall);
-    tasks may also declare :meth:`measures` (reported by :func:`~mpcbox.simulate`), a
-    :meth:`noise` model and :attr:`contacts`.
+    A Problem owns the :class:`Cost` and two models compiled from one MJCF: ``model``
+    simulates, ``planning_model`` predicts (identical unless ``planning_timestep`` is set).
+    An RK4 model is planned with ``implicitfast`` (MuJoCo cannot differentiate an RK4 step;
+    a :class:`~mpcbox.errors.PlanningModelWarning` and the repr say so), or in RK4 by finite
+    differences of steps with ``plan_rk4``. Subclasses override :meth:`build_cost`,
+    :meth:`prepare` (a reference posture before the cost is built) and :meth:`failure`;
+    tasks may declare :meth:`measures`, a :meth:`noise` model and :attr:`contacts`.
 
     Args:
         model: MJCF path, XML string, :class:`mujoco.MjSpec`, or compiled
@@ -89,6 +86,8 @@ class Problem:
         fd_eps: Finite-difference step.
         fd_centered: Centered (True) or forward (False) differences by default.
         plan_rk4: Plan an RK4 model in RK4 (:func:`~mpcbox.core.model.plannable`).
+        limit_clearance: Distance of each driven joint of the reference from its limits
+            (:func:`~mpcbox.core.joint_limits.clear_of_limits`; moves in ``limit_moves``).
         threads: Threads for batched linearization (default: all cores).
         name: Label used in tables.
 
@@ -120,6 +119,7 @@ class Problem:
         fd_eps: float = 1e-6,
         fd_centered: bool = True,
         plan_rk4: bool = False,
+        limit_clearance: float = LIMIT_CLEARANCE,
         threads: int | None = None,
         name: str | None = None,
     ) -> None:
@@ -149,6 +149,9 @@ class Problem:
             self.qpos_ref = self.tangent.unit_quaternions(
                 "qpos_ref", finite_array("qpos_ref", qpos_ref, (self.nq,))
             )
+        self.qpos_ref, self.limit_moves = clear_of_limits(
+            base, self.qpos_ref, non_negative("limit_clearance", limit_clearance), warn=True
+        )
         given = None if ctrl_ref is None else finite_array("ctrl_ref", ctrl_ref, (self.nu,))
         self.ctrl_ref, self.qvel_ref = key_ctrl if given is None else given, np.zeros(self.nv)
         self.prepare(base)

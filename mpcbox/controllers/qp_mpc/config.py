@@ -142,6 +142,16 @@ class QPMPCConfig:
             in ``stats["truncated_solves"]``, unlike a solve that reaches ``max_iter``,
             which fails. ``None``: no limit. A budget below one iteration's time leaves
             OSQP's first iterate (benchmarks/qp_tick_one_core.py measures the effect).
+        truncated_residual: A truncated iterate is used only while the rows of its first
+            stage (dynamics, stance, cones, bounds: those that bind the control applied now)
+            hold to this (QP units: rad, m and their rates, forces in body weights; 1e-3 is
+            0.1 % of the weight); otherwise the solve counts as failed (status ``"time limit
+            reached, residual above truncated_residual"``) and the ``fallback`` runs. On
+            Talos (Menagerie, 32 motors) a 2-core machine reached 15 ms after 0-14
+            iterations; iterates with a first-stage violation above 1e-3 had first controls
+            off the converged ones by up to 45 % of the control range and the robot fell;
+            on Apollo the first stage held to 2e-4 while the whole QP's residual passed 0.1,
+            and the first controls were within 0.06 % (``benchmarks/qp_truncation_quality.py``).
         between_ticks: What the controller applies between two solves, ``period`` apart:
             ``"hold"`` (default) holds the plan's first control; ``"lqr"`` is called at
             every step of the simulation model and adds the LQR gain :math:`K` about the
@@ -193,6 +203,7 @@ class QPMPCConfig:
     export_dir: str | Path | None = None
     fallback: Fallback = "lqr"
     time_limit: float | None = None
+    truncated_residual: float = 1e-3
     between_ticks: BetweenTicks = "hold"
     first_stage_forces: FirstStageForces = "bounded"
 
@@ -245,6 +256,7 @@ class QPMPCConfig:
                     f"time_limit needs solver='osqp' (OSQP's time limit), got solver="
                     f"{self.solver!r}"
                 )
+        put("truncated_residual", positive("truncated_residual", self.truncated_residual))
         one_of("stance_model", self.stance_model, STANCE_MODELS)
         if self.stance_model == "soft" and self.stance_weight is None:
             raise InvalidArgumentError("stance_model='soft' needs a finite stance_weight")

@@ -33,7 +33,12 @@ from mpcbox.controllers.qp_mpc.formulation import (
 )
 from mpcbox.controllers.qp_mpc.layout import QPLayout
 from mpcbox.controllers.qp_mpc.prediction import PREDICTION_MODELS
-from mpcbox.controllers.qp_mpc.solvers import QPData, export_qp, make_backend
+from mpcbox.controllers.qp_mpc.solvers import (
+    QPData,
+    constraint_residual,
+    export_qp,
+    make_backend,
+)
 from mpcbox.controllers.qp_mpc.terminal import terminal_matrix
 from mpcbox.core.contact import (
     ContactPoints,
@@ -126,6 +131,10 @@ def grounded_points(
     return ContactPoints(
         points.body[keep], points.local[keep], tuple(points.label[i] for i in keep)
     )
+
+
+#: Failure status of a solve stopped at ``time_limit`` with an iterate too far from feasible.
+TRUNCATED_UNUSABLE = "time limit reached, residual above truncated_residual"
 
 
 def _usable(x: np.ndarray | None) -> bool:
@@ -312,7 +321,9 @@ class QPMPC(Controller):
           ``fallbacks_lqr`` and ``fallbacks_plan`` split them by what was applied;
         * ``inaccurate_solves``: accepted solves the solver flagged as inaccurate (OSQP's
           ``"solved inaccurate"``);
-        * ``truncated_solves``: solves stopped at ``time_limit`` whose last iterate was used;
+        * ``truncated_solves``: solves stopped at ``time_limit`` whose last iterate was used
+          (one whose first stage violates its rows by more than ``truncated_residual`` is a
+          failed solve instead);
         * ``solver_iterations`` (mean; ``iterations`` is the same number) and
           ``solver_iterations_max`` over the accepted solves;
         * ``force_violation_max``: largest friction or bound violation of an accepted raw
@@ -362,6 +373,11 @@ class QPMPC(Controller):
         self.qp = QPData(self.formulation.P, q, self.formulation.A, lo, hi)
         t2 = _time.perf_counter()
         sol = self.backend.solve(self.qp, changed, self._warm_start())
+        if sol.truncated and not (
+            constraint_residual(self.qp, sol.x, L.first_stage_rows)
+            <= self.config.truncated_residual
+        ):
+            sol = sol._replace(x=None, status=TRUNCATED_UNUSABLE)
         if not _usable(sol.x):
             self._failures[sol.status] = self._failures.get(sol.status, 0) + 1
             if self.rescue is not None:

@@ -142,6 +142,12 @@ class QPLayout(NamedTuple):
         ]
 
     @property
+    def first_stage_rows(self) -> np.ndarray:
+        """Rows of the first stage (its dynamics, stance, friction, normal-force, control
+        and joint-limit rows): those that bind the control applied now."""
+        return np.concatenate([np.arange(o, o + n) for o, n in self.row_blocks])
+
+    @property
     def row_blocks(self) -> list[tuple[int, int]]:
         """``(offset, size per stage)`` of each row block."""
         return [

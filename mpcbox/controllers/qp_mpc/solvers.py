@@ -60,7 +60,7 @@ class QPData(NamedTuple):
 
 
 class QPSolution(NamedTuple):
-    """What a backend returns.
+    r"""What a backend returns.
 
     Attributes:
         x: Primal solution ``(n,)``, or ``None`` when the solve failed.
@@ -72,6 +72,8 @@ class QPSolution(NamedTuple):
             ``"solved inaccurate"``).
         truncated: The solver stopped at its time limit and ``x`` is its last iterate
             (OSQP's ``"run time limit reached"``).
+        primal_residual: :math:`\|A x - z\|_\infty` of the returned iterate (``nan`` when
+            the backend does not report it).
     """
 
     x: np.ndarray | None
@@ -81,6 +83,15 @@ class QPSolution(NamedTuple):
     objective: float
     inaccurate: bool = False
     truncated: bool = False
+    primal_residual: float = float("nan")
+
+
+def constraint_residual(qp: QPData, x: np.ndarray, rows: np.ndarray | None = None) -> float:
+    r"""Largest violation :math:`\|A x - \text{clip}(A x, l, u)\|_\infty` of the rows
+    ``rows`` (all rows when ``None``) by the primal point ``x`` ``(n,)``."""
+    A, lo, hi = (qp.A, qp.l, qp.u) if rows is None else (qp.A[rows], qp.l[rows], qp.u[rows])
+    ax = A @ x
+    return float(np.max(np.abs(ax - np.clip(ax, lo, hi)), initial=0.0))
 
 
 class QPBackend(abc.ABC):
@@ -149,6 +160,7 @@ class OSQPBackend(QPBackend):
             float(res.info.obj_val),
             status == osqp.SolverStatus.OSQP_SOLVED_INACCURATE,
             truncated,
+            float(res.info.prim_res),
         )
 
 

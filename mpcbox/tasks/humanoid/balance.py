@@ -45,7 +45,8 @@ class HumanoidBalance(HumanoidProblem):
         ctrl_cost: Weight of control deviations.
         fall_height: The run fails when the torso is lower than this (m).
         **kwargs: Passed to :class:`~mpcbox.tasks.legged.balance.LeggedBalance` and
-            :class:`~mpcbox.Problem` (e.g. ``planning_timestep``).
+            :class:`~mpcbox.Problem` (e.g. ``planning_timestep``; ``limit_clearance``
+            defaults to 0 here).
     """
 
     name = "humanoid_balance"
@@ -129,6 +130,10 @@ class HumanoidBalance(HumanoidProblem):
         self.noise_stance = leg
         if leg == "left":
             kwargs.setdefault("keyframe", "stand_on_left_leg")
+        # The one-leg posture has the stance hip's abduction on its limit (5 deg, within
+        # 5e-7 rad). Kept there: the published results were measured so, and 0.01 rad inside
+        # LQR stood 10/10 seeds either way with more sway (3.4 against 2.8 deg RMS tilt).
+        kwargs.setdefault("limit_clearance", 0.0)
         super().__init__(
             scene_path("humanoid.xml") if model is None else model,
             feet=(self.foot(leg),),
