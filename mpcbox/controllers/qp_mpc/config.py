@@ -138,9 +138,10 @@ class QPMPCConfig:
             every push up to 100 N (``README.md``).
         time_limit: Wall-clock budget of one OSQP solve (s; OSQP's ``time_limit``), so that
             a tick ends within the control period on a real robot: a solve that reaches it
-            returns its last (warm-started) iterate, which is used as the plan and counted
-            in ``stats["truncated_solves"]``, unlike a solve that reaches ``max_iter``,
-            which fails. ``None``: no limit. A budget below one iteration's time leaves
+            returns its last (warm-started) iterate, which is used as the plan while its
+            first stage holds (``truncated_residual``) and counted in
+            ``stats["truncated_solves"]``, unlike a solve that reaches ``max_iter``, which
+            fails. ``None``: no limit. A budget below one iteration's time leaves
             OSQP's first iterate (benchmarks/qp_tick_one_core.py measures the effect).
         truncated_residual: A truncated iterate is used only while the rows of its first
             stage (dynamics, stance, cones, bounds: those that bind the control applied now)
