@@ -12,7 +12,7 @@ from mpcbox.errors import InvalidArgumentError, PostureWarning
 
 # An arm swinging about z (gravity does not act on it) whose keyframe puts the motor-driven
 # "elbow" on its upper limit; a passive "finger" rests on its limit; "a" and "b" are coupled
-# by an equality; "slide" has a 4 cm range and sits past its upper end.
+# by an equality; "slide" has a 4 cm range and sits 1 mm past its upper end.
 XML = """
 <mujoco>
   <compiler angle="radian"/>
@@ -45,7 +45,7 @@ XML = """
     <motor joint="a" ctrlrange="-1 1"/>
     <position joint="slide" kp="50" ctrlrange="0 0.04"/>
   </actuator>
-  <keyframe><key name="rest" qpos="0 0 0 0 0.05"/></keyframe>
+  <keyframe><key name="rest" qpos="0 0 0 0 0.041"/></keyframe>
 </mujoco>
 """
 
@@ -66,13 +66,19 @@ def test_clear_of_limits_moves_driven_joints_inside(model):
     assert qpos[0] == pytest.approx(-LIMIT_CLEARANCE)
     assert qpos[4] == pytest.approx(0.04 - 0.05 * 0.04)
     np.testing.assert_array_equal(qpos[1:4], model.key_qpos[0][1:4])
-    assert [(m.joint, m.old) for m in moves] == [("elbow", 0.0), ("slide", 0.05)]
+    assert [(m.joint, m.old) for m in moves] == [("elbow", 0.0), ("slide", 0.041)]
     # Clearance 0 moves a joint past its limit onto it and leaves one on its limit.
     qpos0, moves0 = clear_of_limits(model, model.key_qpos[0], 0.0)
     assert qpos0[0] == 0.0 and qpos0[4] == pytest.approx(0.04)
     assert [m.joint for m in moves0] == ["slide"]
     inside = np.array([-0.5, -0.5, 0.5, 0.5, 0.02])
     assert clear_of_limits(model, inside)[1] == []
+    # Far outside (more than 5 % of the range): a posture of its own, left as given.
+    far = np.array([0.5, 0.0, 0.0, 0.0, 0.05])
+    with pytest.warns(PostureWarning, match="far outside their range left as given: elbow"):
+        kept, moved = clear_of_limits(model, far, warn=True)
+    np.testing.assert_array_equal(kept[[0, 4]], [0.5, 0.05])
+    assert moved == []
 
 
 def test_problem_linearizes_off_the_limit(model):
@@ -84,7 +90,7 @@ def test_problem_linearizes_off_the_limit(model):
     assert [m.joint for m in problem.limit_moves] == ["elbow", "slide"]
     assert problem.qpos_ref[0] == pytest.approx(-LIMIT_CLEARANCE)
     nv = problem.nv
-    with pytest.warns(PostureWarning, match="slide 0.05 -> 0.04"):
+    with pytest.warns(PostureWarning, match="slide 0.041 -> 0.04"):
         on_limit = Problem(XML, keyframe="rest", limit_clearance=0.0, threads=1)
     assert on_limit.qpos_ref[0] == 0.0
     for centered in (False, True):

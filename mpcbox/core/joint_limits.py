@@ -61,7 +61,9 @@ def clear_of_limits(
     past its limit's ``margin``).
 
     A joint of range :math:`[l, h]` goes to :math:`\min(\max(q, l + c), h - c)` with
-    :math:`c = \min(\text{clearance}, 0.05\,(h - l)) + \text{margin}`.
+    :math:`c = \min(\text{clearance}, 0.05\,(h - l)) + \text{margin}`. A joint more than
+    5 % of its range outside it is left as given (and named in the warning): that is a
+    posture of its own, such as a model's ``qpos0`` with every joint at 0, not a rounding.
 
     Args:
         model: The model.
@@ -75,6 +77,7 @@ def clear_of_limits(
     """
     out = np.array(qpos, dtype=float, copy=True)
     moves: list[LimitMove] = []
+    far: list[str] = []
     for j in movable_joints(model):
         lo, hi = model.jnt_range[j]
         if not hi > lo:
@@ -82,18 +85,26 @@ def clear_of_limits(
         margin = max(float(model.jnt_margin[j]), 0.0)
         c = min(min(clearance, RANGE_FRACTION * (hi - lo)) + margin, 0.5 * (hi - lo))
         adr = model.jnt_qposadr[j]
+        name = model.joint(j).name or f"joint {j}"
+        if max(lo - out[adr], out[adr] - hi) > RANGE_FRACTION * (hi - lo):
+            far.append(name)
+            continue
         new = min(max(out[adr], lo + c), hi - c)
         if new != out[adr]:
-            name = model.joint(j).name or f"joint {j}"
             moves.append(LimitMove(name, float(out[adr]), float(new)))
             out[adr] = new
-    if warn and moves:
-        warnings.warn(
-            f"qpos_ref: {len(moves)} joint(s) on or near a limit moved inside their range "
-            f"(limit_clearance={clearance:g}): {describe_moves(moves)}",
-            PostureWarning,
-            stacklevel=4,
-        )
+    if warn and (moves or far):
+        said = []
+        if moves:
+            said.append(
+                f"{len(moves)} joint(s) on or near a limit moved inside their range "
+                f"(limit_clearance={clearance:g}): {describe_moves(moves)}"
+            )
+        if far:
+            more = " ..." if len(far) > 4 else ""
+            names = ", ".join(far[:4]) + more
+            said.append(f"{len(far)} joint(s) far outside their range left as given: {names}")
+        warnings.warn("qpos_ref: " + "; ".join(said), PostureWarning, stacklevel=4)
     return out, moves
 
 
