@@ -89,8 +89,9 @@ class QPSolution(NamedTuple):
 def constraint_residual(qp: QPData, x: np.ndarray, rows: np.ndarray | None = None) -> float:
     r"""Largest violation :math:`\|A x - \text{clip}(A x, l, u)\|_\infty` of the rows
     ``rows`` (all rows when ``None``) by the primal point ``x`` ``(n,)``."""
-    A, lo, hi = (qp.A, qp.l, qp.u) if rows is None else (qp.A[rows], qp.l[rows], qp.u[rows])
-    ax = A @ x
+    ax, lo, hi = qp.A @ x, qp.l, qp.u  # the full product: slicing rows of CSC costs more
+    if rows is not None:
+        ax, lo, hi = ax[rows], lo[rows], hi[rows]
     return float(np.max(np.abs(ax - np.clip(ax, lo, hi)), initial=0.0))
 
 
