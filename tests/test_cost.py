@@ -15,7 +15,6 @@ from mpcbox.core.cost import (
     FrameHeight,
     FramePosition,
     HeightAbove,
-    QuadraticValue,
     StateCost,
     Upright,
     WrappedAngle,
@@ -24,6 +23,7 @@ from mpcbox.core.cost.rows import (
     AngleRow,
     ControlRow,
     PositionRow,
+    QuadraticFormRow,
     QuaternionRow,
     SensorRow,
     VelocityRow,
@@ -38,6 +38,15 @@ def row_value(row, qpos, qvel, ctrl, sensordata) -> float:
     if isinstance(row, QuaternionRow):
         d = quat_difference(qpos[row.address : row.address + 4], row.ref)
         return 0.5 * float(np.sum(row.weight * d * d))
+    if isinstance(row, QuadraticFormRow):
+        dx = np.zeros(row.factor.shape[0])
+        nv = dx.size // 2
+        dx[row.scalar_dof] = qpos[row.scalar_qpos] - row.qpos_ref[row.scalar_qpos]
+        for a, b in zip(row.quat_qpos, row.quat_dof, strict=True):
+            dx[b : b + 3] = quat_difference(qpos[a : a + 4], row.qpos_ref[a : a + 4])
+        dx[nv:] = qvel - row.qvel_ref
+        r = dx @ row.factor
+        return 0.5 * row.weight * float(r @ r)
     if isinstance(row, PositionRow):
         r = qpos[row.index] - row.ref
     elif isinstance(row, VelocityRow):
@@ -106,9 +115,17 @@ def test_terms_without_a_form_say_which_backend_needs_it():
     assert isinstance(err.value, NotImplementedError) and "StateCost" in str(err.value)
     with pytest.raises(UnsupportedCostTermError, match=r"CasADi form.*IPOPT"):
         term.casadi_residual(None, None, None)
-    value = QuadraticValue(problem.qpos_ref, P=np.eye(problem.nx))
-    with pytest.raises(UnsupportedCostTermError, match="QuadraticValue"):
-        problem.with_cost(Cost([value])).cost.running[0].rows()
+
+
+def test_quadratic_form_rows_sum_to_the_value():
+    """The LQR value's row (a dense form in the tangent-space state, free joint included)."""
+    from mpcbox.controllers.lqr import with_lqr_terminal_value
+    from mpcbox.tasks.humanoid.stand import HumanoidStand
+
+    problem = with_lqr_terminal_value(HumanoidStand())
+    (row,) = problem.cost.terminal[-1].rows()
+    assert isinstance(row, QuadraticFormRow) and row.quat_qpos.size == 1
+    check_rows(problem.with_cost(Cost(problem.cost.terminal)), 2)
 
 
 def test_casadi_forms_match_the_residuals():

@@ -62,6 +62,31 @@ def test_velocity_and_relative_height_sensor_terms_agree_with_the_cpu_backend(wa
     np.testing.assert_allclose(b, a, rtol=2e-4)
 
 
+def test_lqr_terminal_value_agrees_with_the_cpu_backend(warp_device):
+    """The LQR value function (a dense quadratic form in the tangent-space state, with the
+    free joint's quaternion) as terminal cost, and a quadratic form in the running cost."""
+    from mpcbox.controllers.lqr import with_lqr_terminal_value
+    from mpcbox.core.cost import Cost, QuadraticValue
+    from mpcbox.tasks.humanoid.stand import HumanoidStand
+
+    base = HumanoidStand()
+    problem = with_lqr_terminal_value(base)
+    a0, b0, _ = _agreement(base, warp_device, horizon_steps=10, seed=3)
+    a, b, _ = _agreement(problem, warp_device, horizon_steps=10, seed=3)
+    # The value adds a sizeable, state-dependent amount to each candidate's cost.
+    assert np.all(a - a0 > 1e-3 * a0)
+    np.testing.assert_allclose(b, a, rtol=2e-4)
+    np.testing.assert_allclose(b - b0, a - a0, rtol=2e-3)
+
+    rng = np.random.default_rng(0)
+    F = rng.normal(size=(2 * base.nv, 5))
+    form = QuadraticValue(base.qpos_ref, P=F @ F.T, name="form")
+    running = mpcbox.Problem(base.model, keyframe="stand", cost=Cost([form], []))
+    a, b, _ = _agreement(running, warp_device, horizon_steps=6, seed=4)
+    assert np.all(a > 0.0)
+    np.testing.assert_allclose(b, a, rtol=2e-4)
+
+
 def test_capped_euler_planning_model_stays_close_to_the_full_model(warp_device):
     """The humanoid's fast planning model (2 solver iterations, unrolled in the graph, Euler)
     predicts costs within a few percent of the full model and ranks candidates alike."""

@@ -136,7 +136,13 @@ class SamplingConfig:
             model at the reference to the terminal cost
             (:func:`~mpcbox.controllers.lqr.with_lqr_terminal_value`), so a short horizon
             still sees the cost-to-go; ``None`` (default) keeps the Problem's terminal cost.
-            CPU backend (the warp backend's costs have no such term).
+            Both backends (on the warp backend one launch per tick evaluates the dense form).
+            It suits a state that the LQR brings back quickly (the acrobot's upright hold);
+            on the humanoid stand, whose LQR leaves slow modes (closed-loop eigenvalues up to
+            0.9999 at 0.02 s), the value's largest eigenvalue, along the fall of the centre of
+            mass, is 430 times the running cost's largest weight, and in the real-time loop
+            MPPI stood 0/10 and CEM 2/10 in the hard scenario against 8/10 and 6/10 without it
+            (``benchmarks/results/stand_terminal_value_h100.json``).
         catch: ``"lqr"`` hands the control to the LQR of the planning model at the
             reference (with the task's ``"lqr"`` config when it has one) wherever the state
             is inside its estimated basin of attraction, in every rollout and in the closed

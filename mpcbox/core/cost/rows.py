@@ -2,8 +2,9 @@ r"""Elementary residual rows: the form of a cost term that the GPU cost kernels 
 
 A term with a row form (:meth:`~mpcbox.core.cost.CostTerm.rows`) is the sum of its rows'
 :math:`\tfrac12 w r^2`, each row reading one or two numbers of the state, the control or
-``sensordata``. The kinds below are the whole vocabulary of
-:mod:`mpcbox.controllers.sampling.backends.warp_costs`; the weight is always the last field.
+``sensordata`` (a :class:`QuadraticFormRow` reads the whole state). The kinds below are the
+whole vocabulary of :mod:`mpcbox.controllers.sampling.backends.warp_costs` and
+:mod:`~mpcbox.controllers.sampling.backends.warp_value`; the weight is always the last field.
 """
 
 from __future__ import annotations
@@ -100,8 +101,36 @@ class SensorRow(NamedTuple):
     weight: float
 
 
+class QuadraticFormRow(NamedTuple):
+    r""":math:`r = F^T dx`, a vector of residuals linear in the whole tangent-space state
+    deviation :math:`dx = (q \ominus q_{ref},\ v - v_{ref})` (the form of
+    :class:`~mpcbox.core.cost.QuadraticValue`, :math:`\tfrac12 w \|F^T dx\|^2`).
+
+    Attributes:
+        scalar_qpos, scalar_dof: ``qpos`` and dof addresses of the coordinates differenced as
+            plain numbers ``(n_s,)`` (:attr:`~mpcbox.core.tangent.TangentSpace.scalar_addresses`).
+        quat_qpos, quat_dof: Addresses of the quaternions ``(n_b,)``, differenced as rotation
+            vectors like :class:`QuaternionRow`.
+        qpos_ref: Reference positions ``(nq,)``.
+        qvel_ref: Reference velocities ``(nv,)``.
+        factor: ``F`` ``(2 nv, m)``.
+        weight: Weight ``w``.
+    """
+
+    scalar_qpos: np.ndarray
+    scalar_dof: np.ndarray
+    quat_qpos: np.ndarray
+    quat_dof: np.ndarray
+    qpos_ref: np.ndarray
+    qvel_ref: np.ndarray
+    factor: np.ndarray
+    weight: float
+
+
 #: One row of any kind.
-Row = PositionRow | QuaternionRow | VelocityRow | ControlRow | AngleRow | SensorRow
+Row = (
+    PositionRow | QuaternionRow | VelocityRow | ControlRow | AngleRow | SensorRow | QuadraticFormRow
+)
 
 #: The row kinds, in the order the GPU kernels store them.
 ROW_KINDS: tuple[type, ...] = (
@@ -111,4 +140,5 @@ ROW_KINDS: tuple[type, ...] = (
     ControlRow,
     AngleRow,
     SensorRow,
+    QuadraticFormRow,
 )

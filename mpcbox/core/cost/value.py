@@ -6,6 +6,7 @@ import mujoco
 import numpy as np
 
 from mpcbox.core.cost.base import CostTerm, Features, Jacobian
+from mpcbox.core.cost.rows import QuadraticFormRow, Row
 from mpcbox.core.tangent import TangentSpace
 from mpcbox.errors import CostDefinitionError
 from mpcbox.validation import as_array, checked_options, finite_array
@@ -71,6 +72,20 @@ class QuadraticValue(CostTerm):
         dq = self._tangent.difference(features.qpos, self.qpos_ref)
         dx = np.concatenate([dq, features.qvel - self.qvel_ref], axis=-1)
         return dx @ self._L
+
+    def rows(self) -> list[Row]:
+        """One :class:`~mpcbox.core.cost.rows.QuadraticFormRow` with the factor ``L``."""
+        assert self._tangent is not None and self.qvel_ref is not None, "bind() first"
+        return [
+            QuadraticFormRow(
+                *self._tangent.scalar_addresses,
+                *self._tangent.quaternion_addresses,
+                self.qpos_ref,
+                self.qvel_ref,
+                self._L,
+                float(np.asarray(self.weight).reshape(-1)[0]),
+            )
+        ]
 
     def jacobian(self, model: mujoco.MjModel, data: mujoco.MjData) -> Jacobian:
         nv = model.nv

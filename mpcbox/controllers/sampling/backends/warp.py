@@ -187,6 +187,7 @@ class WarpBackend(AsyncRolloutBackend):
     ) -> None:
         wp, mjw = _import_warp()
         from mpcbox.controllers.sampling.backends import warp_costs as wc
+        from mpcbox.controllers.sampling.backends.warp_value import device_forms
 
         self._wp, self._mjw, self._wc = wp, mjw, wc
         self.problem = problem
@@ -221,6 +222,8 @@ class WarpBackend(AsyncRolloutBackend):
             self.m = m
             self.running = wc.DeviceRows(self.running_rows, device, problem.nu)
             self.terminal = wc.DeviceRows(self.terminal_rows, device, problem.nu)
+            self.running_forms = device_forms(self.running_rows.forms, device)
+            self.terminal_forms = device_forms(self.terminal_rows.forms, device)
             self.weights = wp.array(self.weights_host, dtype=wp.float32)
             self.ctrl_low = wp.array(problem.ctrl_low.astype(np.float32), dtype=wp.float32)
             self.ctrl_high = wp.array(problem.ctrl_high.astype(np.float32), dtype=wp.float32)
@@ -360,6 +363,8 @@ class WarpBackend(AsyncRolloutBackend):
                 inputs=[t, per, 1, sensors if t > 0 else 0, *common],
                 outputs=[d.ctrl, self.cost, self.flags],
             )
+            for form in self.running_forms:
+                form.launch(nw, d.qpos, d.qvel, self.cost)
             mjw.step(m, d)
         if run.has_sensors:
             wp.launch(
@@ -380,6 +385,8 @@ class WarpBackend(AsyncRolloutBackend):
                 ],
                 outputs=[self.cost],
             )  # fmt: skip
+        for form in self.terminal_forms:
+            form.launch(nw, d.qpos, d.qvel, self.cost)
         wp.launch(
             wc.finalize_kernel,
             dim=nw,

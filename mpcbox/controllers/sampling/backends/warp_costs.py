@@ -28,7 +28,7 @@ import numpy as np
 import warp as wp
 
 from mpcbox.core.cost import CostTerm
-from mpcbox.core.cost.rows import ROW_KINDS
+from mpcbox.core.cost.rows import ROW_KINDS, QuadraticFormRow
 
 # Nothing here is differentiated, so no adjoint (backward) code is generated.
 wp.set_module_options({"enable_backward": False})
@@ -44,6 +44,8 @@ class RowTables(NamedTuple):
         u_idx, u_ref, u_w: Control rows.
         a_idx, a_ref, a_w: Wrapped-angle rows.
         s_a, s_b, s_c, s_w: Sensor rows.
+        forms: Quadratic-form rows (:class:`~mpcbox.core.cost.rows.QuadraticFormRow`), each
+            evaluated by its own launch (:mod:`.warp_value`).
     """
 
     q_idx: np.ndarray
@@ -65,6 +67,7 @@ class RowTables(NamedTuple):
     s_b: np.ndarray
     s_c: np.ndarray
     s_w: np.ndarray
+    forms: tuple = ()
 
     @property
     def has_sensors(self) -> bool:
@@ -85,7 +88,7 @@ def build_rows(terms: Sequence[CostTerm]) -> RowTables:
     for term in terms:
         for row in term.rows():
             groups[type(row)].append(tuple(row))
-    q, quat, v, u, a, s = (_nonzero(groups[kind]) for kind in ROW_KINDS)
+    q, quat, v, u, a, s, forms = (_nonzero(groups[kind]) for kind in ROW_KINDS)
     i32 = lambda rows, i: np.array([r[i] for r in rows], dtype=np.int32)  # noqa: E731
     f32 = lambda rows, i, *shape: np.array(  # noqa: E731
         [r[i] for r in rows], dtype=np.float32
@@ -97,6 +100,7 @@ def build_rows(terms: Sequence[CostTerm]) -> RowTables:
         i32(u, 0), f32(u, 1), f32(u, 2),
         i32(a, 0), f32(a, 1), f32(a, 2),
         i32(s, 0), i32(s, 1), f32(s, 2), f32(s, 3),
+        tuple(QuadraticFormRow(*f) for f in forms),
     )  # fmt: skip
 
 
@@ -147,7 +151,7 @@ class DeviceRows:
         )
         self.arrays = RowArrays()
         for field in RowTables._fields:
-            if field.startswith("u_"):  # dense, below
+            if field.startswith("u_") or field == "forms":  # dense, below; warp_value
                 continue
             arr = getattr(rows, field)
             if field == "quat_ref":
