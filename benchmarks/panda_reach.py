@@ -31,7 +31,7 @@ from mpcbox.sim.trajectory import jsonable
 from mpcbox.tasks.reach import ArmReach
 from mpcbox.tasks.reach_measures import arrival
 
-#: The nominal target offset from the hand's start position (40 cm).
+#: The default nominal target offset from the hand's start position (40 cm; ``--offset``).
 OFFSET = np.array([0.0, 0.3, -0.2646])
 TOLERANCE = 0.01
 
@@ -41,10 +41,12 @@ def build(seed: int, args: argparse.Namespace) -> ArmReach:
     rng = np.random.default_rng(seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MissingMeshWarning)
-        home = ArmReach(args.model, frame=args.frame, target=OFFSET, relative=True)
+        nominal = np.asarray(args.offset, dtype=float)
+        home = ArmReach(args.model, frame=args.frame, target=nominal, relative=True)
         start = home.start_qpos.copy()
-        start[:7] += rng.uniform(-args.posture_noise, args.posture_noise, 7)
-        offset = OFFSET + rng.uniform(-args.target_noise, args.target_noise, 3)
+        arm = min(7, home.nu)  # the arm's joints lead qpos on Menagerie arms
+        start[:arm] += rng.uniform(-args.posture_noise, args.posture_noise, arm)
+        offset = nominal + rng.uniform(-args.target_noise, args.target_noise, 3)
         return ArmReach(
             args.model,
             frame=args.frame,
@@ -101,7 +103,10 @@ def offline(problem: ArmReach, horizon_s: float, iterations: int) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", default="menagerie:franka_emika_panda")
-    parser.add_argument("--frame", default="hand")
+    parser.add_argument("--frame", default=None, help="default: picked from the model")
+    parser.add_argument(
+        "--offset", type=float, nargs=3, default=OFFSET.tolist(), help="nominal target offset (m)"
+    )
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--duration", type=float, default=2.0)
     parser.add_argument("--posture-noise", type=float, default=0.1)
@@ -130,11 +135,11 @@ def main() -> None:
 
     mpc_hits = [r["ilqr_mpc"]["time_to_1cm_s"] for r in rows]
     out = {
-        "task": "ArmReach 40 cm, " + args.model,
+        "task": f"ArmReach {np.linalg.norm(args.offset):.2f} m, " + args.model,
         "machine": "2-core sandbox CPU, shared",
         "python": platform.python_version(),
         "command": "python benchmarks/panda_reach.py " + " ".join(sys.argv[1:]),
-        "settings": vars(args) | {"tolerance_m": TOLERANCE, "offset_m": OFFSET.tolist()},
+        "settings": vars(args) | {"tolerance_m": TOLERANCE},
         "ilqr_config": {
             k: v for k, v in config_options(ArmReach.controller_configs["ilqr"]).items()
         },

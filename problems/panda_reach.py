@@ -11,7 +11,7 @@ avoidance, the control that holds it from the actuator model), then compares in 
 Needs an offline Menagerie copy (``MENAGERIE_ROOT``) or the ``mujoco_menagerie`` package for
 a Menagerie name; ``--model`` also takes an MJCF path.
 
-    python problems/panda_reach.py [--model franka_emika_panda] [--frame hand]
+    python problems/panda_reach.py [--model franka_emika_panda] [--frame FRAME]
         [--target 0 0.3 -0.2646] [--absolute] [--duration 2] [--skip mppi]
 """
 
@@ -27,6 +27,7 @@ import mpcbox
 from mpcbox.config import config_options
 from mpcbox.controllers.ilqr.controller import ILQR
 from mpcbox.core.menagerie import MissingMeshWarning, model_source
+from mpcbox.errors import SolverError
 from mpcbox.registry import make_controller
 from mpcbox.tasks.reach import ArmReach
 from mpcbox.tasks.reach_measures import arrival
@@ -68,7 +69,9 @@ def main(argv: list[str] | None = None) -> int:
     """Run the comparison (``argv`` defaults to the command line)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", default="franka_emika_panda")
-    parser.add_argument("--frame", default="hand")
+    parser.add_argument(
+        "--frame", default=None, help="end-effector site or body (default: picked from the model)"
+    )
     parser.add_argument("--target", type=float, nargs=3, default=[0.0, 0.3, -0.2646])
     parser.add_argument("--absolute", action="store_true", help="target in world coordinates")
     parser.add_argument("--duration", type=float, default=2.0)
@@ -79,15 +82,20 @@ def main(argv: list[str] | None = None) -> int:
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MissingMeshWarning)
-        problem = ArmReach(
-            model_source(args.model),
-            frame=args.frame,
-            target=np.array(args.target),
-            relative=not args.absolute,
-        )
+        try:
+            problem = ArmReach(
+                model_source(args.model),
+                frame=args.frame,
+                target=np.array(args.target),
+                relative=not args.absolute,
+            )
+        except SolverError as exc:
+            # The default target suits the Panda; another arm may need its own.
+            print(f"{exc}\nChoose another target with --target DX DY DZ.", file=sys.stderr)
+            return 2
     start = problem.reach_error(problem.initial_state())
     print(
-        f"{problem}: {args.frame!r} {100 * start:.1f} cm from the target, IK goal "
+        f"{problem}: {problem.frame!r} {100 * start:.1f} cm from the target, IK goal "
         f"{1e3 * problem.goal.position_error:.2f} mm from it"
         + (f"; welded free objects {list(problem.welded)}" if problem.welded else "")
     )

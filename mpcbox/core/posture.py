@@ -201,13 +201,42 @@ def _geom_label(model: mujoco.MjModel, geom: int) -> str:
     return name or f"geom {geom} of body {body or model.geom_bodyid[geom]}"
 
 
+#: Penetration (m) of the static world that makes a reach posture fail.
+_DEPTH = 1e-3
+
+
+def _touching(
+    model: mujoco.MjModel, qpos: np.ndarray, margin: float, static: bool
+) -> tuple[tuple[str, str], ...]:
+    """Geom pairs closer than ``-margin`` at ``qpos``: between moving bodies, or (``static``)
+    between a moving body and the world or a body welded to it."""
+    model = check_mjmodel(model)
+    qpos = finite_array("qpos", qpos, (model.nq,))
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_forward(model, data)
+    pairs = []
+    for i in range(data.ncon):
+        con = data.contact[i]
+        w1 = model.body_weldid[model.geom_bodyid[con.geom1]]
+        w2 = model.body_weldid[model.geom_bodyid[con.geom2]]
+        if (w1 == 0 and w2 == 0) or ((w1 == 0 or w2 == 0) != static) or con.dist > -margin:
+            continue
+        g1, g2 = (con.geom2, con.geom1) if w1 == 0 else (con.geom1, con.geom2)
+        pair = (_geom_label(model, g1), _geom_label(model, g2))
+        if pair not in pairs:
+            pairs.append(pair)
+    return tuple(pairs)
+
+
 def self_collisions(
     model: mujoco.MjModel, qpos: np.ndarray, *, margin: float = 0.0
 ) -> tuple[tuple[str, str], ...]:
     """The pairs of geoms of *different moving bodies* that touch or penetrate at ``qpos``.
 
     Contacts with the world body or a body welded to it (a floor, a table) are not
-    self-collisions and are left out; each pair is listed once.
+    self-collisions and are left out (:func:`environment_contacts` lists them); each pair is
+    listed once.
 
     Args:
         model: The model.
@@ -217,22 +246,23 @@ def self_collisions(
     Returns:
         ``(geom_a, geom_b)`` labels, one per touching pair.
     """
-    model = check_mjmodel(model)
-    qpos = finite_array("qpos", qpos, (model.nq,))
-    data = mujoco.MjData(model)
-    data.qpos[:] = qpos
-    mujoco.mj_forward(model, data)
-    pairs = []
-    for i in range(data.ncon):
-        con = data.contact[i]
-        b1, b2 = model.geom_bodyid[con.geom1], model.geom_bodyid[con.geom2]
-        static = model.body_weldid[b1] == 0 or model.body_weldid[b2] == 0
-        if static or con.dist > -margin:
-            continue
-        pair = (_geom_label(model, con.geom1), _geom_label(model, con.geom2))
-        if pair not in pairs:
-            pairs.append(pair)
-    return tuple(pairs)
+    return _touching(model, qpos, margin, static=False)
+
+
+def environment_contacts(
+    model: mujoco.MjModel, qpos: np.ndarray, *, margin: float = 0.0
+) -> tuple[tuple[str, str], ...]:
+    """The geoms of moving bodies that touch or penetrate the static world at ``qpos``.
+
+    Args:
+        model: The model.
+        qpos: The posture ``(nq,)``.
+        margin: Report pairs closer than this distance (m); 0 reports penetrations only.
+
+    Returns:
+        ``(moving geom, static geom)`` labels (a floor, a table), one per touching pair.
+    """
+    return _touching(model, qpos, margin, static=True)
 
 
 @checked_keywords
@@ -247,6 +277,7 @@ def reach_posture(
     iterations: int = 500,
     tolerance: float = 1e-4,
     solver: str = "daqp",
+    max_error: float | None = None,
 ) -> ReachPosture:
     """A posture that puts ``frame`` at ``position`` (and ``orientation``), free of collisions.
 
@@ -262,14 +293,20 @@ def reach_posture(
         position: Target position ``(3,)`` in the world frame (m).
         orientation: Target orientation as a unit quaternion ``(4,)`` ``[w, x, y, z]``, or
             ``None`` to leave the orientation free.
-        avoid_collisions: Keep geoms at least 5 mm apart while solving.
+        avoid_collisions: Keep geoms at least 5 mm apart while solving (pairs are watched
+            from 5 cm apart: an IK step can move a geom more than mink's default 1 cm, and
+            a KUKA iiwa's wrist went 7 mm into the floor), and reject a posture whose geoms
+            go deeper than 1 mm into the static world (a floor, a table) where they did not
+            touch it at ``qpos_init``.
         iterations: Maximum IK iterations.
         tolerance: Stop when the position error is below this (m) and the orientation error
             below ``10 * tolerance`` rad.
         solver: A QP solver name that qpsolvers knows.
+        max_error: Largest position error (m) accepted at the end; ``None``: any.
 
     Raises:
-        SolverError: If the final posture is in self-collision.
+        SolverError: If the frame ends farther than ``max_error`` from the target, or the
+            final posture is in self-collision or (``avoid_collisions``) in the environment.
     """
     import mink
 
@@ -301,7 +338,11 @@ def reach_posture(
     if avoid_collisions:
         colliding = np.flatnonzero(collision_geoms(model)).tolist()
         if colliding:
-            limits.append(mink.CollisionAvoidanceLimit(model, [(colliding, colliding)]))
+            limits.append(
+                mink.CollisionAvoidanceLimit(
+                    model, [(colliding, colliding)], collision_detection_distance=0.05
+                )
+            )
 
     def errors() -> tuple[float, float]:
         pose = config.get_transform_frame_to_world(name, kind)
@@ -321,6 +362,24 @@ def reach_posture(
             used = it + 1
             break
     qpos = config.q.copy()  # pos_err and rot_err hold its errors (iterations >= 1)
+    if max_error is not None and pos_err > max_error:
+        how = "collision-free " if avoid_collisions else ""
+        raise SolverError(
+            f"reach_posture: {frame!r} cannot reach {np.round(target_pos, 4).tolist()}: the "
+            f"closest {how}posture found in {used} IK iterations leaves it {pos_err:.3g} m "
+            f"away (max_error {max_error:g} m); the target may be out of reach or inside an "
+            "obstacle"
+        )
+    if avoid_collisions:
+        before = set(environment_contacts(model, qpos_init, margin=_DEPTH))
+        touching = [p for p in environment_contacts(model, qpos, margin=_DEPTH) if p not in before]
+        if touching:
+            raise SolverError(
+                f"reach_posture: the posture for {frame!r} at "
+                f"{np.round(target_pos, 4).tolist()} goes into the environment: "
+                + ", ".join(f"{a} into {b}" for a, b in touching)
+                + "; the target may lie inside or below an obstacle (a floor, a table)"
+            )
     collisions = self_collisions(model, qpos)
     if collisions:
         raise SolverError(

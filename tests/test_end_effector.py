@@ -1,0 +1,107 @@
+"""The default end effector of arm tasks, and reach targets the arm cannot take."""
+
+from __future__ import annotations
+
+import mujoco
+import pytest
+
+from mpcbox.core.end_effector import end_effector
+from mpcbox.core.posture import environment_contacts, reach_posture
+from mpcbox.errors import InvalidArgumentError, SolverError
+from mpcbox.tasks import scene_path
+from mpcbox.tasks.reach import ArmReach
+
+#: A two-link arm on a pedestal, its shoulder 0.2 m above a floor, a hand welded to its last
+#: link and a sliding finger on the hand; ``SITE`` is replaced by an optional flange site.
+ARM = """
+<mujoco>
+  <compiler angle="radian"/>
+  <worldbody>
+    <geom name="floor" type="plane" size="2 2 0.1"/>
+    <body name="base" pos="0 0 0.1">
+      <geom type="cylinder" size="0.05 0.05"/>
+      <body name="upper" pos="0 0 0.1">
+        <joint name="shoulder" axis="0 1 0" range="-3 3"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/>
+        <body name="lower" pos="0.3 0 0">
+          <joint name="elbow" axis="0 1 0" range="-3 3"/>
+          <geom type="capsule" fromto="0.04 0 0 0.25 0 0" size="0.025" mass="0.5"/>
+          SITE
+          <body name="hand" pos="0.3 0 0">
+            <geom type="box" size="0.02 0.03 0.02" mass="0.1"/>
+            <body name="finger" pos="0.03 0 0">
+              <joint name="slide" type="slide" axis="0 1 0" range="0 0.02"/>
+              <geom type="box" size="0.01 0.005 0.01" mass="0.01"/>
+            </body>
+          </body>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor joint="shoulder" gear="20" ctrlrange="-1 1"/>
+    <motor joint="elbow" gear="10" ctrlrange="-1 1"/>
+    <position joint="slide" kp="10" ctrlrange="0 0.02"/>
+  </actuator>
+  <keyframe>
+    <key name="home" qpos="-0.6 1.2 0.01" ctrl="0 0 0.01"/>
+  </keyframe>
+</mujoco>
+"""
+
+
+def arm(site: str = "") -> str:
+    return ARM.replace("SITE", site)
+
+
+def test_the_hand_welded_to_the_last_driven_link_is_the_tip():
+    """Not the finger (a slide joint), not the last link (the hand is welded to it)."""
+    assert end_effector(mujoco.MjModel.from_xml_string(arm())) == "hand"
+
+
+def test_an_attachment_site_wins():
+    site = '<site name="attachment_site" pos="0.28 0 0"/>'
+    assert end_effector(mujoco.MjModel.from_xml_string(arm(site))) == "attachment_site"
+
+
+def test_several_tips_are_listed_instead_of_guessed():
+    model = mujoco.MjModel.from_xml_path(str(scene_path("humanoid.xml")))
+    with pytest.raises(InvalidArgumentError, match=r"several arm tips.*frame="):
+        end_effector(model)
+    sites = '<site name="a/attachment_site"/><site name="b/attachment_site"/>'
+    with pytest.raises(InvalidArgumentError, match=r"several attachment sites"):
+        end_effector(mujoco.MjModel.from_xml_string(arm(sites)))
+
+
+def test_no_rotational_joint_is_a_named_error():
+    body = '<body><joint type="slide"/><geom size="0.1"/></body>'
+    xml = f"<mujoco><worldbody>{body}</worldbody></mujoco>"
+    with pytest.raises(InvalidArgumentError, match="no hinge or ball joint"):
+        end_effector(mujoco.MjModel.from_xml_string(xml))
+
+
+def test_arm_reach_picks_the_end_effector_and_reaches_a_free_target():
+    problem = ArmReach(arm(), target=[0.1, 0.0, 0.05], relative=True)
+    assert problem.frame == "hand"
+    assert problem.goal.position_error < 1e-3
+    assert not environment_contacts(problem.model, problem.qpos_ref)
+
+
+def test_a_target_below_the_floor_or_out_of_reach_is_refused():
+    """The IK used to push the arm into the floor and report the target as reached; the
+    reference then held the arm pressed into it. (mink does not watch the first link against
+    the floor: both hang from the world; the check after the IK does.)"""
+    model = mujoco.MjModel.from_xml_string(arm())
+    start = model.key_qpos[0]
+    below = [0.4, 0.0, -0.05]
+    with pytest.raises(SolverError, match=r"cannot reach \[0\.4, 0\.0, -0\.05\]"):
+        reach_posture(model, start, frame="hand", position=below, max_error=0.01)
+    with pytest.raises(SolverError, match=r"body hand into floor"):
+        reach_posture(model, start, frame="hand", position=below)
+    # Without collision avoidance the caller takes the posture as it is.
+    free = reach_posture(model, start, frame="hand", position=below, avoid_collisions=False)
+    assert environment_contacts(model, free.qpos)
+    with pytest.raises(SolverError, match=r"cannot reach \[2\.0, 0\.0, 0\.2\].* 1\.\d+ m away"):
+        reach_posture(model, start, frame="hand", position=[2.0, 0.0, 0.2], max_error=0.01)
+    with pytest.raises(SolverError, match="hand"):
+        ArmReach(arm(), target=[2.0, 0.0, 0.2])
