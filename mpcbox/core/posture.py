@@ -294,10 +294,12 @@ def reach_posture(
         orientation: Target orientation as a unit quaternion ``(4,)`` ``[w, x, y, z]``, or
             ``None`` to leave the orientation free.
         avoid_collisions: Keep geoms at least 5 mm apart while solving (pairs are watched
-            from 5 cm apart: an IK step can move a geom more than mink's default 1 cm, and
-            a KUKA iiwa's wrist went 7 mm into the floor), and reject a posture whose geoms
-            go deeper than 1 mm into the static world (a floor, a table) where they did not
-            touch it at ``qpos_init``.
+            from 5 cm apart, not mink's default 1 cm, which one IK step can jump), and reject
+            a posture whose geoms go deeper than 1 mm into the static world (a floor, a
+            table) where they did not touch it at ``qpos_init``. mink leaves out a link
+            whose parent is welded to the world against the world's geoms, so this check is
+            what catches such a link in the floor (a KUKA iiwa's wrist went 7 mm into the
+            floor for a target at floor level, and the goal was called reached).
         iterations: Maximum IK iterations.
         tolerance: Stop when the position error is below this (m) and the orientation error
             below ``10 * tolerance`` rad.
@@ -321,6 +323,8 @@ def reach_posture(
         quat = quat / norm
     positive_int("iterations", iterations)
     positive("tolerance", tolerance)
+    if max_error is not None:
+        positive("max_error", max_error)
     name, kind = _mink_frame(model, frame, "frame")
     config = mink.Configuration(model, q=qpos_init.copy())
     task = mink.FrameTask(
