@@ -7,7 +7,7 @@ import pytest
 
 from mpcbox.core.end_effector import end_effector
 from mpcbox.core.posture import environment_contacts, reach_posture
-from mpcbox.errors import InvalidArgumentError, SolverError
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError, SolverError
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.reach import ArmReach
 
@@ -71,6 +71,11 @@ def test_several_tips_are_listed_instead_of_guessed():
     sites = '<site name="a/attachment_site"/><site name="b/attachment_site"/>'
     with pytest.raises(InvalidArgumentError, match=r"several attachment sites"):
         end_effector(mujoco.MjModel.from_xml_string(arm(sites)))
+
+
+def test_not_a_compiled_model_is_a_named_error():
+    with pytest.raises(InvalidTypeError, match=r"model must be a compiled mujoco\.MjModel"):
+        end_effector("franka_emika_panda")
 
 
 def test_no_rotational_joint_is_a_named_error():

@@ -17,6 +17,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from mpcbox.core.model import check_mjmodel
 from mpcbox.errors import InvalidArgumentError
 
 #: Menagerie's name for the site on an arm's tool flange.
@@ -67,9 +68,11 @@ def end_effector(model: mujoco.MjModel) -> str:
         A site name (``attachment_site``) or a body name.
 
     Raises:
+        InvalidTypeError: If ``model`` is not a compiled ``mujoco.MjModel``.
         InvalidArgumentError: If the model has no rotational joint, or several arms (the
             message lists the candidates and asks for ``frame``).
     """
+    model = check_mjmodel(model)
     sites = [
         _name(model, mujoco.mjtObj.mjOBJ_SITE, s)
         for s in range(model.nsite)
