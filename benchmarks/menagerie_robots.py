@@ -65,6 +65,13 @@ def stand_task(robot: str, **kwargs):
         return task(f"menagerie:{robot}", feet=feet, threads=1, **kwargs)
 
 
+def chosen_robots(parser: argparse.ArgumentParser, args: argparse.Namespace) -> list[str]:
+    """The robots of ``--robots`` (comma-separated); a usage error without ``MENAGERIE_ROOT``."""
+    if not os.environ.get("MENAGERIE_ROOT"):
+        parser.error("set MENAGERIE_ROOT to an offline Menagerie copy")
+    return [r for r in args.robots.split(",") if r]
+
+
 def _error(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {str(exc)[:300]}"
 
@@ -162,9 +169,7 @@ def main() -> int:
     parser.add_argument("--label", default="after")
     parser.add_argument("--out", default=str(OUT))
     args = parser.parse_args()
-    if not os.environ.get("MENAGERIE_ROOT"):
-        parser.error("set MENAGERIE_ROOT to an offline Menagerie copy")
-    robots = [r for r in args.robots.split(",") if r]
+    robots = chosen_robots(parser, args)
     controllers = tuple(c for c in args.controllers.split(",") if c)
     jobs = [(r, args.seeds, args.duration, controllers, args.qp_time_limit) for r in robots]
     started = time.perf_counter()

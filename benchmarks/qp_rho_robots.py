@@ -14,13 +14,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
-from menagerie_robots import stand_task
+from menagerie_robots import chosen_robots, stand_task
 
 OUT = Path(__file__).parent / "results" / "qp_rho_robots.json"
 
@@ -94,10 +93,8 @@ def main() -> int:
     parser.add_argument("--duration", type=float, default=0.6)
     parser.add_argument("--out", default=str(OUT))
     args = parser.parse_args()
-    if not os.environ.get("MENAGERIE_ROOT"):
-        parser.error("set MENAGERIE_ROOT to an offline Menagerie copy")
     results = {}
-    for robot in [r for r in args.robots.split(",") if r]:
+    for robot in chosen_robots(parser, args):
         with tempfile.TemporaryDirectory() as tmp:
             run = export(robot, Path(tmp), args.duration)
             results[robot] = {"closed_loop_failure": run["failure"]}

@@ -18,11 +18,10 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
-import os
 from pathlib import Path
 
 import numpy as np
-from menagerie_robots import stand_task
+from menagerie_robots import chosen_robots, stand_task
 
 OUT = Path(__file__).parent / "results" / "qp_truncation_quality.json"
 BINS = (0.0, 1e-4, 1e-3, 1e-2, 1e-1, np.inf)
@@ -87,10 +86,8 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default=str(OUT))
     args = parser.parse_args()
-    if not os.environ.get("MENAGERIE_ROOT"):
-        parser.error("set MENAGERIE_ROOT to an offline Menagerie copy")
     results = {}
-    for robot in [r for r in args.robots.split(",") if r]:
+    for robot in chosen_robots(parser, args):
         results[robot] = run(robot, args.duration, args.seed)
         print(robot, json.dumps(results[robot]), flush=True)
     out = {

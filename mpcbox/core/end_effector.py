@@ -17,7 +17,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from mpcbox.core.model import check_mjmodel
+from mpcbox.core.joint_limits import driven_joints
+from mpcbox.core.model import check_mjmodel, names
 from mpcbox.errors import InvalidArgumentError
 
 #: Menagerie's name for the site on an arm's tool flange.
@@ -26,8 +27,8 @@ ATTACHMENT_SITE = "attachment_site"
 _ROTATIONAL = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_BALL))
 
 
-def _name(model: mujoco.MjModel, kind: mujoco.mjtObj, index: int) -> str:
-    return mujoco.mj_id2name(model, kind, index) or f"#{index}"
+def _body_name(model: mujoco.MjModel, body: int) -> str:
+    return model.body(body).name or f"body {body}"
 
 
 def _depths(model: mujoco.MjModel) -> np.ndarray:
@@ -39,11 +40,7 @@ def _depths(model: mujoco.MjModel) -> np.ndarray:
 
 def _jointed_bodies(model: mujoco.MjModel) -> set[int]:
     """Bodies with a rotational joint an actuator drives (else with any rotational joint)."""
-    driven = {
-        int(model.actuator_trnid[a, 0])
-        for a in range(model.nu)
-        if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
-    }
+    driven = driven_joints(model)
     rotational = [j for j in range(model.njnt) if int(model.jnt_type[j]) in _ROTATIONAL]
     chosen = [j for j in rotational if j in driven] or rotational
     return {int(model.jnt_bodyid[j]) for j in chosen}
@@ -73,11 +70,7 @@ def end_effector(model: mujoco.MjModel) -> str:
             message lists the candidates and asks for ``frame``).
     """
     model = check_mjmodel(model)
-    sites = [
-        _name(model, mujoco.mjtObj.mjOBJ_SITE, s)
-        for s in range(model.nsite)
-        if _name(model, mujoco.mjtObj.mjOBJ_SITE, s).endswith(ATTACHMENT_SITE)
-    ]
+    sites = [s for s in names(model, "site") if s.endswith(ATTACHMENT_SITE)]
     if len(sites) == 1:
         return sites[0]
     if len(sites) > 1:
@@ -95,11 +88,12 @@ def end_effector(model: mujoco.MjModel) -> str:
     deepest = max(depth[b] for b in bodies)
     tips = sorted(b for b in bodies if depth[b] == deepest)
     if len(tips) > 1:
-        names = [_name(model, mujoco.mjtObj.mjOBJ_BODY, _tip(model, b)) for b in tips]
+        candidates = [_body_name(model, _tip(model, b)) for b in tips]
         raise InvalidArgumentError(
-            f"frame: the model has several arm tips {names}; name the end effector with frame=..."
+            f"frame: the model has several arm tips {candidates}; name the end effector "
+            "with frame=..."
         )
-    return _name(model, mujoco.mjtObj.mjOBJ_BODY, _tip(model, tips[0]))
+    return _body_name(model, _tip(model, tips[0]))
 
 
 __all__ = ["ATTACHMENT_SITE", "end_effector"]

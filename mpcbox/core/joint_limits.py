@@ -115,11 +115,7 @@ def movable_joints(model: mujoco.MjModel) -> list[int]:
     A passive joint resting on its limit (a gripper's finger, a coupled linkage) is held
     there by the limit; moved inside, it would hang free, a mode no control reaches.
     """
-    driven = {
-        int(model.actuator_trnid[a, 0])
-        for a in range(model.nu)
-        if int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT)
-    }
+    driven = driven_joints(model)
     coupled: set[int] = set()
     for e in range(model.neq):
         if int(model.eq_type[e]) == int(mujoco.mjtEq.mjEQ_JOINT):
@@ -132,6 +128,15 @@ def movable_joints(model: mujoco.MjModel) -> list[int]:
         and j in driven
         and j not in coupled
     ]
+
+
+def driven_joints(model: mujoco.MjModel) -> set[int]:
+    """Ids of the joints an actuator drives directly (joint transmission)."""
+    return {
+        int(model.actuator_trnid[a, 0])
+        for a in range(model.nu)
+        if int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT)
+    }
 
 
 def describe_moves(moves: list[LimitMove], limit: int = 4) -> str:

@@ -21,6 +21,14 @@ from mpcbox.core.cost.rows import QuadraticFormRow
 wp.set_module_options({"enable_backward": False})
 
 
+def _ints(values: np.ndarray, device: str) -> wp.array:
+    return wp.array(np.asarray(values, dtype=np.int32), dtype=wp.int32, device=device)
+
+
+def _floats(values: np.ndarray, device: str) -> wp.array:
+    return wp.array(np.ascontiguousarray(values, dtype=np.float32), dtype=wp.float32, device=device)
+
+
 class DeviceForm:
     """One quadratic-form row on a Warp device.
 
@@ -29,14 +37,14 @@ class DeviceForm:
     """
 
     def __init__(self, form: QuadraticFormRow, device: str) -> None:
-        i32 = lambda a: wp.array(np.asarray(a, dtype=np.int32), dtype=wp.int32, device=device)  # noqa: E731
-        f32 = lambda a: wp.array(np.asarray(a, dtype=np.float32), dtype=wp.float32, device=device)  # noqa: E731
-        factor = np.ascontiguousarray(form.factor, dtype=np.float32)
-        self.columns = int(factor.shape[1])
-        self.scalar_qpos, self.scalar_dof = i32(form.scalar_qpos), i32(form.scalar_dof)
-        self.quat_qpos, self.quat_dof = i32(form.quat_qpos), i32(form.quat_dof)
-        self.qpos_ref, self.qvel_ref = f32(form.qpos_ref), f32(form.qvel_ref)
-        self.factor = wp.array(factor, dtype=wp.float32, device=device)
+        self.columns = int(form.factor.shape[1])
+        self.scalar_qpos = _ints(form.scalar_qpos, device)
+        self.scalar_dof = _ints(form.scalar_dof, device)
+        self.quat_qpos = _ints(form.quat_qpos, device)
+        self.quat_dof = _ints(form.quat_dof, device)
+        self.qpos_ref = _floats(form.qpos_ref, device)
+        self.qvel_ref = _floats(form.qvel_ref, device)
+        self.factor = _floats(form.factor, device)
         self.weight = float(form.weight)
 
     def launch(self, nworld: int, qpos: wp.array, qvel: wp.array, cost: wp.array) -> None:
