@@ -165,6 +165,8 @@ class Problem:
         self.planning_model = plannable(pm, type(self).__name__, boolean("plan_rk4", plan_rk4))
         #: The simulation integrator that planning replaced (``"RK4"``), else ``None``.
         self.replaced_integrator = None if self.planning_model is pm else "RK4"
+        #: How the planning model differs from the simulated one, besides the integrator.
+        self.planning_changes: tuple[str, ...] = ()
         self.cost.bind(self.planning_model)
         self.ctrl_low, self.ctrl_high = inputs.ctrl_limits(pm)  # same in the copy
         self.dynamics = Dynamics(self.planning_model, self.threads)
@@ -415,29 +417,17 @@ class Problem:
         return None
 
     def measures(self) -> Sequence[Any]:
-        """The task's own measures, sampled at every step of a closed-loop run.
+        """The task's own :class:`mpcbox.sim.measures.Measure` items (distinct names).
 
         :func:`mpcbox.simulate` samples each one after every step and summarizes it in
-        :attr:`Metrics.measures <mpcbox.Metrics>`; comparison tables show a column per
-        summary. The base class declares none; the humanoid tasks report the center of mass
-        over the support and the torso tilt (:mod:`mpcbox.tasks.legged.measures`).
-
-        Returns:
-            A sequence of :class:`mpcbox.sim.measures.Measure` with distinct names.
+        :attr:`Metrics.measures <mpcbox.Metrics>`. The base class declares none; the legged
+        tasks report the center of mass over the support and the root's tilt.
         """
         return ()
 
     def noise(self, scale: float = 1.0) -> Any:
-        """The task's actuator-noise model at ``scale`` times its nominal level.
-
-        Scenarios of :func:`mpcbox.compare` that ask for noise without giving one use it.
-        The base class has none.
-
-        Args:
-            scale: Multiplier on the nominal standard deviations.
-
-        Returns:
-            A :class:`mpcbox.ActuatorNoise`.
+        """The task's :class:`mpcbox.ActuatorNoise` at ``scale`` times its nominal level,
+        used by scenarios of :func:`mpcbox.compare` that ask for noise without giving one.
 
         Raises:
             InvalidArgumentError: Always, in the base class: the task has no noise model.
@@ -486,15 +476,24 @@ class Problem:
         clone.dynamics = Dynamics(self.planning_model, self.threads)
         return clone
 
+    def replace_planning_model(self, model: mujoco.MjModel, change: str) -> None:
+        """Plan on ``model`` (the planning model's sizes and sensors) from now on, e.g. on
+        :func:`~mpcbox.core.sole_boxes.box_soles`; ``change`` says how, in the repr."""
+        self.planning_model = model
+        self.cost.bind(model)
+        self.dynamics.close()
+        self.dynamics = Dynamics(model, self.threads)
+        self.planning_changes = (*self.planning_changes, string("change", change))
+
     def close(self) -> None:
         """Shut down the thread pool."""
         self.dynamics.close()
 
     def __repr__(self) -> str:
-        replaced = ""
+        planning = "".join(f", planning: {c}" for c in self.planning_changes)
         if self.replaced_integrator is not None:
-            replaced = f", planning_integrator='implicitfast' (model: {self.replaced_integrator})"
+            planning = f", planning_integrator='implicitfast' (model: RK4){planning}"
         return (
             f"{type(self).__name__}(name={self.name!r}, nq={self.nq}, nv={self.nv}, nu={self.nu}, "
-            f"dt_sim={self.model.opt.timestep}, dt_plan={self.dt}{replaced})"
+            f"dt_sim={self.model.opt.timestep}, dt_plan={self.dt}{planning})"
         )

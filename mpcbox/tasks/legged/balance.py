@@ -27,6 +27,7 @@ from mpcbox.core.model import (
 )
 from mpcbox.core.problem import Problem
 from mpcbox.core.root_support import ROOT_ADJUSTMENTS
+from mpcbox.core.sole_boxes import box_soles
 from mpcbox.errors import InvalidArgumentError, UnknownNameError
 from mpcbox.sim.disturbances import ActuatorNoise
 from mpcbox.sim.effort_noise import effort_noise
@@ -48,6 +49,8 @@ from mpcbox.validation import (
 FEET_CENTER = "feet_center"
 #: Where the center of mass is kept (see :class:`LeggedBalance`).
 SUPPORTS: tuple[str, ...] = ("center", "feet")
+#: How flat mesh soles are planned on (``mesh_soles``).
+MESH_SOLES: tuple[str, ...] = ("box", "mesh")
 
 
 def _root_body(model: mujoco.MjModel, root: str | None) -> int:
@@ -162,6 +165,11 @@ class LeggedBalance(Problem):
         recovery_tilt: The tilt measure also reports the recovery time (its
             ``"settle_time"``): when the root's tilt is back within this many degrees of its
             reference tilt for good. ``None`` leaves it out.
+        mesh_soles: ``"box"`` plans (and linearizes) on a copy of the model where each foot's
+            flat mesh sole resting on the floor is the box spanning its lowest part
+            (:func:`~mpcbox.core.sole_boxes.box_soles`; MuJoCo's contact set on a flat mesh
+            jumps with tilts of 1e-13 rad); the simulation keeps the mesh. ``"mesh"`` plans
+            on the mesh.
         root_adjust: How the reference posture is put on the floor
             (:func:`~mpcbox.find_equilibrium`): ``"pose"`` moves the root's height and tilts
             it until the contacts carry the weight and balance its moments; ``"height"``
@@ -249,9 +257,11 @@ class LeggedBalance(Problem):
         noise_torque: float | np.ndarray | None = None,
         recovery_tilt: float | None = 2.0,
         root_adjust: str = "pose",
+        mesh_soles: str = "box",
         **kwargs: Any,
     ) -> None:
         self.root_adjust = one_of("root_adjust", root_adjust, ROOT_ADJUSTMENTS)
+        self.mesh_soles = one_of("mesh_soles", mesh_soles, MESH_SOLES)
         self.support = one_of("support", support, SUPPORTS)
         self.ctrl_units = one_of("ctrl_units", ctrl_units, UNITS)
         self.fall_fraction = positive("fall_fraction", fall_fraction)
@@ -288,6 +298,11 @@ class LeggedBalance(Problem):
             self.contacts = (contacts,) if isinstance(contacts, str) else tuple(contacts)
         self.support_points = self._add_support(spec, base, qpos)
         super().__init__(spec, keyframe=key, **kwargs)
+        if self.mesh_soles == "box":
+            bodies = sorted({foot.body for foot in self.feet})
+            boxed = box_soles(self.planning_model, self.qpos_ref, bodies)
+            if boxed.geoms:
+                self.replace_planning_model(boxed.model, f"box soles {list(boxed.geoms)}")
         if contacts is not None:  # QP-MPC reads them later: check the names now
             try:
                 contact_points(self.model, self.contacts, self.qpos_ref)
