@@ -15,6 +15,7 @@ Examples::
     python problems/g1_balance.py
     python problems/g1_balance.py --stance one --controllers lqr,qp
     python problems/g1_balance.py --controllers lqr --seeds 5 --duration 10
+    python problems/g1_balance.py --model booster_t1  # feet found from the model
     python problems/g1_balance.py --model path/to/biped.xml --feet left_foot,right_foot
 """
 
@@ -41,7 +42,9 @@ def main(argv: list[str] | None = None) -> int:
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     parser.add_argument("--model", default="unitree_g1", help="Menagerie name or MJCF path")
-    parser.add_argument("--feet", default="", help="comma-separated left,right feet")
+    parser.add_argument(
+        "--feet", default="", help="comma-separated left,right feet (default: known or found)"
+    )
     parser.add_argument(
         "--stance", default="two", choices=sorted(STANCES), help="'one' stands on the left foot"
     )

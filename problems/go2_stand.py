@@ -1,9 +1,11 @@
 """Unitree's Go2 standing: LQR against QP-MPC with four friction-cone feet, under noise and pushes.
 
 The robot is MuJoCo Menagerie's Go2 (12 torque motors, keyframe ``home``, foot geoms FR, FL,
-RR, RL) unless ``--model`` names another Menagerie robot or an MJCF path (``--feet`` then
-names its four feet, unless :class:`~mpcbox.tasks.legged.quadruped.QuadrupedStand` knows
-them: Go1, Go2, A1, ANYmal C). ``problems/go1_stand.py`` is this script on the Go1.
+RR, RL) unless ``--model`` names another Menagerie robot or an MJCF path. Its four feet are
+those :class:`~mpcbox.tasks.legged.quadruped.QuadrupedStand` knows (Go1, Go2, A1, ANYmal C),
+else the lowest body of each leg in the keyframe
+(:func:`~mpcbox.tasks.legged.ground_feet.ground_feet`), else ``--feet`` names them.
+``problems/go1_stand.py`` is this script on the Go1.
 
 The task is :class:`~mpcbox.tasks.legged.quadruped.QuadrupedStand`: the robot's own
 keyframe with the root height adjusted until the feet carry the weight, the holding control
@@ -20,6 +22,7 @@ Examples::
     python problems/go2_stand.py
     python problems/go2_stand.py --model unitree_go1 --seeds 3
     python problems/go2_stand.py --model anybotics_anymal_c --push 120
+    python problems/go2_stand.py --model anybotics_anymal_b  # feet found from the model
     python problems/go2_stand.py --model path/to/robot.xml --feet FR,FL,RR,RL
 """
 
@@ -45,7 +48,7 @@ def main(
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     parser.add_argument("--model", default=default_model, help="Menagerie name or MJCF path")
-    parser.add_argument("--feet", default="", help="comma-separated feet (unknown robots)")
+    parser.add_argument("--feet", default="", help="comma-separated feet (default: known or found)")
     parser.add_argument("--controllers", default="lqr,qp", help="comma-separated controllers")
     parser.add_argument("--seeds", type=int, default=2, help="seeds per scenario")
     parser.add_argument("--duration", type=float, default=5.0, help="seconds per run")

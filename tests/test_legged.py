@@ -377,11 +377,13 @@ def test_g1_one_foot_stance_is_collision_free_and_lqr_stands_on_it():
     problem.close()
 
 
-def test_biped_stand_names_the_feet_it_needs():
+def test_biped_stand_asks_for_the_feet_it_cannot_find():
+    """Standing on one leg in the keyframe, the humanoid shows one foot on the ground: the
+    error lists what it found and asks for the feet."""
     from mpcbox.tasks.legged.biped import BipedStand
 
-    with pytest.raises(InvalidArgumentError, match="feet"):
-        BipedStand(str(scene_path("humanoid.xml")))
+    with pytest.raises(InvalidArgumentError, match=r"2 feet.*1 leg\(s\).*name the feet"):
+        BipedStand(str(scene_path("humanoid.xml")), keyframe="stand_on_left_leg")
 
 
 def test_balance_suite_pushes_the_root_with_a_fraction_of_the_weight(quad) -> None:

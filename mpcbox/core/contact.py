@@ -104,7 +104,7 @@ def _sole(points: np.ndarray, rot: np.ndarray, band: float) -> list[np.ndarray]:
     return [low[i] for i in picked]
 
 
-def _geom_points(model: mujoco.MjModel, data: mujoco.MjData, gid: int) -> list[np.ndarray]:
+def geom_points(model: mujoco.MjModel, data: mujoco.MjData, gid: int) -> list[np.ndarray]:
     """World points at the bottom of a geom: capsule ends, sphere and ellipsoid bottoms, the
     corners of a box's, cylinder's or mesh's lowest part."""
     down = np.array([0.0, 0.0, -1.0])
@@ -220,7 +220,7 @@ def contact_points(
         hit = next((k for k, i in found.items() if i >= 0), None)
         if hit == "geom":
             gid = found["geom"]
-            for p in _geom_points(model, data, gid):
+            for p in geom_points(model, data, gid):
                 add(int(model.geom_bodyid[gid]), p, name)
         elif hit == "body":
             bid = found["body"]
@@ -238,7 +238,7 @@ def contact_points(
                     "sphere, ellipsoid, box, cylinder or mesh)"
                 )
             for g in geoms:
-                for p in _geom_points(model, data, g):
+                for p in geom_points(model, data, g):
                     add(bid, p, name)
         elif hit == "site":
             sid = found["site"]

@@ -15,6 +15,7 @@ from mpcbox.core.posture import StancePosture, stance_posture
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.tasks.legged.balance import LeggedBalance
 from mpcbox.tasks.legged.feet import find_feet
+from mpcbox.tasks.legged.ground_feet import model_feet
 from mpcbox.validation import one_of, positive
 
 #: The (left, right) feet of Menagerie bipeds, by robot name (``"menagerie:NAME"``). The
@@ -44,7 +45,8 @@ class BipedStand(LeggedBalance):
     :class:`~mpcbox.tasks.legged.balance.LeggedBalance` with its robot-independent defaults
     (cost weights in fractions of each actuator's range, the noise recipe of 5 % of each
     range, the fall height from the keyframe) and the feet of a known Menagerie robot
-    (:data:`MENAGERIE_BIPED_FEET`) filled in. Any other biped works with its ``feet`` named.
+    (:data:`MENAGERIE_BIPED_FEET`) filled in. On any other biped the feet are found
+    (:func:`~mpcbox.tasks.legged.ground_feet.ground_feet`) or named.
 
     On one foot (``stance="left"`` or ``"right"``) the reference posture comes from
     inverse kinematics (:func:`~mpcbox.core.posture.stance_posture`): from the keyframe, the
@@ -58,13 +60,14 @@ class BipedStand(LeggedBalance):
         model: The robot (default ``"menagerie:unitree_g1"``).
         stance: ``"two"``, or the stance foot ``"left"`` or ``"right"``.
         feet: Its (left, right) feet: site, body or geom names (default: from
-            :data:`MENAGERIE_BIPED_FEET`).
+            :data:`MENAGERIE_BIPED_FEET`, else the lowest bodies of its two legs in the
+            keyframe, :func:`~mpcbox.tasks.legged.ground_feet.ground_feet`).
         lift: Height the swing foot is lifted on one foot (m).
         **kwargs: Passed to :class:`~mpcbox.tasks.legged.balance.LeggedBalance`.
 
     Raises:
-        InvalidArgumentError: If ``feet`` is omitted for a robot not in
-            :data:`MENAGERIE_BIPED_FEET`, or does not name two feet.
+        InvalidArgumentError: If ``feet`` does not name two feet, or is omitted and the
+            bodies touching the ground do not form two legs (the message lists them).
         SolverError: On one foot, if inverse kinematics cannot put the center of mass over
             the stance foot or ends in self-collision.
     """
@@ -126,11 +129,8 @@ class BipedStand(LeggedBalance):
         if feet is None:
             feet = menagerie_biped_feet(model)
         if feet is None:
-            raise InvalidArgumentError(
-                "feet: name the (left, right) feet (sites, bodies or geoms) of this model; "
-                "they are known only for "
-                + ", ".join(f"'menagerie:{n}'" for n in MENAGERIE_BIPED_FEET)
-            )
+            key, qpos = kwargs.get("keyframe"), kwargs.get("qpos_ref")
+            feet = model_feet(model, 2, keyframe=key, qpos_ref=qpos)
         if isinstance(feet, str) or len(feet) != 2:
             raise InvalidArgumentError(f"feet must name the (left, right) feet, got {feet!r}")
         self.both_feet = tuple(feet)

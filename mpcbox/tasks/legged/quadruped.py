@@ -11,8 +11,9 @@ from typing import Any
 import mujoco
 
 from mpcbox.core.model import ModelSource
-from mpcbox.errors import InvalidArgumentError, ModelNotFoundError
+from mpcbox.errors import ModelNotFoundError
 from mpcbox.tasks.legged.balance import LeggedBalance
+from mpcbox.tasks.legged.ground_feet import model_feet
 
 #: The four feet of Menagerie quadrupeds, by robot name (``"menagerie:NAME"``). The Go1 has
 #: a site and a geom called ``FR``; its sphere geoms are the feet. The A1's and ANYmal C's
@@ -76,13 +77,15 @@ class QuadrupedStand(LeggedBalance):
     """A quadruped standing on its four feet; by default Unitree's Go1 from MuJoCo Menagerie.
 
     :class:`~mpcbox.tasks.legged.balance.LeggedBalance` with its defaults, and the feet of
-    a known Menagerie robot (:data:`MENAGERIE_FEET`) filled in. Any other quadruped works
-    with its ``feet`` named. The Menagerie robots need ``pip install "mpcbox[menagerie]"``
-    (or ``MENAGERIE_ROOT`` pointing at an offline copy).
+    a known Menagerie robot (:data:`MENAGERIE_FEET`) filled in. On any other quadruped the
+    feet are found (:func:`~mpcbox.tasks.legged.ground_feet.ground_feet`) or named. The
+    Menagerie robots need ``pip install "mpcbox[menagerie]"`` (or ``MENAGERIE_ROOT``
+    pointing at an offline copy).
 
     Args:
         model: The robot (default ``"menagerie:unitree_go1"``).
-        feet: Its feet (default: from :data:`MENAGERIE_FEET`).
+        feet: Its feet (default: from :data:`MENAGERIE_FEET`, else the lowest bodies of its
+            four legs in the keyframe, :func:`~mpcbox.tasks.legged.ground_feet.ground_feet`).
         **kwargs: Passed to :class:`~mpcbox.tasks.legged.balance.LeggedBalance`.
 
     QP-MPC runs with :class:`~mpcbox.tasks.legged.balance.LeggedBalance`'s settings: OSQP
@@ -91,8 +94,8 @@ class QuadrupedStand(LeggedBalance):
     driven by torque alone (the Go2).
 
     Raises:
-        InvalidArgumentError: If ``feet`` is omitted for a robot not in
-            :data:`MENAGERIE_FEET`.
+        InvalidArgumentError: If ``feet`` is omitted and the bodies touching the ground do
+            not form four legs (the message lists them).
     """
 
     name = "quadruped_stand"
@@ -107,8 +110,6 @@ class QuadrupedStand(LeggedBalance):
         if feet is None:
             feet = menagerie_feet(model)
         if feet is None:
-            raise InvalidArgumentError(
-                "feet: name the four feet (sites, bodies or geoms) of this model; they are "
-                "known only for " + ", ".join(f"'menagerie:{n}'" for n in MENAGERIE_FEET)
-            )
+            key, qpos = kwargs.get("keyframe"), kwargs.get("qpos_ref")
+            feet = model_feet(model, 4, keyframe=key, qpos_ref=qpos)
         super().__init__(model, feet=feet, **kwargs)
