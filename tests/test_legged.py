@@ -18,7 +18,7 @@ import pytest
 import mpcbox
 from mpcbox.core.actuation import actuator_moment
 from mpcbox.core.actuator_scales import actuator_scales, to_control
-from mpcbox.core.posture import stance_posture
+from mpcbox.core.posture import self_collisions, stance_posture
 from mpcbox.errors import InvalidArgumentError, PostureWarning, SolverError, UnknownNameError
 from mpcbox.sim.effort_noise import effort_noise
 from mpcbox.tasks import scene_path
@@ -219,12 +219,34 @@ def test_published_humanoid_recipe_is_a_fraction_of_range_special_case() -> None
 
 
 # ---------------------------------------------------------------- postures
-def test_stance_posture_reports_self_collision() -> None:
+def _hand_in_head(locked: bool) -> tuple[mujoco.MjModel, np.ndarray]:
+    """The humanoid with its right hand in its head; ``locked``: the arm's joints limited to
+    within 1 mrad of that posture, so no IK can take the hand out."""
     model = mujoco.MjModel.from_xml_path(str(scene_path("humanoid.xml")))
     start = model.key_qpos[model.key("stand").id].copy()
-    for joint, value in (("shoulder1_right", -0.254), ("shoulder2_right", 0.768)):
-        start[model.jnt_qposadr[model.joint(joint).id]] = value
-    start[model.jnt_qposadr[model.joint("elbow_right").id]] = 0.712  # hand in the head
+    pose = (("shoulder1_right", -0.254), ("shoulder2_right", 0.768), ("elbow_right", 0.712))
+    for joint, value in pose:
+        j = model.joint(joint).id
+        start[model.jnt_qposadr[j]] = value
+        if locked:
+            model.jnt_limited[j] = 1
+            model.jnt_range[j] = [value - 1e-3, value + 1e-3]
+    return model, start
+
+
+def test_stance_posture_takes_a_hand_out_of_the_head_when_it_can() -> None:
+    """A posture in self-collision is solved again keeping the robot's geoms apart."""
+    model, start = _hand_in_head(locked=False)
+    assert self_collisions(model, start)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        posture = stance_posture(model, start, stance="foot_right", swing="foot_left")
+    assert posture.collisions == () and self_collisions(model, posture.qpos) == ()
+    assert posture.com_error < 1e-3
+
+
+def test_stance_posture_reports_self_collision() -> None:
+    model, start = _hand_in_head(locked=True)
     kw = dict(stance="foot_right", swing="foot_left")
     with pytest.warns(PostureWarning, match="self-collision.*head"):
         posture = stance_posture(model, start, **kw)
@@ -234,7 +256,8 @@ def test_stance_posture_reports_self_collision() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert stance_posture(model, start, on_collision="ignore", **kw).collisions
-        free = stance_posture(model, model.key_qpos[model.key("stand").id], **kw)
+        plain = mujoco.MjModel.from_xml_path(str(scene_path("humanoid.xml")))
+        free = stance_posture(plain, plain.key_qpos[plain.key("stand").id], **kw)
     assert free.collisions == ()
 
 

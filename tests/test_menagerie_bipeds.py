@@ -82,3 +82,27 @@ def test_adam_lite_elbows_leave_their_limits_and_the_qp_is_well_posed():
     assert np.max(np.abs(np.linalg.eigvals(lin.Ah))) < 1.1
     assert np.max(np.abs(lin.Bc)) < 1e4
     problem.close()
+
+
+def test_booster_t1_one_foot_stance_keeps_its_hand_out_of_its_hip():
+    """The plain IK step took the T1's right hand 1.3 cm into its right hip; the retry with
+    mink's collision-avoidance limit and slow joints ends collision-free, and the posture's
+    remaining problem, a hip-roll motor too weak to hold it, is named."""
+    from mpcbox.core import menagerie
+    from mpcbox.core.posture import self_collisions
+    from mpcbox.errors import EquilibriumWarning
+    from mpcbox.tasks.legged.biped import BipedStand
+
+    if not (os.environ.get("MENAGERIE_ROOT") and menagerie.available("booster_t1", None)):
+        pytest.skip("no offline Menagerie copy with booster_t1 (set MENAGERIE_ROOT)")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        problem = BipedStand("menagerie:booster_t1", stance="left", threads=1)
+    assert problem.posture.collisions == ()
+    assert self_collisions(problem.model, problem.posture.qpos) == ()
+    assert problem.posture.com_error < 1e-3
+    assert any(
+        issubclass(w.category, EquilibriumWarning) and "Left_Hip_Roll" in str(w.message)
+        for w in caught
+    )
+    problem.close()
