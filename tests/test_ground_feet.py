@@ -123,3 +123,15 @@ def test_menagerie_feet_match_those_named_by_hand(robot):
         assert got == expected  # (left, right)
     else:
         assert sorted(got) == sorted(expected)
+
+
+def test_bad_inputs_are_named():
+    from mpcbox.errors import ShapeError, UnknownNameError
+
+    model = _humanoid()
+    with pytest.raises(ShapeError, match="qpos"):
+        ground_feet(model, model.key_qpos[0][:-1], 2)
+    with pytest.raises(UnknownNameError, match="root"):
+        ground_feet(model, model.key_qpos[0], 2, root="pelvis_nope")
+    with pytest.raises(InvalidArgumentError, match="tolerance"):
+        ground_feet(model, model.key_qpos[0], 2, tolerance=-1.0)

@@ -253,3 +253,19 @@ def test_legged_balance_plans_on_box_soles_and_says_so():
     assert as_given.planning_model.geom_type[sole] == mujoco.mjtGeom.mjGEOM_MESH
     with pytest.raises(InvalidArgumentError, match="mesh_soles"):
         LeggedBalance(xml, feet=["body:foot"], threads=1, mesh_soles="boxes")
+
+
+def test_bad_inputs_are_named():
+    from mpcbox.errors import ShapeError, UnknownNameError
+
+    model = _model()
+    qpos = _resting_qpos(model)
+    assert box_soles(model, qpos, ["block"]).geoms == ("sole",)  # a body by name
+    with pytest.raises(UnknownNameError, match=r"bodies.*block"):
+        box_soles(model, qpos, ["foot"])
+    with pytest.raises(ShapeError, match="qpos"):
+        box_soles(model, qpos[:-1], [1])
+    bad = qpos.copy()
+    bad[0] = np.nan
+    with pytest.raises(InvalidArgumentError, match="qpos"):
+        box_soles(model, bad, [1])

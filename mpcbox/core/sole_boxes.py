@@ -23,6 +23,8 @@ import mujoco
 import numpy as np
 
 from mpcbox.core.contact import collision_geoms
+from mpcbox.core.model import check_mjmodel, object_id
+from mpcbox.validation import finite_array
 
 _MESH = int(mujoco.mjtGeom.mjGEOM_MESH)
 _PLANE = int(mujoco.mjtGeom.mjGEOM_PLANE)
@@ -123,7 +125,7 @@ def _grow_bvh(model: mujoco.MjModel, body: int, points: np.ndarray) -> None:
         model.bvh_aabb[node] = np.concatenate([(lo + hi) / 2.0, (hi - lo) / 2.0])
 
 
-def box_soles(model: mujoco.MjModel, qpos: np.ndarray, bodies: Sequence[int]) -> SoleBoxes:
+def box_soles(model: mujoco.MjModel, qpos: np.ndarray, bodies: Sequence[int | str]) -> SoleBoxes:
     """Replace the flat mesh soles of ``bodies`` that rest on a plane at ``qpos`` with boxes.
 
     A collision mesh geom of one of ``bodies`` is replaced when, at posture ``qpos``, it
@@ -138,18 +140,24 @@ def box_soles(model: mujoco.MjModel, qpos: np.ndarray, bodies: Sequence[int]) ->
     Args:
         model: The model (not changed).
         qpos: Posture ``(nq,)`` at which the soles rest on the ground.
-        bodies: Ids of the bodies whose geoms may be soles (the feet).
+        bodies: Ids or names of the bodies whose geoms may be soles (the feet).
 
     Returns:
         The :class:`SoleBoxes`: a copy with the boxes, or ``model`` itself if no sole
         qualified.
+
+    Raises:
+        InvalidArgumentError: If ``qpos`` is not ``(nq,)`` finite values.
+        UnknownNameError: If a body does not exist (lists those that do).
     """
+    model = check_mjmodel(model)
+    qpos = finite_array("qpos", qpos, (model.nq,))
+    wanted = {object_id(model, "body", b, "bodies") for b in bodies}
     data = mujoco.MjData(model)
     data.qpos[:] = qpos
     mujoco.mj_fwdPosition(model, data)
     resting = resting_on_planes(model, data)
     collides = collision_geoms(model)
-    wanted = {int(b) for b in bodies}
     boxes: list[tuple[int, np.ndarray, np.ndarray, np.ndarray]] = []
     for gid, normal in sorted(resting.items()):
         if (

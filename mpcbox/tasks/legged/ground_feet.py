@@ -6,9 +6,9 @@ import mujoco
 import numpy as np
 
 from mpcbox.core.contact import STANDING_GEOMS, collision_geoms, geom_points
-from mpcbox.core.model import ModelSource, compile_spec, load_spec, object_id
+from mpcbox.core.model import ModelSource, check_mjmodel, compile_spec, load_spec, object_id
 from mpcbox.errors import InvalidArgumentError
-from mpcbox.validation import positive, positive_int
+from mpcbox.validation import finite_array, positive, positive_int
 
 #: Bodies whose collision geoms reach within this height (m) of the robot's lowest point
 #: stand on the ground.
@@ -73,8 +73,12 @@ def ground_feet(
         InvalidArgumentError: If the ground bodies do not form ``count`` legs (the message
             lists the legs found with their bodies, so the feet can be named instead).
     """
+    model = check_mjmodel(model)
+    qpos = finite_array("qpos", qpos, (model.nq,))
     count = positive_int("count", count)
     tolerance = positive("tolerance", tolerance)
+    if root is not None:
+        root = object_id(model, "body", root, "root")
     data = mujoco.MjData(model)
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
@@ -101,7 +105,7 @@ def ground_feet(
         )
     feet = [min(bodies, key=lambda b: (lowest[b], b)) for bodies in legs.values()]
     if count == 2:
-        base = hub if root is None else int(root)
+        base = hub if root is None else root
         if root is None and model.njnt and model.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE:
             base = int(model.jnt_bodyid[0])
         axis = data.xmat[base].reshape(3, 3)[:, 1]
@@ -122,7 +126,7 @@ def model_feet(
     ``qpos0``)."""
     base = model if isinstance(model, mujoco.MjModel) else compile_spec(load_spec(model))
     if qpos_ref is not None:
-        qpos = np.asarray(qpos_ref, dtype=float)
+        qpos = finite_array("qpos_ref", qpos_ref, (base.nq,))
     elif keyframe is not None or base.nkey:
         key = object_id(base, "keyframe", 0 if keyframe is None else keyframe, "keyframe")
         qpos = base.key_qpos[key]
