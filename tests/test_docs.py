@@ -37,6 +37,7 @@ REQUIRES: dict[str, tuple[str, ...]] = {
     "02_ilqr_swingup.md": ("mpcbox.controllers.ilqr.controller",),
     "03_qp_mpc_push.md": ("mpcbox.controllers.qp_mpc.controller",),
     "04_sampling_mpc.md": ("mpcbox.controllers.sampling",),
+    "07_your_robot.md": ("dm_control",),
 }
 
 
@@ -84,7 +85,7 @@ def test_page_runs(path, tmp_path, monkeypatch):
 
 def test_tutorials_exist():
     names = [p.name for p in TUTORIALS]
-    for number in range(1, 7):
+    for number in range(1, 8):
         assert any(n.startswith(f"0{number}_") for n in names), f"tutorial {number} is missing"
 
 
