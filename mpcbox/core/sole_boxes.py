@@ -92,6 +92,8 @@ def _sole_box(
         return None
     _, _, vt = np.linalg.svd(flat - flat.mean(axis=0), full_matrices=False)
     long_axis = vt[0] - (vt[0] @ up) * up
+    if np.linalg.norm(long_axis) < 1e-9:  # the sole's vertices coincide: a point
+        return None
     long_axis /= np.linalg.norm(long_axis)
     rot = np.column_stack([long_axis, np.cross(up, long_axis), up])
     local = sole @ rot

@@ -48,7 +48,7 @@ def ground_feet(
     qpos: np.ndarray,
     count: int,
     *,
-    root: int | None = None,
+    root: int | str | None = None,
     tolerance: float = GROUND_TOLERANCE,
 ) -> tuple[str, ...]:
     """The ``count`` feet of a robot standing at ``qpos``, as ``"body:NAME"`` entries.
@@ -58,20 +58,21 @@ def ground_feet(
     ground. These bodies are grouped by leg, a leg being the branch of the kinematic tree
     below the lowest body that holds them all (the pelvis or trunk); each leg's foot is its
     lowest body. Two feet come as (left, right): left is the one further along the
-    ``root``'s y axis.
+    ``root``'s y axis (MuJoCo's convention: x forward, z up).
 
     Args:
         model: The model.
         qpos: A standing posture ``(nq,)`` (the keyframe; the root's height does not
             matter).
         count: How many feet the robot stands on (2 for a biped, 4 for a quadruped).
-        root: Id of the root body for left and right (default: the body of the first free
-            joint, else the body holding all feet).
+        root: Name or id of the root body for left and right (default: the body of the
+            first free joint, else the body holding all feet).
         tolerance: See above (m).
 
     Raises:
         InvalidArgumentError: If the ground bodies do not form ``count`` legs (the message
             lists the legs found with their bodies, so the feet can be named instead).
+        UnknownNameError: If ``root`` does not exist (lists the bodies).
     """
     model = check_mjmodel(model)
     qpos = finite_array("qpos", qpos, (model.nq,))
