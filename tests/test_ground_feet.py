@@ -13,7 +13,7 @@ import pytest
 
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.tasks import scene_path
-from mpcbox.tasks.legged.ground_feet import ground_feet, model_feet
+from mpcbox.tasks.legged.ground_feet import ground_feet
 
 
 def _humanoid() -> mujoco.MjModel:
@@ -50,7 +50,8 @@ def test_dm_control_quadruped_stands_on_its_four_toes():
     pytest.importorskip("dm_control")
     from mpcbox.tasks.legged.quadruped import DM_CONTROL_FEET, dm_control_quadruped
 
-    feet = model_feet(dm_control_quadruped(), 4)
+    model = dm_control_quadruped().compile()
+    feet = ground_feet(model, model.qpos0, 4)
     assert sorted(feet) == sorted(f"body:{name}" for name in DM_CONTROL_FEET)
 
 
@@ -58,7 +59,8 @@ def test_dm_control_quadruped_stands_on_its_four_toes():
 def test_dm_control_bipeds(name):
     suite = pytest.importorskip("dm_control.suite")
     path = Path(suite.__file__).parent / f"{name}.xml"
-    assert model_feet(str(path), 2) == ("body:left_foot", "body:right_foot")
+    model = mujoco.MjModel.from_xml_path(str(path))
+    assert ground_feet(model, model.qpos0, 2) == ("body:left_foot", "body:right_foot")
 
 
 def test_biped_stand_finds_the_feet_of_a_robot_it_does_not_know():
@@ -67,6 +69,15 @@ def test_biped_stand_finds_the_feet_of_a_robot_it_does_not_know():
     problem = BipedStand(str(scene_path("humanoid.xml")), keyframe="stand", threads=1)
     assert problem.both_feet == ("body:foot_left", "body:foot_right")
     assert [f.name for f in problem.feet] == ["foot_left", "foot_right"]
+    problem.close()
+
+
+def test_quadruped_stand_finds_the_feet_of_a_robot_it_does_not_know():
+    pytest.importorskip("dm_control")
+    from mpcbox.tasks.legged.quadruped import DM_CONTROL_FEET, QuadrupedStand, dm_control_quadruped
+
+    problem = QuadrupedStand(dm_control_quadruped(), threads=1)
+    assert sorted(f.name for f in problem.feet) == sorted(DM_CONTROL_FEET)
     problem.close()
 
 

@@ -141,7 +141,8 @@ class LeggedBalance(Problem):
     Args:
         model: The robot's MJCF with a floor (path, XML, spec, or ``"menagerie:NAME"``).
         feet: Stance feet: site, body or geom names (prefix ``"site:"``, ``"body:"`` or
-            ``"geom:"`` to pick one kind).
+            ``"geom:"`` to pick one kind); ``None`` asks :meth:`standing_feet` (a subclass
+            finds them).
         root: Root body (default: the body of the free joint).
         keyframe: Name or index of the standing keyframe (default: the first keyframe,
             else ``qpos0``).
@@ -240,7 +241,7 @@ class LeggedBalance(Problem):
         self,
         model: ModelSource,
         *,
-        feet: Sequence[str] | str,
+        feet: Sequence[str] | str | None,
         root: str | None = None,
         keyframe: str | int | None = None,
         fall_height: float | None = None,
@@ -290,6 +291,7 @@ class LeggedBalance(Problem):
         self.root = mujoco.mj_id2name(base, mujoco.mjtObj.mjOBJ_BODY, self.root_id) or ""
         if not self.root:
             raise InvalidArgumentError("root: the root body needs a name for the cost sensors")
+        feet = self.standing_feet(base, qpos, feet)
         self.feet: tuple[Foot, ...] = find_feet(base, feet, qpos)
         self.foot_frames = self.add_sole_sites(spec, base)
         if contacts is None:
@@ -317,6 +319,21 @@ class LeggedBalance(Problem):
             }
 
     # ------------------------------------------------------------------ construction
+    def standing_feet(
+        self, model: mujoco.MjModel, qpos: np.ndarray, feet: Sequence[str] | str | None
+    ) -> Sequence[str] | str:
+        """The feet the task stands on, from the ``feet`` argument (``None`` when omitted),
+        given the compiled ``model`` and the standing posture ``qpos`` ``(nq,)`` (the
+        keyframe or ``qpos_ref``). Subclasses find omitted feet
+        (:func:`~mpcbox.tasks.legged.ground_feet.ground_feet`) or choose among them.
+
+        Raises:
+            InvalidArgumentError: Here, if ``feet`` is omitted.
+        """
+        if feet is None:
+            raise InvalidArgumentError("feet: name the feet (sites, bodies or geoms)")
+        return feet
+
     def add_sole_sites(self, spec: mujoco.MjSpec, base: mujoco.MjModel) -> tuple[str, ...]:
         """Add a site ``<name>_sole`` at each body or geom foot's sole to ``spec``.
 

@@ -8,6 +8,7 @@ from types import MappingProxyType
 from typing import Any, ClassVar
 
 import mujoco
+import numpy as np
 
 from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.core.model import ModelSource
@@ -15,7 +16,7 @@ from mpcbox.core.posture import StancePosture, stance_posture
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.tasks.legged.balance import LeggedBalance
 from mpcbox.tasks.legged.feet import find_feet
-from mpcbox.tasks.legged.ground_feet import model_feet
+from mpcbox.tasks.legged.ground_feet import ground_feet
 from mpcbox.validation import one_of, positive
 
 #: The (left, right) feet of Menagerie bipeds, by robot name (``"menagerie:NAME"``). The
@@ -128,15 +129,21 @@ class BipedStand(LeggedBalance):
         self.lift = positive("lift", lift)
         if feet is None:
             feet = menagerie_biped_feet(model)
+        super().__init__(model, feet=feet, **kwargs)
+
+    def standing_feet(
+        self, model: mujoco.MjModel, qpos: np.ndarray, feet: Sequence[str] | str | None
+    ) -> Sequence[str]:
+        """Both feet, as given or found (:func:`ground_feet`), kept in :attr:`both_feet`;
+        returns those the stance stands on."""
         if feet is None:
-            key, qpos = kwargs.get("keyframe"), kwargs.get("qpos_ref")
-            feet = model_feet(model, 2, keyframe=key, qpos_ref=qpos)
+            feet = ground_feet(model, qpos, 2, root=self.root_id)
         if isinstance(feet, str) or len(feet) != 2:
             raise InvalidArgumentError(f"feet must name the (left, right) feet, got {feet!r}")
         self.both_feet = tuple(feet)
-        if self.stance != "two":
-            feet = (feet[0],) if self.stance == "left" else (feet[1],)
-        super().__init__(model, feet=feet, **kwargs)
+        if self.stance == "two":
+            return self.both_feet
+        return (feet[0],) if self.stance == "left" else (feet[1],)
 
     def prepare(self, model: mujoco.MjModel) -> None:
         """On one foot, the inverse-kinematics stance (the swing foot's body is lifted);

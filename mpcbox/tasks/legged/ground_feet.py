@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 
 from mpcbox.core.contact import STANDING_GEOMS, collision_geoms, geom_points
-from mpcbox.core.model import ModelSource, check_mjmodel, compile_spec, load_spec, object_id
+from mpcbox.core.model import check_mjmodel, object_id
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.validation import finite_array, positive, positive_int
 
@@ -114,23 +114,3 @@ def ground_feet(
     else:
         feet.sort()
     return tuple(f"body:{_name(model, b)}" for b in feet)
-
-
-def model_feet(
-    model: ModelSource,
-    count: int,
-    keyframe: str | int | None = None,
-    qpos_ref: np.ndarray | None = None,
-) -> tuple[str, ...]:
-    """:func:`ground_feet` of a model source (path, XML, spec or ``"menagerie:NAME"``) in
-    its standing posture: ``qpos_ref``, else the keyframe (default: the first, else
-    ``qpos0``)."""
-    base = model if isinstance(model, mujoco.MjModel) else compile_spec(load_spec(model))
-    if qpos_ref is not None:
-        qpos = finite_array("qpos_ref", qpos_ref, (base.nq,))
-    elif keyframe is not None or base.nkey:
-        key = object_id(base, "keyframe", 0 if keyframe is None else keyframe, "keyframe")
-        qpos = base.key_qpos[key]
-    else:
-        qpos = base.qpos0
-    return ground_feet(base, qpos, count)

@@ -9,11 +9,12 @@ from types import MappingProxyType
 from typing import Any
 
 import mujoco
+import numpy as np
 
 from mpcbox.core.model import ModelSource
 from mpcbox.errors import ModelNotFoundError
 from mpcbox.tasks.legged.balance import LeggedBalance
-from mpcbox.tasks.legged.ground_feet import model_feet
+from mpcbox.tasks.legged.ground_feet import ground_feet
 
 #: The four feet of Menagerie quadrupeds, by robot name (``"menagerie:NAME"``). The Go1 has
 #: a site and a geom called ``FR``; its sphere geoms are the feet. The A1's and ANYmal C's
@@ -109,7 +110,10 @@ class QuadrupedStand(LeggedBalance):
     ) -> None:
         if feet is None:
             feet = menagerie_feet(model)
-        if feet is None:
-            key, qpos = kwargs.get("keyframe"), kwargs.get("qpos_ref")
-            feet = model_feet(model, 4, keyframe=key, qpos_ref=qpos)
         super().__init__(model, feet=feet, **kwargs)
+
+    def standing_feet(
+        self, model: mujoco.MjModel, qpos: np.ndarray, feet: Sequence[str] | str | None
+    ) -> Sequence[str] | str:
+        """The feet as given, else the four found (:func:`ground_feet`)."""
+        return ground_feet(model, qpos, 4, root=self.root_id) if feet is None else feet
