@@ -87,9 +87,9 @@ def _sole_box(
     verts = np.asarray(model.mesh_vert[start : start + count], dtype=float)
     height = verts @ up
     sole = verts[height <= height.min() + SOLE_SLAB]
-    flat = sole - np.outer(sole @ up, up)
     if len(sole) < 3:
         return None
+    flat = sole - np.outer(sole @ up, up)
     _, _, vt = np.linalg.svd(flat - flat.mean(axis=0), full_matrices=False)
     long_axis = vt[0] - (vt[0] @ up) * up
     if np.linalg.norm(long_axis) < 1e-9:  # the sole's vertices coincide: a point
