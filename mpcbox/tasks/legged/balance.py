@@ -141,8 +141,8 @@ class LeggedBalance(Problem):
     Args:
         model: The robot's MJCF with a floor (path, XML, spec, or ``"menagerie:NAME"``).
         feet: Stance feet: site, body or geom names (prefix ``"site:"``, ``"body:"`` or
-            ``"geom:"`` to pick one kind); ``None`` asks :meth:`standing_feet` (a subclass
-            finds them).
+            ``"geom:"`` to pick one kind); a subclass's :meth:`standing_feet` may fill in
+            ``None``.
         root: Root body (default: the body of the free joint).
         keyframe: Name or index of the standing keyframe (default: the first keyframe,
             else ``qpos0``).
@@ -325,13 +325,9 @@ class LeggedBalance(Problem):
         """The feet the task stands on, from the ``feet`` argument (``None`` when omitted),
         given the compiled ``model`` and the standing posture ``qpos`` ``(nq,)`` (the
         keyframe or ``qpos_ref``). Subclasses find omitted feet
-        (:func:`~mpcbox.tasks.legged.ground_feet.ground_feet`) or choose among them.
-
-        Raises:
-            InvalidArgumentError: Here, if ``feet`` is omitted.
-        """
-        if feet is None:
-            raise InvalidArgumentError("feet: name the feet (sites, bodies or geoms)")
+        (:func:`~mpcbox.tasks.legged.ground_feet.ground_feet`) or choose among them; here
+        they are returned as given (:func:`~mpcbox.tasks.legged.feet.find_feet` refuses
+        ``None`` with an ``InvalidTypeError``)."""
         return feet
 
     def add_sole_sites(self, spec: mujoco.MjSpec, base: mujoco.MjModel) -> tuple[str, ...]:
