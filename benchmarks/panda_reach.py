@@ -1,4 +1,4 @@
-"""Benchmark a 40 cm reach of Menagerie's Franka Panda: iLQR-MPC, offline iLQR and LQR; JSON.
+"""A 40 cm reach of a Menagerie arm (the Panda by default): iLQR-MPC, offline iLQR, LQR, MPPI.
 
 Each seed perturbs the start posture (arm joints +- ``--posture-noise`` rad, uniform) and
 the target (``--target-noise`` m per axis around a 40 cm offset from the hand). Per seed:
@@ -13,6 +13,7 @@ iLQR-MPC's time to 1 cm to LQR's. Needs ``MENAGERIE_ROOT`` (an offline Menagerie
 from __future__ import annotations
 
 import argparse
+import ast
 import json
 import platform
 import sys
@@ -42,7 +43,8 @@ def build(seed: int, args: argparse.Namespace) -> ArmReach:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MissingMeshWarning)
         nominal = np.asarray(args.offset, dtype=float)
-        home = ArmReach(args.model, frame=args.frame, target=nominal, relative=True)
+        kept = {"parent_contacts": args.parent_contacts}
+        home = ArmReach(args.model, frame=args.frame, target=nominal, relative=True, **kept)
         start = home.start_qpos.copy()
         arm = min(7, home.nu)  # the arm's joints lead qpos on Menagerie arms
         start[:arm] += rng.uniform(-args.posture_noise, args.posture_noise, arm)
@@ -54,12 +56,13 @@ def build(seed: int, args: argparse.Namespace) -> ArmReach:
             relative=True,
             start_qpos=start,
             tolerance=TOLERANCE,
+            **kept,
         )
 
 
-def closed_loop(problem: ArmReach, name: str, duration: float) -> dict:
+def closed_loop(problem: ArmReach, name: str, duration: float, options: dict | None = None) -> dict:
     """One closed-loop run: final error, time to 1 cm, ticks."""
-    controller = make_controller(name, problem)
+    controller = make_controller(name, problem, **(options or {}))
     t0 = time.perf_counter()
     sim = mpcbox.simulate(problem, controller, duration, seed=0)
     wall = time.perf_counter() - t0
@@ -70,6 +73,7 @@ def closed_loop(problem: ArmReach, name: str, duration: float) -> dict:
         "time_to_1cm_s": hit.time,
         "error_after_arrival_max_m": hit.overshoot,
         "within_1cm_by_2s": bool(hit.time <= 2.0),
+        "final_within_1cm": bool(errors[-1] <= TOLERANCE),
         "wall_s": round(wall, 2),
     }
     stats = getattr(controller, "stats", {})
@@ -114,7 +118,32 @@ def main() -> None:
     parser.add_argument("--offline-horizon", type=float, default=1.0)
     parser.add_argument("--offline-iterations", type=int, default=30)
     parser.add_argument("--out", default=str(Path(__file__).parent / "results/panda_reach.json"))
+    parser.add_argument(
+        "--parent-contacts",
+        default="exclude",
+        choices=["exclude", "keep"],
+        help="links touching their static parent (mpcbox.core.parent_contacts)",
+    )
+    parser.add_argument(
+        "--controllers",
+        default="ilqr,lqr,offline",
+        help="comma-separated from ilqr, lqr, offline, mppi (CPU sampling)",
+    )
+    parser.add_argument(
+        "--mppi-set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override an option of the task's MPPI config (VALUE as a Python literal)",
+    )
     args = parser.parse_args()
+    chosen = args.controllers.split(",")
+    unknown = sorted(set(chosen) - {"ilqr", "lqr", "offline", "mppi"})
+    if unknown:
+        parser.error(f"--controllers: unknown {unknown}; choose from ilqr, lqr, offline, mppi")
+    mppi_options = {
+        key: ast.literal_eval(value) for key, _, value in (s.partition("=") for s in args.mppi_set)
+    }
 
     rows = []
     for seed in range(args.seeds):
@@ -123,17 +152,42 @@ def main() -> None:
             "seed": seed,
             "start_error_m": problem.reach_error(problem.initial_state()),
             "ik_goal_error_m": float(problem.goal.position_error),
-            "ilqr_mpc": closed_loop(problem, "ilqr", args.duration),
-            "lqr_at_ik_posture": closed_loop(problem, "lqr", args.duration),
-            "ilqr_offline": offline(problem, args.offline_horizon, args.offline_iterations),
+            "excluded_contacts": [f"{c.parent}/{c.child}" for c in problem.excluded_contacts],
         }
-        mpc, lqr = row["ilqr_mpc"], row["lqr_at_ik_posture"]
-        row["time_to_1cm_ratio_mpc_over_lqr"] = mpc["time_to_1cm_s"] / lqr["time_to_1cm_s"]
-        row["final_error_ratio_mpc_over_lqr"] = mpc["final_error_m"] / lqr["final_error_m"]
+        if "ilqr" in chosen:
+            row["ilqr_mpc"] = closed_loop(problem, "ilqr", args.duration)
+        if "lqr" in chosen:
+            row["lqr_at_ik_posture"] = closed_loop(problem, "lqr", args.duration)
+        if "mppi" in chosen:
+            row["mppi_cpu"] = closed_loop(problem, "mppi", args.duration, mppi_options)
+        if "offline" in chosen:
+            row["ilqr_offline"] = offline(problem, args.offline_horizon, args.offline_iterations)
+        mpc, lqr = row.get("ilqr_mpc"), row.get("lqr_at_ik_posture")
+        if mpc and lqr:
+            row["time_to_1cm_ratio_mpc_over_lqr"] = mpc["time_to_1cm_s"] / lqr["time_to_1cm_s"]
+            row["final_error_ratio_mpc_over_lqr"] = mpc["final_error_m"] / lqr["final_error_m"]
         rows.append(row)
         print(json.dumps(row), file=sys.stderr)
 
-    mpc_hits = [r["ilqr_mpc"]["time_to_1cm_s"] for r in rows]
+    summary: dict = {}
+    for key, label in (
+        ("ilqr_mpc", "ilqr_mpc"),
+        ("mppi_cpu", "mppi"),
+        ("lqr_at_ik_posture", "lqr"),
+    ):
+        runs = [r[key] for r in rows if key in r]
+        if runs:
+            summary[f"{label}_within_1cm_by_2s"] = (
+                f"{sum(run['within_1cm_by_2s'] for run in runs)}/{len(runs)}"
+            )
+            summary[f"{label}_final_within_1cm"] = (
+                f"{sum(run['final_within_1cm'] for run in runs)}/{len(runs)}"
+            )
+            summary[f"{label}_time_to_1cm_max_s"] = float(max(run["time_to_1cm_s"] for run in runs))
+            summary[f"{label}_final_error_max_m"] = max(run["final_error_m"] for run in runs)
+    offline_runs = [r["ilqr_offline"] for r in rows if "ilqr_offline" in r]
+    if offline_runs:
+        summary["offline_stop_reasons"] = sorted({run["stop_reason"] for run in offline_runs})
     out = {
         "task": f"ArmReach {np.linalg.norm(args.offset):.2f} m, " + args.model,
         "machine": "2-core sandbox CPU, shared",
@@ -143,13 +197,8 @@ def main() -> None:
         "ilqr_config": {
             k: v for k, v in config_options(ArmReach.controller_configs["ilqr"]).items()
         },
-        "summary": {
-            "ilqr_mpc_within_1cm_by_2s": f"{sum(r['ilqr_mpc']['within_1cm_by_2s'] for r in rows)}"
-            f"/{len(rows)}",
-            "ilqr_mpc_time_to_1cm_max_s": float(np.max(mpc_hits)),
-            "ilqr_mpc_final_error_max_m": max(r["ilqr_mpc"]["final_error_m"] for r in rows),
-            "offline_stop_reasons": sorted({r["ilqr_offline"]["stop_reason"] for r in rows}),
-        },
+        "mppi_config": config_options(ArmReach.controller_configs["mppi"]) | mppi_options,
+        "summary": summary,
         "seeds": rows,
     }
     text = json.dumps(jsonable(out), indent=2, default=float)

@@ -133,6 +133,11 @@ class PostureWarning(UserWarning):
     """A reference posture is doubtful (e.g. in self-collision); the message says why."""
 
 
+class ModelWarning(UserWarning):
+    """The model was changed, or should be, to simulate what it describes (for example a
+    link colliding with the static base it hangs from); the message says what and why."""
+
+
 class PeriodWarning(UserWarning):
     """A controller's period is not a whole number of simulation steps, so it is called at
     the nearest whole number instead (the message gives both)."""

@@ -69,7 +69,12 @@ def test_c2_spline_with_two_knots_is_linear():
 # ------------------------------------------------------------------ noise schedule
 @pytest.mark.parametrize(
     ("schedule", "gains"),
-    [("constant", [1, 1, 1, 1]), ("linear", [0.25, 0.5, 0.75, 1.0]), ([0, 1, 2, 0.5], None)],
+    [
+        ("constant", [1, 1, 1, 1]),
+        ("linear", [0.25, 0.5, 0.75, 1.0]),
+        ("ramp", [0.0, 1 / 3, 2 / 3, 1.0]),
+        ([0, 1, 2, 0.5], None),
+    ],
 )
 def test_noise_schedule_scales_the_sample_std_per_knot(problem, schedule, gains):
     gains = np.asarray(schedule if gains is None else gains, dtype=float)
@@ -92,10 +97,15 @@ def test_default_schedule_draws_the_same_candidates_as_explicit_ones(problem):
     np.testing.assert_array_equal(a.sample(), b.sample())
 
 
-@pytest.mark.parametrize("schedule", ["ramp", [1.0, 1.0], [1.0, -1.0, 1.0], [1.0, np.nan, 1]])
+@pytest.mark.parametrize("schedule", ["cosine", [1.0, 1.0], [1.0, -1.0, 1.0], [1.0, np.nan, 1]])
 def test_bad_noise_schedules_are_rejected(problem, schedule):
     with pytest.raises(InvalidArgumentError, match="noise_schedule"):
         MPPI(problem, num_knots=3, noise_schedule=schedule)
+
+
+def test_a_ramp_over_one_knot_would_sample_no_noise_and_is_rejected(problem):
+    with pytest.raises(InvalidArgumentError, match="ramp.*num_knots >= 2"):
+        MPPI(problem, num_knots=1, noise_schedule="ramp")
 
 
 # ------------------------------------------------------------------ MPPI temperature

@@ -108,6 +108,16 @@ def clear_of_limits(
     return out, moves
 
 
+def moves_kept(chosen: np.ndarray, cleared: np.ndarray, final: np.ndarray) -> bool:
+    """Whether ``final`` kept the joints :func:`clear_of_limits` moved from ``chosen`` to
+    ``cleared`` (a Problem's ``prepare`` hook may replace the reference by one of its own,
+    such as an IK goal, and the moves then no longer apply)."""
+    moved = chosen != cleared
+    return np.array_equal(final, cleared) or bool(
+        moved.any() and np.array_equal(final[moved], cleared[moved])
+    )
+
+
 def movable_joints(model: mujoco.MjModel) -> list[int]:
     """Limited hinge and slide joints that an actuator drives directly and no equality
     constraint couples: the joints :func:`clear_of_limits` may move.

@@ -31,17 +31,16 @@ from mpcbox.core.divergence import check_planning_step
 from mpcbox.core.dynamics import Dynamics, Linearization, Rollout, mujoco_errors
 from mpcbox.core.dynamics import read_state as _read_state
 from mpcbox.core.dynamics import write_state as _write_state
-from mpcbox.core.joint_limits import LIMIT_CLEARANCE, clear_of_limits
+from mpcbox.core.joint_limits import LIMIT_CLEARANCE, clear_of_limits, moves_kept
 from mpcbox.core.model import (
     ModelSource,
     build_planning_model,
     check_model,
-    compile_spec,
-    load_spec,
     object_id,
     plannable,
     with_sensors,
 )
+from mpcbox.core.parent_contacts import load_model
 from mpcbox.core.tangent import TangentSpace
 from mpcbox.errors import DivergenceError, InvalidArgumentError, ModelLoadError, ShapeError
 from mpcbox.validation import (
@@ -88,6 +87,9 @@ class Problem:
         plan_rk4: Plan an RK4 model in RK4 (:func:`~mpcbox.core.model.plannable`).
         limit_clearance: Distance of each driven joint of the reference from its limits
             (:func:`~mpcbox.core.joint_limits.clear_of_limits`; moves in ``limit_moves``).
+        parent_contacts: ``"exclude"`` the contacts of links with the static body they hang
+            from, or ``"keep"`` them (:mod:`~mpcbox.core.parent_contacts`; both warn; the
+            pairs excluded are in ``excluded_contacts``).
         threads: Threads for batched linearization (default: all cores).
         name: Label used in tables.
 
@@ -120,6 +122,7 @@ class Problem:
         fd_centered: bool = True,
         plan_rk4: bool = False,
         limit_clearance: float = LIMIT_CLEARANCE,
+        parent_contacts: str = "exclude",
         threads: int | None = None,
         name: str | None = None,
     ) -> None:
@@ -129,8 +132,7 @@ class Problem:
         self.fd_centered = boolean("fd_centered", fd_centered)
         self.threads = positive_int("threads", os.cpu_count() or 1 if threads is None else threads)
 
-        spec = None if isinstance(model, mujoco.MjModel) else load_spec(model)
-        base = model if isinstance(model, mujoco.MjModel) else compile_spec(spec)
+        spec, base, self.excluded_contacts = load_model(model, parent_contacts)
         check_model(base)
         self.nq, self.nv, self.nu, self.na = base.nq, base.nv, base.nu, base.na
         self.nx = 2 * self.nv + self.na
@@ -149,12 +151,15 @@ class Problem:
             self.qpos_ref = self.tangent.unit_quaternions(
                 "qpos_ref", finite_array("qpos_ref", qpos_ref, (self.nq,))
             )
-        self.qpos_ref, self.limit_moves = clear_of_limits(
-            base, self.qpos_ref, non_negative("limit_clearance", limit_clearance), warn=True
-        )
+        chosen, clearance = self.qpos_ref, non_negative("limit_clearance", limit_clearance)
+        self.qpos_ref, moves = clear_of_limits(base, chosen, clearance)
+        cleared = self.qpos_ref.copy()
         given = None if ctrl_ref is None else finite_array("ctrl_ref", ctrl_ref, (self.nu,))
         self.ctrl_ref, self.qvel_ref = key_ctrl if given is None else given, np.zeros(self.nv)
         self.prepare(base)
+        if moves_kept(chosen, cleared, self.qpos_ref):  # not if prepare chose its own
+            clear_of_limits(base, chosen, clearance, warn=True)
+        self.limit_moves = moves if moves_kept(chosen, cleared, self.qpos_ref) else []
         if given is None:  # a given ctrl_ref is checked where it is used (linearize)
             self.ctrl_ref = inputs.default_ctrl_in_range(self.ctrl_ref, base, self.keyframe)
 
@@ -402,10 +407,8 @@ class Problem:
 
     # ------------------------------------------------------------------ monitoring
     def failure(self, model: mujoco.MjModel, data: mujoco.MjData) -> str | None:
-        """Why the simulation should stop (a fall, non-finite state), or ``None``.
-
-        The base class only checks that the state is finite. Subclasses add falls.
-        """
+        """Why the simulation should stop, or ``None``: here a non-finite state; subclasses
+        add falls."""
         if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
             return "non-finite state"
         return None
@@ -420,8 +423,7 @@ class Problem:
         """The task's own :class:`mpcbox.sim.measures.Measure` items (distinct names).
 
         :func:`mpcbox.simulate` samples each one after every step and summarizes it in
-        :attr:`Metrics.measures <mpcbox.Metrics>`. The base class declares none; the legged
-        tasks report the center of mass over the support and the root's tilt.
+        :attr:`Metrics.measures <mpcbox.Metrics>`. The base class declares none.
         """
         return ()
 
@@ -440,10 +442,8 @@ class Problem:
     def with_planning_timestep(self, timestep: float) -> Problem:
         """A shallow copy whose planning model takes steps of ``timestep`` seconds.
 
-        The copy shares the simulation model, the cost and the references; only the planning
-        model (a copy with ``opt.timestep`` changed, same sensors) and the per-thread scratch
-        data are its own. Controllers that want a coarser prediction model than the others
-        (for example iLQR on a humanoid) build one this way.
+        The copy shares the simulation model, the cost and the references; the planning model
+        (``opt.timestep`` changed, same sensors) and the scratch data are its own.
 
         Args:
             timestep: Planning timestep (s).
@@ -485,12 +485,13 @@ class Problem:
         self.dynamics = Dynamics(model, self.threads)
         self.planning_changes = (*self.planning_changes, string("change", change))
 
-    def close(self) -> None:
-        """Shut down the thread pool."""
+    def close(self) -> None:  # shut down the thread pool
         self.dynamics.close()
 
     def __repr__(self) -> str:
-        planning = "".join(f", planning: {c}" for c in self.planning_changes)
+        pairs = self.excluded_contacts
+        planning = "".join(f", excluded contact: {c.parent}/{c.child}" for c in pairs)
+        planning += "".join(f", planning: {c}" for c in self.planning_changes)
         if self.replaced_integrator is not None:
             planning = f", planning_integrator='implicitfast' (model: RK4){planning}"
         return (

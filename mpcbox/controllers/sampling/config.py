@@ -35,8 +35,8 @@ Backend = Literal["cpu", "warp"]
 Risk = Literal["mean", "worst", "cvar"]
 Integrator = Literal["euler", "implicitfast", "implicit", "rk4"]
 RISKS: tuple[str, ...] = ("mean", "worst", "cvar")
-NoiseSchedule = Literal["constant", "linear"]
-NOISE_SCHEDULES: tuple[str, ...] = ("constant", "linear")
+NoiseSchedule = Literal["constant", "linear", "ramp"]
+NOISE_SCHEDULES: tuple[str, ...] = ("constant", "linear", "ramp")
 ShiftMode = Literal["resample", "least_squares"]
 SHIFT_MODES: tuple[str, ...] = ("resample", "least_squares")
 TerminalValue = Literal["lqr"]
@@ -130,7 +130,9 @@ class SamplingConfig:
             so knot ``k`` of actuator ``j`` gets :math:`g_k \sigma_j`: ``"constant"``
             (:math:`g_k = 1`, the default), ``"linear"`` (:math:`g_k = (k + 1) / K`, little
             noise on the first knot, which the robot executes next, the full noise on the
-            last) or one non-negative value per knot ``(K,)``.
+            last), ``"ramp"`` (:math:`g_k = k / (K - 1)`, ``K >= 2``: none on the first knot,
+            whose control then comes from the shifted plan alone) or one non-negative value
+            per knot ``(K,)``.
         iterations: Sample/update rounds per control tick.
         terminal_value: ``"lqr"`` adds the infinite-horizon LQR value function of the planning
             model at the reference to the terminal cost
@@ -325,11 +327,18 @@ class SamplingConfig:
         schedule = self.noise_schedule
         if isinstance(schedule, str):
             name = one_of("noise_schedule", schedule, NOISE_SCHEDULES)
+            if name == "ramp":
+                if k < 2:
+                    raise InvalidArgumentError(
+                        "noise_schedule='ramp' leaves the first knot without noise and needs "
+                        f"num_knots >= 2, got {k}"
+                    )
+                return np.arange(k) / (k - 1)
             return np.ones(k) if name == "constant" else np.arange(1, k + 1) / k
         gains = as_array("noise_schedule", schedule, (None,))
         if gains.shape != (k,) or not np.all(np.isfinite(gains)) or np.any(gains < 0):
             raise InvalidArgumentError(
-                f"noise_schedule must be 'constant', 'linear' or {k} non-negative values "
+                f"noise_schedule must be 'constant', 'linear', 'ramp' or {k} non-negative values "
                 f"(one per knot), got {schedule!r}"
             )
         return gains
