@@ -41,6 +41,7 @@ ROBOTS: dict[str, tuple[str, ...]] = {
     "agility_cassie": ("body:left-foot", "body:right-foot"),
     "anybotics_anymal_b": ("body:LF_SHANK", "body:RF_SHANK", "body:LH_SHANK", "body:RH_SHANK"),
     "unitree_go2": ("geom:FR", "geom:FL", "geom:RR", "geom:RL"),
+    "boston_dynamics_spot": ("body:fl_lleg", "body:fr_lleg", "body:hl_lleg", "body:hr_lleg"),
 }
 
 
