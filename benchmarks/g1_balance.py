@@ -91,6 +91,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=2, help="worker processes")
     parser.add_argument("--tick-seconds", type=float, default=5.0, help="QP tick run (s)")
     parser.add_argument("--json", default="", help="also write the JSON here")
+    parser.add_argument(
+        "--dry-friction",
+        default="drop",
+        choices=["drop", "keep"],
+        help="linearize without the joints' frictionloss (drop, the default) or with it",
+    )
     parser.add_argument("--machine", default=None, help="what runs it (default: the sandbox)")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
@@ -103,10 +109,12 @@ def main(argv: list[str] | None = None) -> int:
         "seeds": args.seeds,
         "mpc_seeds": args.mpc_seeds,
         "duration_s": args.duration,
+        "dry_friction": args.dry_friction,
         "push": {"start_s": 1.0, "duration_s": 0.1, "settle_s": 2.0, "noise": 0},
     }
     for stance in ("two", "left"):
         options = {"model": MODEL, "stance": stance, "threads": 1}
+        options["dry_friction"] = args.dry_friction
         probe = BipedStand(**options)
         weight = float(probe.model.body_subtreemass[probe.root_id]) * 9.81
         test = PushTest(
@@ -134,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
         out["two_feet" if stance == "two" else "one_foot_left"] = entry
         probe.close()
     if "qp" in mpcs and args.tick_seconds > 0:
-        problem = BipedStand(MODEL, threads=1)
+        problem = BipedStand(MODEL, threads=1, dry_friction=args.dry_friction)
         qp = make_controller("qp", problem)
         run = simulate(problem, qp, args.tick_seconds, noise=problem.noise(), seed=0)
         out["qp_tick_serial"] = {

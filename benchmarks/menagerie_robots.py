@@ -83,19 +83,20 @@ def run_robot(
     duration: float,
     controllers: tuple[str, ...],
     qp_time_limit: str = "preset",
+    dry_friction: str = "drop",
 ) -> dict:
     import mpcbox
     from mpcbox.tasks.legged.biped import BipedStand
     from mpcbox.tasks.legged.quadruped import QuadrupedStand
 
-    feet = ROBOTS[robot]
+    feet = {**ROBOTS, **MORE_ROBOTS}[robot]
     task = QuadrupedStand if len(feet) == 4 else BipedStand
     out: dict = {"task": task.name, "feet": list(feet)}
     start = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            problem = task(f"menagerie:{robot}", feet=feet, threads=1)
+            problem = task(f"menagerie:{robot}", feet=feet, threads=1, dry_friction=dry_friction)
         except Exception as exc:  # recorded, not raised: the point is what breaks
             out["build_error"] = _error(exc)
             return out
@@ -167,12 +168,21 @@ def main() -> int:
         default="preset",
         help="QP-MPC's OSQP time budget: the task's (BipedStand: 15 ms) or none",
     )
+    parser.add_argument(
+        "--dry-friction",
+        choices=("drop", "keep"),
+        default="drop",
+        help="linearize without the joints' frictionloss (drop) or with it (before stop 35)",
+    )
     parser.add_argument("--label", default="after")
     parser.add_argument("--out", default=str(OUT))
     args = parser.parse_args()
     robots = chosen_robots(parser, args)
     controllers = tuple(c for c in args.controllers.split(",") if c)
-    jobs = [(r, args.seeds, args.duration, controllers, args.qp_time_limit) for r in robots]
+    jobs = [
+        (r, args.seeds, args.duration, controllers, args.qp_time_limit, args.dry_friction)
+        for r in robots
+    ]
     started = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         results = dict(pool.map(_job, jobs))
@@ -181,7 +191,8 @@ def main() -> int:
     stored[args.label] = {
         "command": "MENAGERIE_ROOT=... python benchmarks/menagerie_robots.py "
         f"--label {args.label} --seeds {args.seeds} --duration {args.duration} "
-        f"--controllers {args.controllers} --qp-time-limit {args.qp_time_limit}",
+        f"--controllers {args.controllers} --qp-time-limit {args.qp_time_limit} "
+        f"--dry-friction {args.dry_friction}",
         "seeds": args.seeds,
         "duration_s": args.duration,
         "noise": "each task's robot-independent recipe (5 % of each actuator's half range)",

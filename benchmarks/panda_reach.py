@@ -27,6 +27,7 @@ import mpcbox
 from mpcbox.config import config_options
 from mpcbox.controllers.ilqr.controller import ILQR
 from mpcbox.core.menagerie import MissingMeshWarning
+from mpcbox.core.model import load_spec
 from mpcbox.registry import make_controller
 from mpcbox.sim.trajectory import jsonable
 from mpcbox.tasks.reach import ArmReach
@@ -43,14 +44,18 @@ def build(seed: int, args: argparse.Namespace) -> ArmReach:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MissingMeshWarning)
         nominal = np.asarray(args.offset, dtype=float)
-        kept = {"parent_contacts": args.parent_contacts}
-        home = ArmReach(args.model, frame=args.frame, target=nominal, relative=True, **kept)
+        kept = {"parent_contacts": args.parent_contacts, "dry_friction": args.dry_friction}
+        model = args.model
+        if args.timestep:
+            model = load_spec(args.model)
+            model.option.timestep = args.timestep
+        home = ArmReach(model, frame=args.frame, target=nominal, relative=True, **kept)
         start = home.start_qpos.copy()
         arm = min(7, home.nu)  # the arm's joints lead qpos on Menagerie arms
         start[:arm] += rng.uniform(-args.posture_noise, args.posture_noise, arm)
         offset = nominal + rng.uniform(-args.target_noise, args.target_noise, 3)
         return ArmReach(
-            args.model,
+            model,
             frame=args.frame,
             target=offset,
             relative=True,
@@ -124,6 +129,13 @@ def main() -> None:
         choices=["exclude", "keep"],
         help="links touching their static parent (mpcbox.core.parent_contacts)",
     )
+    parser.add_argument(
+        "--dry-friction",
+        default="drop",
+        choices=["drop", "keep"],
+        help="linearize without the joints' frictionloss (drop) or with it (before stop 35)",
+    )
+    parser.add_argument("--timestep", type=float, default=None, help="replace the model's")
     parser.add_argument(
         "--controllers",
         default="ilqr,lqr,offline",

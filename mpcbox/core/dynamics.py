@@ -36,6 +36,17 @@ _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 #: the default's and take no longer (tolerance 0 runs every iteration: 25-30x slower).
 FD_SOLVER_TOLERANCE = 1e-12
 _RK4 = mujoco.mjtIntegrator.mjINT_RK4
+_NO_FRICTIONLOSS = int(mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS)
+
+
+def has_dry_friction(model: mujoco.MjModel) -> bool:
+    """Whether any joint or tendon of ``model`` has dry friction (``frictionloss > 0``) that
+    its options leave on."""
+    if model.opt.disableflags & _NO_FRICTIONLOSS:
+        return False
+    joints = model.nv > 0 and bool(np.any(model.dof_frictionloss > 0))
+    return joints or (model.ntendon > 0 and bool(np.any(model.tendon_frictionloss > 0)))
+
 
 T = TypeVar("T")
 
@@ -93,11 +104,14 @@ class Dynamics:
     Args:
         model: The model to predict with (a Problem's planning model).
         threads: Worker threads for batched work, and ``MjData`` objects for rollouts.
+        drop_friction: Linearize without the model's dry friction (:meth:`fd_model`);
+            steps and rollouts keep it.
     """
 
-    def __init__(self, model: mujoco.MjModel, threads: int) -> None:
+    def __init__(self, model: mujoco.MjModel, threads: int, drop_friction: bool = False) -> None:
         self.model = model
         self.threads = threads
+        self.drop_friction = bool(drop_friction)
         self.nq, self.nv, self.nu, self.na = model.nq, model.nv, model.nu, model.na
         self.nx = 2 * self.nv + self.na
         self.nstate = self.nq + self.nv + self.na
@@ -184,12 +198,14 @@ class Dynamics:
             return self._linearize(state, ctrl, eps, centered)
 
     def fd_model(self) -> mujoco.MjModel:
-        """The model that linearizations difference: :attr:`model` itself, or when its solver
-        tolerance is above :data:`FD_SOLVER_TOLERANCE` a copy with that tolerance, made on
-        first use and again whenever ``model.opt`` changes (other fields changed in place
-        after the first linearization are not seen: build a new Problem instead)."""
+        """The model that linearizations difference: :attr:`model` itself, or a copy with the
+        solver tolerance at most :data:`FD_SOLVER_TOLERANCE` and, with ``drop_friction``, dry
+        friction off (``mjDSBL_FRICTIONLOSS``), made on first use and again whenever
+        ``model.opt`` changes (other fields changed in place after the first linearization
+        are not seen: build a new Problem instead)."""
         model = self.model
-        if model.opt.tolerance <= FD_SOLVER_TOLERANCE:
+        drop = self.drop_friction and has_dry_friction(model)
+        if model.opt.tolerance <= FD_SOLVER_TOLERANCE and not drop:
             return model
         opt = model.opt
         signature = (
@@ -200,7 +216,9 @@ class Dynamics:
         with self._fd_lock:
             if self._fd is None or self._fd[0] != signature:
                 tight = copy.copy(model)
-                tight.opt.tolerance = FD_SOLVER_TOLERANCE
+                tight.opt.tolerance = min(opt.tolerance, FD_SOLVER_TOLERANCE)
+                if drop:
+                    tight.opt.disableflags |= _NO_FRICTIONLOSS
                 self._fd = (signature, tight)
             return self._fd[1]
 

@@ -24,8 +24,8 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from mpcbox.core import derivatives, inputs
-from mpcbox.core.cost import ControlCost, Cost, Features, StateCost
+from mpcbox.core import inputs
+from mpcbox.core.cost import ControlCost, Cost, StateCost
 from mpcbox.core.derivatives import Quadratization
 from mpcbox.core.divergence import check_planning_step
 from mpcbox.core.dynamics import Dynamics, Linearization, Rollout, mujoco_errors
@@ -41,6 +41,7 @@ from mpcbox.core.model import (
     with_sensors,
 )
 from mpcbox.core.parent_contacts import load_model
+from mpcbox.core.problem_costs import ProblemCosts
 from mpcbox.core.tangent import TangentSpace
 from mpcbox.errors import DivergenceError, InvalidArgumentError, ModelLoadError, ShapeError
 from mpcbox.validation import (
@@ -50,15 +51,19 @@ from mpcbox.validation import (
     finite_array,
     instance,
     non_negative,
+    one_of,
     positive,
     positive_int,
     string,
 )
 
-__all__ = ["Linearization", "Problem", "Quadratization", "Rollout"]
+__all__ = ["DRY_FRICTION", "Linearization", "Problem", "Quadratization", "Rollout"]
+
+#: Valid values of ``Problem(dry_friction=...)``.
+DRY_FRICTION = ("drop", "keep")
 
 
-class Problem:
+class Problem(ProblemCosts):
     """A control problem on a MuJoCo model.
 
     A Problem owns the :class:`Cost` and two models compiled from one MJCF: ``model``
@@ -90,6 +95,11 @@ class Problem:
         parent_contacts: ``"exclude"`` the contacts of links with the static body they hang
             from, or ``"keep"`` them (:mod:`~mpcbox.core.parent_contacts`; both warn; the
             pairs excluded are in ``excluded_contacts``).
+        dry_friction: ``"drop"``: linearizations difference the planning model without its
+            joints' and tendons' dry friction (``frictionloss``; MuJoCo's
+            ``mjDSBL_FRICTIONLOSS``), which at rest sticks and hides the controls' effect (on
+            Menagerie's G1 and Go2 it shrank ``B`` tenfold); ``"keep"`` differentiates it.
+            Simulation and rollouts keep it either way.
         threads: Threads for batched linearization (default: all cores).
         name: Label used in tables.
 
@@ -123,6 +133,7 @@ class Problem:
         plan_rk4: bool = False,
         limit_clearance: float = LIMIT_CLEARANCE,
         parent_contacts: str = "exclude",
+        dry_friction: str = "drop",
         threads: int | None = None,
         name: str | None = None,
     ) -> None:
@@ -131,6 +142,7 @@ class Problem:
         self.fd_eps = positive("fd_eps", fd_eps)
         self.fd_centered = boolean("fd_centered", fd_centered)
         self.threads = positive_int("threads", os.cpu_count() or 1 if threads is None else threads)
+        self.dry_friction = one_of("dry_friction", dry_friction, DRY_FRICTION)
 
         spec, base, self.excluded_contacts = load_model(model, parent_contacts)
         check_model(base)
@@ -174,7 +186,7 @@ class Problem:
         self.planning_changes: tuple[str, ...] = ()
         self.cost.bind(self.planning_model)
         self.ctrl_low, self.ctrl_high = inputs.ctrl_limits(pm)  # same in the copy
-        self.dynamics = Dynamics(self.planning_model, self.threads)
+        self.dynamics = Dynamics(self.planning_model, self.threads, self.drops_friction)
         if planning_timestep is not None:
             check_planning_step(self)  # PlanningDivergenceError if the step is too coarse
 
@@ -193,6 +205,11 @@ class Problem:
         )
 
     # ------------------------------------------------------------------ states
+    @property
+    def drops_friction(self) -> bool:
+        """Whether linearizations leave out dry friction (``dry_friction="drop"``)."""
+        return self.dry_friction == "drop"
+
     @property
     def dt(self) -> float:
         """Timestep of the planning model (s)."""
@@ -349,55 +366,6 @@ class Problem:
         """``mjSTATE_FULLPHYSICS`` vector (time, qpos, qvel, act, ...) for a state."""
         return self.dynamics.full_physics_state(self.check_state(state))
 
-    # ------------------------------------------------------------------ costs
-    def features(self, state: np.ndarray, ctrl: np.ndarray | None = None) -> Features:
-        """Cost features of one state (after ``mj_forward`` on the planning model)."""
-        state = self.check_state(state)
-        ctrl = self.ctrl_ref if ctrl is None else self.check_ctrl(ctrl)
-        return derivatives.evaluate_features(self.dynamics, state, ctrl)
-
-    def running_cost(self, state: np.ndarray, ctrl: np.ndarray) -> float:
-        """Running cost ``l(x, u)`` of one knot."""
-        return float(self.cost.running_value(self.features(state, ctrl))[0])
-
-    def terminal_cost(self, state: np.ndarray) -> float:
-        """Terminal cost ``l_T(x)``."""
-        return float(self.cost.terminal_value(self.features(state))[0])
-
-    def rollout_cost(self, rollout: Rollout) -> np.ndarray:
-        """Total cost ``(B,)`` of each rollout: ``T`` running costs plus the terminal cost."""
-        return derivatives.rollout_cost(self.cost, rollout, self.nq, self.nv)
-
-    def quadratize(
-        self, state: np.ndarray, ctrl: np.ndarray, *, terminal: bool = False
-    ) -> Quadratization:
-        r"""Gauss-Newton quadratization of the running (or terminal) cost at one knot.
-
-        :math:`\ell_x = J_x^T W r`, :math:`\ell_{xx} = J_x^T W J_x`, ... with the residual
-        Jacobians :math:`J_x, J_u` (see :mod:`mpcbox.core.derivatives`).
-        """
-        state, ctrl = self.check_state(state), self.check_ctrl(ctrl)
-        terms = self.cost.terminal if boolean("terminal", terminal) else self.cost.running
-        out = derivatives.quadratize_knots(
-            self.dynamics, self.tangent, terms, state[None], ctrl[None], self.fd_eps
-        )
-        return Quadratization(*(value[0] for value in out))
-
-    def quadratize_trajectory(
-        self, states: np.ndarray, ctrls: np.ndarray, *, threads: int | None = None
-    ) -> Quadratization:
-        """Running cost at ``T`` knots and terminal cost at the last of ``T + 1`` states.
-
-        ``states`` ``(T + 1, nstate)`` and ``ctrls`` ``(T, nu)`` give arrays with leading size
-        ``T + 1`` (see :func:`~mpcbox.core.derivatives.quadratize_trajectory`).
-        """
-        states = as_array("states", states, (None, self.nstate))
-        ctrls = as_array("ctrls", ctrls, (states.shape[0] - 1, self.nu))
-        threads = None if threads is None else positive_int("threads", threads)
-        return derivatives.quadratize_trajectory(
-            self.dynamics, self.tangent, self.cost, states, ctrls, self.fd_eps, threads
-        )
-
     def find_equilibrium(self, qpos: np.ndarray | None = None, **kwargs):
         """Control that holds a posture, from inverse dynamics (see :func:`find_equilibrium`)."""
         from mpcbox.core.equilibrium import find_equilibrium
@@ -455,7 +423,7 @@ class Problem:
         clone = copy.copy(self)
         clone.planning_model = copy.copy(self.planning_model)
         clone.planning_model.opt.timestep = positive("timestep", timestep)
-        clone.dynamics = Dynamics(clone.planning_model, self.threads)
+        clone.dynamics = Dynamics(clone.planning_model, self.threads, self.drops_friction)
         check_planning_step(clone)
         return clone
 
@@ -473,7 +441,7 @@ class Problem:
         clone = copy.copy(self)
         clone.cost = cost
         cost.bind(self.planning_model)
-        clone.dynamics = Dynamics(self.planning_model, self.threads)
+        clone.dynamics = Dynamics(self.planning_model, self.threads, self.drops_friction)
         return clone
 
     def replace_planning_model(self, model: mujoco.MjModel, change: str) -> None:
@@ -482,7 +450,7 @@ class Problem:
         self.planning_model = model
         self.cost.bind(model)
         self.dynamics.close()
-        self.dynamics = Dynamics(model, self.threads)
+        self.dynamics = Dynamics(model, self.threads, self.drops_friction)
         self.planning_changes = (*self.planning_changes, string("change", change))
 
     def close(self) -> None:  # shut down the thread pool

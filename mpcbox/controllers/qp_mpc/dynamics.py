@@ -110,12 +110,16 @@ def compose(Ah: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
 def prediction_models(
     problem: Problem, dt: float, substeps: int
 ) -> tuple[mujoco.MjModel, mujoco.MjModel]:
-    """Copies of the planning model at timestep ``dt / substeps``: contacts off, and on."""
+    """Copies of the planning model at timestep ``dt / substeps``: contacts off, and on; both
+    without dry friction when the Problem linearizes without it (``dry_friction="drop"``)."""
     free = copy.copy(problem.planning_model)
     free.opt.timestep = dt / substeps
     free.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
     soft = copy.copy(problem.planning_model)
     soft.opt.timestep = dt / substeps
+    if problem.drops_friction:
+        for m in (free, soft):
+            m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS)
     return free, soft
 
 

@@ -115,7 +115,7 @@ def unlimited(problem: Problem) -> Problem:
     model.actuator_forcelimited[:] = 0
     model.jnt_actfrclimited[:] = 0
     clone.planning_model = model
-    clone.dynamics = Dynamics(model, problem.threads)
+    clone.dynamics = Dynamics(model, problem.threads, problem.drops_friction)
     return clone
 
 
