@@ -93,9 +93,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", default="", help="also write the JSON here")
     parser.add_argument(
         "--dry-friction",
-        default="drop",
+        default="keep",
         choices=["drop", "keep"],
-        help="linearize without the joints' frictionloss (drop, the default) or with it",
+        help="linearize with the joints' frictionloss (keep, the task's default) or without",
     )
     parser.add_argument("--machine", default=None, help="what runs it (default: the sandbox)")
     args = parser.parse_args(argv)

@@ -83,7 +83,7 @@ def run_robot(
     duration: float,
     controllers: tuple[str, ...],
     qp_time_limit: str = "preset",
-    dry_friction: str = "drop",
+    dry_friction: str = "keep",
 ) -> dict:
     import mpcbox
     from mpcbox.tasks.legged.biped import BipedStand
@@ -171,8 +171,8 @@ def main() -> int:
     parser.add_argument(
         "--dry-friction",
         choices=("drop", "keep"),
-        default="drop",
-        help="linearize without the joints' frictionloss (drop) or with it (before stop 35)",
+        default="keep",
+        help="linearize with the joints' frictionloss (keep, the tasks' default) or without",
     )
     parser.add_argument("--label", default="after")
     parser.add_argument("--out", default=str(OUT))

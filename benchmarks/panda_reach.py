@@ -133,7 +133,7 @@ def main() -> None:
         "--dry-friction",
         default="drop",
         choices=["drop", "keep"],
-        help="linearize without the joints' frictionloss (drop) or with it (before stop 35)",
+        help="linearize without the joints' frictionloss (drop, ArmReach's default) or with it",
     )
     parser.add_argument("--timestep", type=float, default=None, help="replace the model's")
     parser.add_argument(

@@ -59,17 +59,18 @@ WHEEL = """
 INERTIA = 0.5 * 1.0 * 0.1**2
 
 
-def test_dry_friction_is_left_out_of_the_derivatives_by_default():
+def test_dry_friction_is_left_out_of_the_derivatives_on_request():
     """A torque on a free wheel changes its speed by dt / I per N m; with 1 N m of dry
     friction at rest MuJoCo's soft friction constraint absorbs most of a small torque, so
-    differencing the model with it sees a wheel the motor hardly turns."""
+    differencing the model with it (the default) sees a wheel the motor hardly turns."""
     from mpcbox import Problem
 
-    problem = Problem(WHEEL.format(friction=1.0), threads=1)
+    problem = Problem(WHEEL.format(friction=1.0), dry_friction="drop", threads=1)
     x, u = problem.reference_state(), np.zeros(1)
     exact = problem.dt / INERTIA
     assert problem.linearize(x, u).B[1, 0] == pytest.approx(exact, rel=1e-6)
-    kept = Problem(WHEEL.format(friction=1.0), dry_friction="keep", threads=1)
+    kept = Problem(WHEEL.format(friction=1.0), threads=1)
+    assert kept.dry_friction == "keep"
     assert abs(kept.linearize(x, u).B[1, 0]) < 0.5 * exact
     # The simulation keeps the friction: 0.5 N m does not start the wheel.
     data = mujoco.MjData(problem.model)
@@ -83,7 +84,7 @@ def test_dry_friction_is_left_out_of_the_derivatives_by_default():
 def test_a_model_without_dry_friction_is_differenced_as_it_is():
     from mpcbox import Problem
 
-    problem = Problem(WHEEL.format(friction=0.0), threads=1)
+    problem = Problem(WHEEL.format(friction=0.0), dry_friction="drop", threads=1)
     fd = problem.dynamics.fd_model()
     assert not fd.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS
     lin = problem.linearize(problem.reference_state(), np.zeros(1))
@@ -105,5 +106,5 @@ def test_a_bad_dry_friction_choice_names_the_valid_ones():
     from mpcbox import Problem
     from mpcbox.errors import InvalidArgumentError
 
-    with pytest.raises(InvalidArgumentError, match="dry_friction.*drop.*keep"):
+    with pytest.raises(InvalidArgumentError, match=r"dry_friction.*drop.*keep"):
         Problem(WHEEL.format(friction=1.0), dry_friction="smooth")

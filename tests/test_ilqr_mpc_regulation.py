@@ -36,10 +36,10 @@ ARM = """
 X0 = np.array([0.1, -0.05, 0.0, 0.0])
 
 
-def gain_errors(friction: float, linearization: str) -> np.ndarray:
+def gain_errors(friction: float, linearization: str, dry_friction: str = "drop") -> np.ndarray:
     """Relative distance ``(T,)`` of each knot's iLQR gain from the LQR gain, one iteration
     from ``X0`` with the LQR value as terminal cost."""
-    problem = mpcbox.Problem(ARM.format(friction=friction), threads=1)
+    problem = mpcbox.Problem(ARM.format(friction=friction), dry_friction=dry_friction, threads=1)
     lqr = mpcbox.LQR(problem)
     ilqr = ILQR(
         problem,
@@ -57,13 +57,17 @@ def test_reference_linearization_keeps_the_lqr_gain_through_dry_friction():
     # Without friction the arm's dynamics are smooth: Jacobians along the trajectory stay
     # within 1 % of the reference's, and so do the gains.
     assert gain_errors(0.0, "trajectory").max() < 0.02
-    # With it, each hinge sticks or slips and the trajectory's Jacobians belong to another
-    # mode than the reference's: the gains differ from the LQR gain by as much as the gain.
-    assert gain_errors(0.3, "trajectory").max() > 0.5
+    # Differenced with it (dry_friction="keep"), each hinge sticks or slips and the
+    # trajectory's Jacobians belong to another mode than the reference's: the gains differ
+    # from the LQR gain by as much as the gain.
+    assert gain_errors(0.3, "trajectory", "keep").max() > 0.5
+    # Left out of the derivatives (dry_friction="drop"), it no longer splits the modes.
+    assert gain_errors(0.3, "trajectory").max() < 0.02
     # Linearized at the reference, the LQR value is the exact cost-to-go of the backward
     # pass's model, so every knot's gain is the LQR gain, friction or not.
     for friction in (0.0, 0.3):
-        assert gain_errors(friction, "reference").max() < 1e-9
+        for mode in ("drop", "keep"):
+            assert gain_errors(friction, "reference", mode).max() < 1e-9
 
 
 def test_reference_linearization_is_checked():

@@ -114,7 +114,7 @@ def test_a_model_without_such_contacts_is_left_alone() -> None:
 
 
 def test_a_bad_choice_is_refused_with_the_valid_ones() -> None:
-    with pytest.raises(InvalidArgumentError, match="parent_contacts.*exclude.*keep"):
+    with pytest.raises(InvalidArgumentError, match=r"parent_contacts.*exclude.*keep"):
         Problem(ARM.format(option=""), parent_contacts="drop")
 
 
@@ -131,7 +131,8 @@ def test_kinova_gen3_base_and_shoulder_are_excluded_and_lqr_reaches() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         problem = ArmReach("menagerie:kinova_gen3", target=[0, 0.3, -0.2646], relative=True)
-    assert ("base_link", "shoulder_link") in [(c.parent, c.child) for c in problem.excluded_contacts]
+    pairs = [(c.parent, c.child) for c in problem.excluded_contacts]
+    assert ("base_link", "shoulder_link") in pairs
     sim = mpcbox.simulate(problem, make_controller("lqr", problem), 2.0, seed=0)
     # With the contact kept, joint_1 crept at 0.17 rad/s and LQR was 1.6 cm away at 2 s.
     assert problem.reach_error(sim.states[-1]) < 0.01

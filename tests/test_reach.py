@@ -65,6 +65,7 @@ def test_non_finite_targets_are_refused_by_their_name(argument, value) -> None:
 
 def test_lqr_reaches_and_the_goal_check_and_measure_agree(aloha: ArmReach) -> None:
     start = aloha.initial_state()
+    assert aloha.dry_friction == "drop"  # the ViperX joints' dry friction (2 N m) left out
     assert aloha.reach_error(start) == pytest.approx(0.1, abs=1e-9)
     missed = aloha.goal_failure(np.array([0.0]), start[None])
     assert missed is not None and "10.00 cm from the target" in missed

@@ -104,7 +104,7 @@ def test_bad_noise_schedules_are_rejected(problem, schedule):
 
 
 def test_a_ramp_over_one_knot_would_sample_no_noise_and_is_rejected(problem):
-    with pytest.raises(InvalidArgumentError, match="ramp.*num_knots >= 2"):
+    with pytest.raises(InvalidArgumentError, match=r"ramp.*num_knots >= 2"):
         MPPI(problem, num_knots=1, noise_schedule="ramp")
 
 

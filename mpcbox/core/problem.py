@@ -95,11 +95,12 @@ class Problem(ProblemCosts):
         parent_contacts: ``"exclude"`` the contacts of links with the static body they hang
             from, or ``"keep"`` them (:mod:`~mpcbox.core.parent_contacts`; both warn; the
             pairs excluded are in ``excluded_contacts``).
-        dry_friction: ``"drop"``: linearizations difference the planning model without its
-            joints' and tendons' dry friction (``frictionloss``; MuJoCo's
-            ``mjDSBL_FRICTIONLOSS``), which at rest sticks and hides the controls' effect (on
-            Menagerie's G1 and Go2 it shrank ``B`` tenfold); ``"keep"`` differentiates it.
-            Simulation and rollouts keep it either way.
+        dry_friction: ``"keep"`` (default) differentiates the joints' and tendons' dry
+            friction (``frictionloss``), which at rest sticks and hides the controls' effect
+            (on Menagerie's G1 and Go2 ``B`` is ten times smaller with it); ``"drop"``
+            linearizes a copy without it (``mjDSBL_FRICTIONLOSS``), the derivative of a
+            joint that slips: :class:`~mpcbox.tasks.reach.ArmReach` drops it, the standing
+            tasks keep it (dropped, Talos fell). Simulation and rollouts keep it either way.
         threads: Threads for batched linearization (default: all cores).
         name: Label used in tables.
 
@@ -133,7 +134,7 @@ class Problem(ProblemCosts):
         plan_rk4: bool = False,
         limit_clearance: float = LIMIT_CLEARANCE,
         parent_contacts: str = "exclude",
-        dry_friction: str = "drop",
+        dry_friction: str = "keep",
         threads: int | None = None,
         name: str | None = None,
     ) -> None:

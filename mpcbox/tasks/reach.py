@@ -81,7 +81,8 @@ class ArmReach(Problem):
             uncontrollable joints from the state (LQR's Riccati equation has no stabilizing
             solution with them), or ``"error"``: raise, naming them. Only a model given as
             MJCF or spec can be welded.
-        **kwargs: Passed to :class:`~mpcbox.Problem` (``planning_timestep``, ...).
+        **kwargs: Passed to :class:`~mpcbox.Problem` (``planning_timestep``, ...);
+            ``dry_friction`` defaults to ``"drop"`` here.
 
     Attributes:
         welded: Names of the free objects welded to the world.
@@ -172,6 +173,10 @@ class ArmReach(Problem):
         self.welded: tuple[str, ...] = ()
         one_of("free_objects", free_objects, FREE_OBJECTS)
         model = self._without_free_objects(model, free_objects)
+        # A reaching arm's joints slip: linearize without their dry friction, which at rest
+        # sticks (Unitree's Z1, 1 N m a joint: LQR drove the arm 23-32 cm from a 20 cm
+        # target with it, 0.9-1.5 cm without; results/arm_reach_z1.json).
+        kwargs.setdefault("dry_friction", "drop")
         super().__init__(model, **kwargs)
 
     def _without_free_objects(self, source: ModelSource, mode: str) -> ModelSource:
