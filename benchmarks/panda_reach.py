@@ -44,12 +44,12 @@ def build(seed: int, args: argparse.Namespace) -> ArmReach:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MissingMeshWarning)
         nominal = np.asarray(args.offset, dtype=float)
-        kept = {"parent_contacts": args.parent_contacts, "dry_friction": args.dry_friction}
+        options = {"parent_contacts": args.parent_contacts, "dry_friction": args.dry_friction}
         model = args.model
         if args.timestep:
             model = load_spec(args.model)
             model.option.timestep = args.timestep
-        home = ArmReach(model, frame=args.frame, target=nominal, relative=True, **kept)
+        home = ArmReach(model, frame=args.frame, target=nominal, relative=True, **options)
         start = home.start_qpos.copy()
         arm = min(7, home.nu)  # the arm's joints lead qpos on Menagerie arms
         start[:arm] += rng.uniform(-args.posture_noise, args.posture_noise, arm)
@@ -61,7 +61,7 @@ def build(seed: int, args: argparse.Namespace) -> ArmReach:
             relative=True,
             start_qpos=start,
             tolerance=TOLERANCE,
-            **kept,
+            **options,
         )
 
 

@@ -170,9 +170,10 @@ class Problem(ProblemCosts):
         given = None if ctrl_ref is None else finite_array("ctrl_ref", ctrl_ref, (self.nu,))
         self.ctrl_ref, self.qvel_ref = key_ctrl if given is None else given, np.zeros(self.nv)
         self.prepare(base)
-        if moves_kept(chosen, cleared, self.qpos_ref):  # not if prepare chose its own
-            clear_of_limits(base, chosen, clearance, warn=True)
-        self.limit_moves = moves if moves_kept(chosen, cleared, self.qpos_ref) else []
+        kept = moves_kept(chosen, cleared, self.qpos_ref)  # not if prepare chose its own
+        if kept:
+            clear_of_limits(base, chosen, clearance, warn=True)  # the same moves, said
+        self.limit_moves = moves if kept else []
         if given is None:  # a given ctrl_ref is checked where it is used (linearize)
             self.ctrl_ref = inputs.default_ctrl_in_range(self.ctrl_ref, base, self.keyframe)
 
