@@ -73,6 +73,22 @@ def chosen_robots(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
     return [r for r in args.robots.split(",") if r]
 
 
+def parse_options(parser: argparse.ArgumentParser, text: str) -> dict:
+    """``"key=literal,key=literal"`` as a dict (a usage error names a malformed item)."""
+    import ast
+
+    options: dict = {}
+    for item in filter(None, (part.strip() for part in text.split(","))):
+        key, sep, value = item.partition("=")
+        try:
+            if not sep or not key.strip().isidentifier():
+                raise ValueError
+            options[key.strip()] = ast.literal_eval(value.strip())
+        except (ValueError, SyntaxError):
+            parser.error(f"--task-set: expected key=literal, got {item!r}")
+    return options
+
+
 def _error(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {str(exc)[:300]}"
 
@@ -84,6 +100,10 @@ def run_robot(
     controllers: tuple[str, ...],
     qp_time_limit: str = "preset",
     dry_friction: str = "keep",
+    task_options: dict | None = None,
+    noise_scale: float = 1.0,
+    first_seed: int = 0,
+    push: bool = False,
 ) -> dict:
     import mpcbox
     from mpcbox.tasks.legged.biped import BipedStand
@@ -96,7 +116,13 @@ def run_robot(
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            problem = task(f"menagerie:{robot}", feet=feet, threads=1, dry_friction=dry_friction)
+            problem = task(
+                f"menagerie:{robot}",
+                feet=feet,
+                threads=1,
+                dry_friction=dry_friction,
+                **(task_options or {}),
+            )
         except Exception as exc:  # recorded, not raised: the point is what breaks
             out["build_error"] = _error(exc)
             return out
@@ -113,12 +139,12 @@ def run_robot(
     out["shortfall"] = float(eq.shortfall)
     for name in controllers:
         runs = []
-        for seed in range(seeds):
+        for seed in range(first_seed, first_seed + seeds):
             try:
                 unlimited = name == "qp" and qp_time_limit == "none"
                 overrides = {"time_limit": None} if unlimited else {}
                 controller = mpcbox.make_controller(name, problem, **overrides)
-                noise = problem.noise()
+                noise = problem.noise(noise_scale)
                 res = mpcbox.simulate(problem, controller, duration, noise=noise, seed=seed)
                 runs.append(
                     {
@@ -134,8 +160,22 @@ def run_robot(
                 runs.append({"seed": seed, "success": False, "error": _error(exc)})
                 break
         out[name] = {"successes": sum(r["success"] for r in runs), "runs": runs}
+        if push:
+            out[name]["largest_push_n"] = _largest_push(problem, name)
     problem.close()
     return out
+
+
+def _largest_push(problem, name: str) -> float | str:
+    """The largest forward push of 0.1 s on the root that ``name`` survives (no noise, 5 N)."""
+    from mpcbox.comparison.push_limits import largest_push
+    from mpcbox.comparison.scenario import PushTest
+
+    test = PushTest(body=problem.root, tolerance=5.0, max_force=1500.0)
+    try:
+        return round(float(largest_push(problem, name, test).force), 1)
+    except Exception as exc:
+        return _error(exc)
 
 
 def _qp_counts(controller: object) -> dict:
@@ -174,13 +214,37 @@ def main() -> int:
         default="keep",
         help="linearize with the joints' frictionloss (keep, the tasks' default) or without",
     )
+    parser.add_argument(
+        "--task-set",
+        default="",
+        help="task options for every robot, as Python literals: 'joint_cost=10,ctrl_cost=1.0'",
+    )
+    parser.add_argument("--noise-scale", type=float, default=1.0, help="x the noise recipe")
+    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument(
+        "--largest-push",
+        action="store_true",
+        help="also bisect each controller's largest forward push (0.1 s on the root, no noise)",
+    )
     parser.add_argument("--label", default="after")
     parser.add_argument("--out", default=str(OUT))
     args = parser.parse_args()
     robots = chosen_robots(parser, args)
     controllers = tuple(c for c in args.controllers.split(",") if c)
+    task_options = parse_options(parser, args.task_set)
     jobs = [
-        (r, args.seeds, args.duration, controllers, args.qp_time_limit, args.dry_friction)
+        (
+            r,
+            args.seeds,
+            args.duration,
+            controllers,
+            args.qp_time_limit,
+            args.dry_friction,
+            task_options,
+            args.noise_scale,
+            args.first_seed,
+            args.largest_push,
+        )
         for r in robots
     ]
     started = time.perf_counter()
@@ -190,12 +254,19 @@ def main() -> int:
     stored = json.loads(path.read_text()) if path.exists() else {}
     stored[args.label] = {
         "command": "MENAGERIE_ROOT=... python benchmarks/menagerie_robots.py "
-        f"--label {args.label} --seeds {args.seeds} --duration {args.duration} "
+        f"--robots {args.robots} --label {args.label} --seeds {args.seeds} "
+        f"--duration {args.duration} "
         f"--controllers {args.controllers} --qp-time-limit {args.qp_time_limit} "
-        f"--dry-friction {args.dry_friction}",
+        f"--dry-friction {args.dry_friction}"
+        + (f" --task-set '{args.task_set}'" if args.task_set else "")
+        + f" --noise-scale {args.noise_scale} --first-seed {args.first_seed}"
+        + (" --largest-push" if args.largest_push else ""),
+        "task_options": task_options,
         "seeds": args.seeds,
         "duration_s": args.duration,
-        "noise": "each task's robot-independent recipe (5 % of each actuator's half range)",
+        "noise": "each task's robot-independent recipe (5 % of each actuator's half range)"
+        f" x {args.noise_scale}",
+        "first_seed": args.first_seed,
         "machine": "2-core sandbox CPU, shared",
         "wall_time_s": round(time.perf_counter() - started, 1),
         "robots": results,
@@ -205,6 +276,10 @@ def main() -> int:
     for robot, found in results.items():
         summary[robot] = {"build": "build_error" not in found}
         summary[robot].update({c: found.get(c, {}).get("successes") for c in controllers})
+        if args.largest_push:
+            summary[robot].update(
+                {f"{c}_push_n": found.get(c, {}).get("largest_push_n") for c in controllers}
+            )
     print(json.dumps(summary, indent=1))
     return 0
 

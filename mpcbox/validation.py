@@ -142,15 +142,26 @@ def in_range(
     return val
 
 
-def integer(name: str, value: object, minimum: int = 0) -> int:
-    """Check that ``value`` is an integer (not a bool) ``>= minimum`` and return it."""
+#: Largest seed numpy's legacy generator takes (``RandomState``): seeds are 32-bit.
+SEED_MAX = 2**32 - 1
+
+
+def integer(name: str, value: object, minimum: int = 0, maximum: int | None = None) -> int:
+    """Check that ``value`` is an integer (not a bool) ``>= minimum`` (and ``<= maximum``
+    when given) and return it."""
+    bounds = f">= {minimum}" if maximum is None else f"in [{minimum}, {maximum}]"
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
         raise InvalidTypeError(
-            f"{name} must be an integer >= {minimum}, got {type(value).__name__} {value!r}"
+            f"{name} must be an integer {bounds}, got {type(value).__name__} {value!r}"
         )
-    if value < minimum:
-        raise InvalidArgumentError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    if value < minimum or (maximum is not None and value > maximum):
+        raise InvalidArgumentError(f"{name} must be an integer {bounds}, got {value!r}")
     return int(value)
+
+
+def seed(name: str, value: object) -> int:
+    """Check that ``value`` is a random seed: an integer in ``[0, 2**32 - 1]``."""
+    return integer(name, value, 0, SEED_MAX)
 
 
 def positive_int(name: str, value: object) -> int:
@@ -158,13 +169,13 @@ def positive_int(name: str, value: object) -> int:
     return integer(name, value, 1)
 
 
-def integers(name: str, values: object, minimum: int = 0) -> list[int]:
+def integers(name: str, values: object, minimum: int = 0, maximum: int | None = None) -> list[int]:
     """A non-empty sequence of integers ``>= minimum`` (seeds, for example) as a list."""
     if isinstance(values, (str, bytes, Mapping)) or not isinstance(values, Sequence | np.ndarray):
         raise InvalidTypeError(
             f"{name} must be a sequence of integers, got {type(values).__name__} {values!r}"
         )
-    out = [integer(name, value, minimum) for value in values]
+    out = [integer(name, value, minimum, maximum) for value in values]
     if not out:
         raise InvalidArgumentError(f"{name} must hold at least one integer")
     return out

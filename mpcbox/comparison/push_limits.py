@@ -40,7 +40,15 @@ from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError, RunError, UnknownNameError
 from mpcbox.registry import TASKS, task_class
 from mpcbox.sim.disturbances import MAX_FORCE, ActuatorNoise, ModelMismatch, Push
-from mpcbox.validation import checked_keywords, instance, integer, integers, number, positive
+from mpcbox.validation import (
+    SEED_MAX,
+    checked_keywords,
+    instance,
+    integers,
+    number,
+    positive,
+)
+from mpcbox.validation import seed as check_seed
 
 
 def _local(problem: object, controller: object, executor: object) -> bool:
@@ -166,7 +174,7 @@ def survival(
             mismatch=mismatch,
             progress=progress,
         )
-    seed_list = integers("seeds", seeds)
+    seed_list = integers("seeds", seeds, 0, SEED_MAX)
     positive("duration", duration)
     scenario = Scenario(
         name="survival",
@@ -239,7 +247,7 @@ def push_grid(
     if _local(problem, controller, executor) and not (problem_options or controller_options):
         return _here.push_grid(problem, controller, forces, test, seed=seed, progress=progress)
     instance("test", test, PushTest, "an mpcbox.comparison.scenario.PushTest")
-    seed = integer("seed", seed)
+    seed = check_seed("seed", seed)
     grid = _grid(forces)
     scenarios = [
         Scenario(
@@ -299,7 +307,7 @@ def largest_push(
     if _local(problem, controller, executor) and not (problem_options or controller_options):
         return _here.largest_push(problem, controller, test, seed=seed)
     instance("test", test, PushTest, "an mpcbox.comparison.scenario.PushTest")
-    seed = integer("seed", seed)
+    seed = check_seed("seed", seed)
     (done,) = _run(
         problem,
         controller,

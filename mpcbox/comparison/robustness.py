@@ -22,7 +22,15 @@ from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError
 from mpcbox.sim.disturbances import MAX_FORCE, ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.simulation import SimulationResult, simulate
-from mpcbox.validation import checked_keywords, instance, integer, integers, number, positive
+from mpcbox.validation import (
+    SEED_MAX,
+    checked_keywords,
+    instance,
+    integers,
+    number,
+    positive,
+)
+from mpcbox.validation import seed as check_seed
 
 #: The push test used when none is given (every :class:`PushTest` default).
 DEFAULT_PUSH = PushTest()
@@ -112,7 +120,7 @@ def survival(
         progress: Show a progress bar.
     """
     _check_runner(problem, controller)
-    seeds = np.asarray(integers("seeds", seeds), dtype=int)
+    seeds = np.asarray(integers("seeds", seeds, 0, SEED_MAX), dtype=int)
     positive("duration", duration)
     iterator = seeds
     if progress:
@@ -151,7 +159,7 @@ def _push_trial(
     """``trial(force) -> SimulationResult`` for the push of ``test`` at a force magnitude."""
     _check_runner(problem, controller)
     instance("test", test, PushTest, "an mpcbox.comparison.scenario.PushTest")
-    seed = integer("seed", seed)
+    seed = check_seed("seed", seed)
     noise = task_noise(problem, test.noise_scale)
 
     def trial(force: float) -> SimulationResult:

@@ -37,7 +37,7 @@ from mpcbox.comparison.jobs import Done, Job, Setup, picklable
 from mpcbox.comparison.report import Comparison
 from mpcbox.comparison.robustness import PushLimit
 from mpcbox.comparison.scenario import PushTest, Scenario, check_noise_models
-from mpcbox.config import check_option_names
+from mpcbox.config import check_option_names, resolve_config
 from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError, UnknownNameError
@@ -48,7 +48,14 @@ from mpcbox.registry import (
     controller_class,
     task_class,
 )
-from mpcbox.validation import boolean, check_class_options, checked_keywords, integers, positive_int
+from mpcbox.validation import (
+    SEED_MAX,
+    boolean,
+    check_class_options,
+    checked_keywords,
+    integers,
+    positive_int,
+)
 from mpcbox.validation import instance as instance_of
 
 ControllerFactory = Callable[[Problem], Controller]
@@ -194,9 +201,12 @@ def compare(
             raise UnknownNameError("controller in controller_options", name, specs)
         spec = specs[name]
         if isinstance(spec, str) and controller_class(spec).config_class is not None:
-            check_option_names(
-                controller_class(spec).config_class, options, f"controller_options[{name!r}]"
-            )
+            config_class = controller_class(spec).config_class
+            owner = f"controller_options[{name!r}]"
+            check_option_names(config_class, options, owner)
+            tuned = getattr(instance or problem_class, "controller_configs", {}).get(spec)
+            if isinstance(tuned, config_class):  # the values too, before any run starts
+                resolve_config(config_class, tuned, options, owner)
 
     if scenarios is None:
         scenarios = (Scenario(),)
@@ -212,7 +222,7 @@ def compare(
     seed_list = tuple(
         range(positive_int("seeds", seeds))
         if isinstance(seeds, int | np.integer) and not isinstance(seeds, bool)
-        else integers("seeds", seeds)
+        else integers("seeds", seeds, 0, SEED_MAX)
     )
     repeated = sorted({s for s in seed_list if seed_list.count(s) > 1})
     if repeated:  # a run is identified by its seed (rows, checkpoint)

@@ -245,6 +245,10 @@ class LQRConfig:
     def __post_init__(self) -> None:
         if self.period is not None:
             positive("period", self.period)
+        if self.eps is not None:
+            positive("eps", self.eps)
+        if self.centered is not None:
+            boolean("centered", self.centered)
         object.__setattr__(self, "wrap", boolean("wrap", self.wrap))
 
 

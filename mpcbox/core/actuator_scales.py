@@ -26,8 +26,9 @@ import mujoco
 import numpy as np
 
 from mpcbox.core.actuation import actuation_map, actuator_name
+from mpcbox.core.model import check_mjmodel
 from mpcbox.errors import InvalidArgumentError
-from mpcbox.validation import as_array, one_of
+from mpcbox.validation import as_array, finite_array, one_of
 
 #: Units a control weight or standard deviation may be given in.
 UNITS: tuple[str, ...] = ("control", "torque", "range")
@@ -57,7 +58,8 @@ def actuator_scales(model: mujoco.MjModel, qpos: np.ndarray) -> ActuatorScales:
         UnsupportedModelError: If :func:`~mpcbox.core.actuation.actuation_map` cannot model an
             actuator (delays, or forces that are not affine in the control).
     """
-    qpos = as_array("qpos", qpos, (model.nq,))
+    model = check_mjmodel(model)
+    qpos = finite_array("qpos", qpos, (model.nq,))
     data = mujoco.MjData(model)
     data.qpos[:] = qpos
     amap = actuation_map(model, data)

@@ -49,6 +49,7 @@ from mpcbox.validation import (
     boolean,
     checked_options,
     finite_array,
+    in_range,
     instance,
     non_negative,
     one_of,
@@ -58,6 +59,9 @@ from mpcbox.validation import (
 )
 
 __all__ = ["DRY_FRICTION", "Linearization", "Problem", "Quadratization", "Rollout"]
+
+#: Largest finite-difference step ``Problem(fd_eps=...)`` takes: the linearization is local.
+MAX_FD_EPS = 1e-2
 
 #: Valid values of ``Problem(dry_friction=...)``.
 DRY_FRICTION = ("drop", "keep")
@@ -82,12 +86,14 @@ class Problem(ProblemCosts):
         keyframe: Name or index of the keyframe giving the reference posture and the initial
             state; ``qpos0`` of the model when omitted.
         qpos_ref: Reference positions ``(nq,)``, overriding the keyframe's.
-        ctrl_ref: Reference control ``(nu,)``; the keyframe's ``ctrl`` (or zeros) when omitted.
+        ctrl_ref: Reference control ``(nu,)``; the keyframe's ``ctrl`` (or zeros, moved into
+            the control range with an ``EquilibriumWarning``) when omitted. A given one must
+            lie inside the limited actuators' ``ctrlrange`` (``InvalidArgumentError``).
         planning_timestep: Timestep of the planning model (default: the simulation timestep);
             a step at which the model diverges raises a ``PlanningDivergenceError``.
         planning_model: A separate source for the planning model; it must have the same
             ``nq``, ``nv``, ``nu`` and ``na``.
-        fd_eps: Finite-difference step.
+        fd_eps: Finite-difference step, in ``(0, 0.01]``.
         fd_centered: Centered (True) or forward (False) differences by default.
         plan_rk4: Plan an RK4 model in RK4 (:func:`~mpcbox.core.model.plannable`).
         limit_clearance: Distance of each driven joint of the reference from its limits
@@ -140,7 +146,7 @@ class Problem(ProblemCosts):
     ) -> None:
         if name is not None:
             self.name = string("name", name)
-        self.fd_eps = positive("fd_eps", fd_eps)
+        self.fd_eps = in_range("fd_eps", fd_eps, 0.0, MAX_FD_EPS, low_open=True, high_open=False)
         self.fd_centered = boolean("fd_centered", fd_centered)
         self.threads = positive_int("threads", os.cpu_count() or 1 if threads is None else threads)
         self.dry_friction = one_of("dry_friction", dry_friction, DRY_FRICTION)
@@ -174,8 +180,11 @@ class Problem(ProblemCosts):
         if kept:
             clear_of_limits(base, chosen, clearance, warn=True)  # the same moves, said
         self.limit_moves = moves if kept else []
-        if given is None:  # a given ctrl_ref is checked where it is used (linearize)
+        if given is None:
             self.ctrl_ref = inputs.default_ctrl_in_range(self.ctrl_ref, base, self.keyframe)
+        else:
+            low, high = inputs.ctrl_limits(base)
+            inputs.check_in_range("ctrl_ref", given, low, high, self.fd_eps)
 
         self.cost = instance("cost", self.build_cost(base) if cost is None else cost, Cost)
         requests = self.cost.sensors(base)

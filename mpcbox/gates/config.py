@@ -15,6 +15,7 @@ from mpcbox.validation import (
     positive,
     positive_int,
 )
+from mpcbox.validation import seed as check_seed
 
 #: What is applied when no trajectory or task gives the controls.
 CONTROL_MODES: tuple[str, ...] = ("hold", "keyframes", "zero")
@@ -106,7 +107,7 @@ class GatesConfig:
             if getattr(self, name) is not None:
                 integer(name, getattr(self, name), 0)
         non_negative("perturbation", self.perturbation)
-        integer("seed", self.seed, 0)
+        check_seed("seed", self.seed)
         positive_int("throughput_steps", self.throughput_steps)
         positive_int("block_steps", self.block_steps)
 

@@ -12,6 +12,7 @@ import numpy as np
 from mpcbox.core.model import object_id
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError
 from mpcbox.validation import checked_options, finite_array, integer, non_negative, positive, string
+from mpcbox.validation import seed as check_seed
 
 #: Largest push force or torque magnitude accepted (N, N m): beyond it a push is an input
 #: error (a 1e12 N push only makes MuJoCo diverge), and push searches stop there.
@@ -53,7 +54,7 @@ class ActuatorNoise:
             ShapeError: If ``std`` has one value per actuator and ``nu`` differs.
         """
         steps, nu = integer("steps", steps, 1), integer("nu", nu, 1)
-        dt, seed = positive("dt", dt), integer("seed", seed)
+        dt, seed = positive("dt", dt), check_seed("seed", seed)
         std = np.asarray(self.std, dtype=np.float64)
         std = np.full(nu, float(std)) if std.ndim == 0 else finite_array("std", std, (nu,))
         white = np.random.RandomState(seed).randn(steps, nu)

@@ -22,6 +22,10 @@ from mpcbox.errors import BackendUnavailableError
 PUSH_COLOUR = (220, 30, 30)
 _BORDER = 6
 
+#: Why the first offscreen renderer of this process could not be made, if it could not: later
+#: attempts raise at once (after a failed GLFW start a second one aborts the interpreter).
+_GL_FAILURE: str | None = None
+
 
 def make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
     """An offscreen :class:`mujoco.Renderer` of ``width x height`` pixels.
@@ -30,16 +34,20 @@ def make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Rend
         BackendUnavailableError: If no OpenGL context can be made; the message names the
             ``MUJOCO_GL`` in force and the values to try.
     """
+    global _GL_FAILURE
+    if _GL_FAILURE is not None:  # a second try can abort the interpreter inside GLFW
+        raise BackendUnavailableError(_GL_FAILURE)
     try:
         return mujoco.Renderer(model, height=height, width=width)
     except Exception as exc:  # MuJoCo, PyOpenGL and GLFW raise many types here
         gl = os.environ.get("MUJOCO_GL")
         shown = f"MUJOCO_GL={gl!r}" if gl is not None else "MUJOCO_GL unset (GLFW, needs a display)"
-        raise BackendUnavailableError(
+        _GL_FAILURE = (
             f"cannot make an OpenGL context for offscreen rendering ({shown}): "
             f"{type(exc).__name__}: {exc}. Set MUJOCO_GL=egl (GPU or Mesa EGL) or "
             "MUJOCO_GL=osmesa (software, needs libOSMesa) before starting Python"
-        ) from exc
+        )
+        raise BackendUnavailableError(_GL_FAILURE) from exc
 
 
 def tracked_body(model: mujoco.MjModel) -> int:

@@ -6,6 +6,7 @@ simulated model and data at the initial state, the noise sequence and the contro
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -18,7 +19,8 @@ from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.measures import Measure, check_measures
-from mpcbox.validation import boolean, in_range, instance, integer, positive
+from mpcbox.validation import boolean, in_range, instance, positive
+from mpcbox.validation import seed as check_seed
 
 
 class RunStart(NamedTuple):
@@ -76,9 +78,14 @@ def start_run(
     """
     instance("problem", problem, Problem, "an mpcbox.Problem")
     duration = positive("duration", duration)
+    if isinstance(controller, type):
+        raise InvalidTypeError(
+            f"controller must be a controller instance, got the class {controller.__name__}; "
+            f"build it first, e.g. {controller.__name__}(problem)"
+        )
     if not isinstance(controller, Controller) and not callable(controller):
         raise InvalidTypeError(f"controller must be an mpcbox.Controller, got {type(controller)}")
-    seed = integer("seed", seed)
+    seed = check_seed("seed", seed)
     degraded_limit = in_range(
         "degraded_limit", degraded_limit, 0.0, 1.0, low_open=False, high_open=False
     )
@@ -107,6 +114,14 @@ def start_run(
     problem.set_state(data, state0)
     mujoco.mj_forward(model, data)
     push_ids = [object_id(model, "body", p.body, f"pushes[{i}].body") for i, p in enumerate(pushes)]
+    late = [i for i, p in enumerate(pushes) if p.start >= steps * dt]
+    if late:
+        warnings.warn(
+            f"pushes{late} start at or after the run's end ({steps * dt:g} s) and are never "
+            "applied (Push.start defaults to 1 s)",
+            UserWarning,
+            stacklevel=3,
+        )
     measures = check_measures(problem.measures(), type(problem).__name__)
 
     noise_seq = (

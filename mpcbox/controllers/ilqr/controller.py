@@ -11,6 +11,7 @@ time elapsed since the replan.
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
@@ -61,6 +62,15 @@ class ILQR(ILQRSolver, Controller):
     def __init__(self, problem: Problem, config: ILQRConfig | None = None, **options: Any) -> None:
         super().__init__(problem, config, **options)
         self.replan_period = self.config.replan_period
+        plan = self.horizon * self.problem.dt
+        if self.replan_period > plan * (1 + 1e-9):
+            warnings.warn(
+                f"replan_period {self.replan_period:g} s is longer than the plan (horizon "
+                f"{self.horizon} x {self.problem.dt:g} s = {plan:g} s): as MPC, the last "
+                "knot's control and gain are held until the next replan",
+                UserWarning,
+                stacklevel=2,
+            )
         self.period = None if self.config.feedback else self.replan_period
         self.reset()
 

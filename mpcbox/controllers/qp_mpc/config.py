@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,10 +47,43 @@ def _check_osqp_settings(settings: object) -> None:
         )
     from osqp.ext_builtin import OSQPSettings
 
-    valid = [name for name in dir(OSQPSettings()) if not name.startswith("_")]
+    defaults = OSQPSettings()
+    valid = [name for name in dir(defaults) if not name.startswith("_")]
     unknown = set(settings) - set(valid)
     if unknown:
         raise UnknownOptionError("osqp_settings", unknown, valid)
+    for name, value in settings.items():
+        _check_osqp_value(name, value, type(getattr(defaults, name)))
+
+
+#: OSQP settings that must be positive (the rest of the numbers only non-negative), and the
+#: step size's open upper bound.
+_OSQP_POSITIVE = ("max_iter", "rho", "sigma", "alpha")
+_OSQP_ALPHA_MAX = 2.0
+
+
+def _check_osqp_value(name: str, value: object, kind: type) -> None:
+    """An OSQP setting's value against the type of OSQP's own field (int flags and counts
+    take a bool or a non-negative integer, floats a finite non-negative number)."""
+    where = f"osqp_settings[{name!r}]"
+    if kind is int:
+        typed = isinstance(value, (bool, np.bool_, int, np.integer))
+        expected = "a bool or an integer >= 0"
+    elif kind is float:
+        typed = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+            value, (bool, np.bool_)
+        )
+        expected = "a finite number >= 0"
+    else:  # OSQP's enums: OSQP checks them
+        return
+    if not typed:
+        raise InvalidTypeError(f"{where} must be {expected}, got {value!r}")
+    if not (math.isfinite(value) and value >= 0):  # type: ignore[arg-type, operator]
+        raise InvalidArgumentError(f"{where} must be {expected}, got {value!r}")
+    if name in _OSQP_POSITIVE and value <= 0:  # type: ignore[operator]
+        raise InvalidArgumentError(f"{where} must be > 0, got {value!r}")
+    if name == "alpha" and value >= _OSQP_ALPHA_MAX:  # type: ignore[operator]
+        raise InvalidArgumentError(f"{where} must be in (0, 2), got {value!r}")
 
 
 @checked_options
@@ -229,7 +263,7 @@ class QPMPCConfig:
             put("f_max", positive("f_max", self.f_max))
         check_backend(self.solver)
         if self.rescue is not None:
-            check_backend(self.rescue)
+            check_backend(self.rescue, "rescue")
         put("force_weight", positive("force_weight", self.force_weight))
         if isinstance(self.terminal, str) and self.terminal not in TERMINALS:
             raise InvalidArgumentError(

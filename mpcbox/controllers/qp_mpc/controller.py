@@ -49,7 +49,7 @@ from mpcbox.core.contact import (
 )
 from mpcbox.core.divergence import check_planning_step
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError
+from mpcbox.errors import InvalidArgumentError, UnknownNameError
 
 
 class QPPlan(NamedTuple):
@@ -214,7 +214,10 @@ class QPMPC(Controller):
         if contacts is None:
             contacts = problem.contacts or default_contacts(problem, self.state_ref)
         contacts = [contacts] if isinstance(contacts, str) else list(contacts)
-        self.points = contact_points(self.model, contacts, self.state_ref[: problem.nq])
+        try:
+            self.points = contact_points(self.model, contacts, self.state_ref[: problem.nq])
+        except UnknownNameError as exc:
+            raise UnknownNameError(exc.kind, exc.name, exc.valid, "contacts") from None
         if cfg.lifted_points == "drop":
             self.points = grounded_points(
                 self.model, self.points, self.state_ref[: problem.nq], cfg.contact_margin

@@ -202,19 +202,19 @@ def backend_names() -> list[str]:
     return ["osqp", *(b for b in qpsolvers.available_solvers if b != "osqp")]
 
 
-def check_backend(name: str) -> str:
+def check_backend(name: str, argument: str = "solver") -> str:
     """Return ``name`` if it is a backend of :func:`backend_names`.
 
     Raises:
         UnknownNameError: Otherwise; the message lists the installed backends.
     """
     if not isinstance(name, str):
-        raise InvalidTypeError(f"solver must be a QP backend name, got {type(name).__name__}")
+        raise InvalidTypeError(f"{argument} must be a QP backend name, got {type(name).__name__}")
     if name == "osqp":
         return name
     valid = backend_names()
     if name not in valid:
-        raise UnknownNameError("solver", name, valid)
+        raise UnknownNameError("solver", name, valid, argument)
     return name
 
 

@@ -30,6 +30,7 @@ from mpcbox.validation import (
     positive_int,
     string,
 )
+from mpcbox.validation import seed as check_seed
 
 Backend = Literal["cpu", "warp"]
 Risk = Literal["mean", "worst", "cvar"]
@@ -263,8 +264,13 @@ class SamplingConfig:
                 )
         if self.catch_level is not None:
             positive("catch_level", self.catch_level)
-        self.horizon_steps(dt)
+        steps = self.horizon_steps(dt)
         positive_int("num_knots", self.num_knots)
+        if self.num_knots > steps + 1:
+            raise InvalidArgumentError(
+                f"num_knots must be at most the horizon's planning steps + 1 ({steps + 1}: "
+                f"{self.horizon:g} s of {dt:g} s), got {self.num_knots}"
+            )
         one_of("interpolation", self.interpolation, INTERPOLATIONS)
         self.noise_scales(nu)
         self.noise_multipliers()
@@ -278,7 +284,7 @@ class SamplingConfig:
         one_of("backend", self.backend, BACKENDS)
         if self.device is not None:
             string("device", self.device)
-        integer("seed", self.seed)
+        check_seed("seed", self.seed)
         boolean("use_graph", self.use_graph)
         if self.randomization is not None:
             instance("randomization", self.randomization, Randomization)

@@ -10,6 +10,7 @@ import numpy as np
 from mpcbox.core.cost.base import CostTerm, Features, Jacobian
 from mpcbox.core.cost.rows import AngleRow, Row
 from mpcbox.core.model import object_id
+from mpcbox.errors import InvalidArgumentError
 from mpcbox.validation import checked_options, finite
 
 
@@ -41,6 +42,11 @@ class WrappedAngle(CostTerm):
 
     def bind(self, model: mujoco.MjModel) -> None:
         jid = object_id(model, "joint", self.joint)
+        if model.jnt_type[jid] != mujoco.mjtJoint.mjJNT_HINGE:
+            kind = mujoco.mjtJoint(model.jnt_type[jid]).name.removeprefix("mjJNT_").lower()
+            raise InvalidArgumentError(
+                f"joint: WrappedAngle needs a hinge joint, got the {kind} joint {self.joint!r}"
+            )
         self._qadr = int(model.jnt_qposadr[jid])
         self._vadr = int(model.jnt_dofadr[jid])
         super().bind(model)

@@ -15,9 +15,20 @@ import numpy as np
 from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.ipopt_controller import IpoptConfig
 from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, PredictiveSamplingConfig
+from mpcbox.errors import InvalidArgumentError
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.swingup.task import Swingup
 from mpcbox.tasks.swingup.weights import SwingupWeights
+
+
+def _own_scene(task: Swingup, scene: str, kwargs: dict[str, Any]) -> Any:
+    """The preset's scene; a ``model`` among ``kwargs`` is refused with a named error."""
+    if "model" in kwargs:
+        raise InvalidArgumentError(
+            f"model: {type(task).__name__} swings up its own scene ({scene}); for another "
+            "model use mpcbox.tasks.swingup.task.Swingup(model, joints=..., ...)"
+        )
+    return scene_path(scene)
 
 
 class PendulumSwingup(Swingup):
@@ -68,7 +79,7 @@ class PendulumSwingup(Swingup):
     def __init__(self, **kwargs: Any) -> None:
         kwargs.setdefault("joints", {"hinge": np.pi})
         kwargs.setdefault("weights", self.WEIGHTS)
-        super().__init__(scene_path("pendulum.xml"), **kwargs)
+        super().__init__(_own_scene(self, "pendulum.xml", kwargs), **kwargs)
 
 
 class CartpoleSwingup(Swingup):
@@ -146,7 +157,7 @@ class CartpoleSwingup(Swingup):
     def __init__(self, **kwargs: Any) -> None:
         kwargs.setdefault("joints", {"hinge_1": np.pi})
         kwargs.setdefault("weights", self.WEIGHTS)
-        super().__init__(scene_path("cartpole.xml"), **kwargs)
+        super().__init__(_own_scene(self, "cartpole.xml", kwargs), **kwargs)
 
 
 #: Knots (0.02 s each) of the acrobot's plan: the swing-up takes about 3 s, then it holds.
@@ -226,4 +237,4 @@ class AcrobotSwingup(Swingup):
         kwargs.setdefault("joints", {"shoulder": np.pi, "elbow": 0.0})
         kwargs.setdefault("sites", {"tip": None})
         kwargs.setdefault("weights", self.WEIGHTS)
-        super().__init__(scene_path("acrobot.xml"), **kwargs)
+        super().__init__(_own_scene(self, "acrobot.xml", kwargs), **kwargs)

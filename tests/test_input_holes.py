@@ -1,0 +1,201 @@
+"""Bad inputs that a fuzz of mixed arguments and run-time paths found getting past the checks.
+
+Each case once raised a bare NumPy/Python error, aborted the interpreter, or was accepted
+silently; each must now raise a named :class:`mpcbox.MpcboxError` (or warn) before any run.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+import mpcbox
+from mpcbox.cli import main as cli_main
+from mpcbox.comparison.scenario import Scenario
+from mpcbox.registry import task_class
+
+PENDULUM = """
+<mujoco>
+  <option timestep="0.01"/>
+  <worldbody>
+    <body name="pole">
+      <joint name="hinge" type="hinge" axis="0 1 0" damping="0.05"/>
+      <geom type="capsule" fromto="0 0 0 0 0 0.5" size="0.03" mass="1"/>
+    </body>
+    <body name="cart" pos="0 0 -1">
+      <joint name="slider" type="slide" axis="1 0 0"/>
+      <geom type="box" size="0.1 0.1 0.1" mass="1"/>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor joint="hinge" ctrlrange="-5 5" ctrllimited="true"/>
+    <motor joint="slider" ctrlrange="-5 5" ctrllimited="true"/>
+  </actuator>
+</mujoco>
+"""
+
+
+@pytest.fixture(scope="module")
+def problem() -> mpcbox.Problem:
+    return mpcbox.Problem(PENDULUM)
+
+
+@pytest.mark.parametrize("seed", [2**32, 2**40])
+def test_seeds_beyond_32_bits_are_refused_by_name(problem, seed):
+    noise = mpcbox.ActuatorNoise(std=0.1)
+    with pytest.raises(mpcbox.InvalidArgumentError, match=r"seed must be an integer in \[0, "):
+        mpcbox.simulate(problem, mpcbox.LQR(problem), 0.03, noise=noise, seed=seed)
+    with pytest.raises(mpcbox.InvalidArgumentError, match="seed"):
+        noise.sample(3, problem.nu, 0.01, seed)
+    with pytest.raises(mpcbox.InvalidArgumentError, match="seeds"):
+        mpcbox.compare("pendulum_swingup", ["lqr"], Scenario(duration=0.05), seeds=[seed])
+    # The largest seed still runs.
+    mpcbox.simulate(problem, mpcbox.LQR(problem), 0.02, noise=noise, seed=2**32 - 1)
+
+
+def test_a_controller_class_instead_of_an_instance_is_named(problem):
+    with pytest.raises(mpcbox.InvalidTypeError, match=r"controller .*class LQR.*LQR\(problem\)"):
+        mpcbox.simulate(problem, mpcbox.LQR, 0.03)
+
+
+def test_wrapped_angle_needs_a_hinge():
+    cost = mpcbox.Cost([mpcbox.WrappedAngle("slider", 0.0, weight=1.0)])
+    with pytest.raises(mpcbox.InvalidArgumentError, match="hinge joint, got the slide joint"):
+        mpcbox.Problem(PENDULUM, cost=cost)
+    mpcbox.Problem(PENDULUM, cost=mpcbox.Cost([mpcbox.WrappedAngle("hinge", 0.0, weight=1.0)]))
+
+
+def test_effort_noise_checks_its_model_and_posture(problem):
+    with pytest.raises(mpcbox.InvalidTypeError, match="model"):
+        mpcbox.effort_noise(problem, problem.qpos_ref, fraction=0.1)
+    with pytest.raises(mpcbox.InvalidArgumentError, match="qpos"):
+        mpcbox.effort_noise(problem.model, np.full(problem.nq, np.nan), fraction=0.1)
+    noise = mpcbox.effort_noise(problem.model, problem.qpos_ref, fraction=0.1)
+    # 10 % of the half range of +-5 N m motors of unit gear.
+    np.testing.assert_allclose(noise.std, [0.5, 0.5])
+
+
+@pytest.mark.parametrize("task", ["pendulum_swingup", "cartpole_swingup", "acrobot_swingup"])
+def test_swingup_presets_refuse_another_model_by_name(task):
+    with pytest.raises(mpcbox.InvalidArgumentError, match=r"^model: .* own scene"):
+        task_class(task)(model=PENDULUM)
+
+
+def test_a_push_after_the_end_warns(problem):
+    push = mpcbox.Push(force=[5.0, 0.0, 0.0], body="pole")  # starts at 1 s
+    with pytest.warns(UserWarning, match=r"pushes\[0\] start at or after the run's end"):
+        res = mpcbox.simulate(problem, mpcbox.LQR(problem), 0.2, pushes=[push])
+    assert res.survived
+
+
+def test_more_knots_than_planning_steps_is_refused(problem):
+    with pytest.raises(mpcbox.InvalidArgumentError, match=r"num_knots must be at most .* \(6"):
+        mpcbox.MPPI(problem, horizon=0.05, num_knots=7, num_samples=4, backend="cpu")
+    mpcbox.MPPI(problem, horizon=0.05, num_knots=6, num_samples=4, backend="cpu")
+
+
+def test_ctrl_ref_outside_the_range_is_named():
+    with pytest.raises(mpcbox.InvalidArgumentError, match=r"^ctrl_ref\[0\] = 50"):
+        mpcbox.Problem(PENDULUM, ctrl_ref=[50.0, 0.0])
+    mpcbox.Problem(PENDULUM, ctrl_ref=[5.0, -5.0])
+
+
+@pytest.mark.parametrize("eps", [0.5, 10.0])
+def test_a_finite_difference_step_that_is_not_local_is_refused(eps):
+    with pytest.raises(mpcbox.InvalidArgumentError, match="fd_eps"):
+        mpcbox.Problem(PENDULUM, fd_eps=eps)
+
+
+def test_an_ilqr_replan_period_longer_than_its_plan_warns(problem):
+    with pytest.warns(UserWarning, match=r"replan_period 0.2 s is longer .* 5 x 0.01 s"):
+        ilqr = mpcbox.ILQR(problem, horizon=5, replan_period=0.2, max_iterations=1)
+    state = problem.reference_state()
+    first = ilqr(state, 0.0)
+    # Past the plan's end it holds the last knot (with its gain), not zeros.
+    np.testing.assert_allclose(ilqr(state, 0.15), ilqr(state, 0.19))
+    assert np.all(np.isfinite(first))
+
+
+def test_lqr_config_checks_its_finite_difference_options():
+    with pytest.raises(mpcbox.InvalidTypeError, match="eps"):
+        mpcbox.LQRConfig(eps="abc")
+    with pytest.raises(mpcbox.InvalidArgumentError, match="eps"):
+        mpcbox.LQRConfig(eps=-1.0)
+    with pytest.raises(mpcbox.InvalidTypeError, match="centered"):
+        mpcbox.LQRConfig(centered="yes")
+
+
+def test_compare_checks_option_values_before_any_run():
+    """They used to reach every worker and come back as rows of failed runs."""
+    with pytest.raises(mpcbox.InvalidArgumentError, match="horizon"):
+        mpcbox.compare(
+            "pendulum_swingup",
+            ["ilqr"],
+            Scenario(duration=0.05),
+            seeds=1,
+            controller_options={"ilqr": {"horizon": -1}},
+            workers=1,
+            progress=False,
+        )
+
+
+def test_cli_option_values_exit_2(tmp_path, capsys):
+    args = ["compare", "pendulum_swingup", "--controllers", "lqr", "--seeds", "1"]
+    args += ["--duration", "0.05", "--set", "lqr.eps=-1", "--no-plots", "--no-progress"]
+    assert cli_main([*args, "--out", str(tmp_path)]) == 2
+    assert "eps must be" in capsys.readouterr().err
+
+
+def test_qp_mpc_names_its_contacts_and_rescue_arguments():
+    with pytest.raises(mpcbox.UnknownNameError, match=r"^rescue: unknown solver 'nope'"):
+        mpcbox.QPMPCConfig(rescue="nope")
+    problem = task_class("humanoid_balance")()
+    with pytest.raises(mpcbox.UnknownNameError, match=r"^contacts: unknown .* 'nosuch'"):
+        mpcbox.QPMPC(problem, contacts=["nosuch"])
+
+
+def test_a_failed_opengl_start_is_not_retried(tmp_path):
+    """After GLFW failed without a display, a second renderer aborted the interpreter."""
+    script = textwrap.dedent(
+        f"""
+        import mpcbox
+        import mpcbox.sim.rendering as rendering
+        p = mpcbox.Problem({PENDULUM!r})
+        rendering._GL_FAILURE = "no OpenGL here (test)"
+        for i in range(2):
+            try:
+                mpcbox.simulate(p, mpcbox.LQR(p), 0.02, viewer={str(tmp_path / "a.gif")!r})
+            except mpcbox.BackendUnavailableError as exc:
+                print("named", exc)
+        """
+    )
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.count("named no OpenGL here (test)") == 2
+
+
+@pytest.mark.parametrize(
+    ("settings", "error"),
+    [
+        ({"max_iter": -5}, mpcbox.InvalidArgumentError),
+        ({"max_iter": 0}, mpcbox.InvalidArgumentError),
+        ({"max_iter": "a"}, mpcbox.InvalidTypeError),
+        ({"eps_abs": float("nan")}, mpcbox.InvalidArgumentError),
+        ({"rho": -0.1}, mpcbox.InvalidArgumentError),
+        ({"alpha": 2.5}, mpcbox.InvalidArgumentError),
+        ({"rho": True}, mpcbox.InvalidTypeError),
+    ],
+)
+def test_osqp_setting_values_are_checked_when_the_config_is_built(settings, error):
+    name = next(iter(settings))
+    with pytest.raises(error, match=rf"^osqp_settings\['{name}'\]"):
+        mpcbox.QPMPCConfig(osqp_settings=settings)
+
+
+def test_usual_osqp_settings_pass():
+    settings = {"rho": 0.3, "check_dualgap": False, "adaptive_rho": True, "max_iter": 400}
+    assert mpcbox.QPMPCConfig(osqp_settings=settings).osqp_settings == settings
