@@ -164,6 +164,11 @@ def seed(name: str, value: object) -> int:
     return integer(name, value, 0, SEED_MAX)
 
 
+def seeds(name: str, values: object) -> list[int]:
+    """A non-empty sequence of random seeds (each in ``[0, 2**32 - 1]``) as a list."""
+    return integers(name, values, 0, SEED_MAX)
+
+
 def positive_int(name: str, value: object) -> int:
     """Check that ``value`` is an integer >= 1 and return it."""
     return integer(name, value, 1)

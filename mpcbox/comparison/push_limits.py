@@ -41,14 +41,13 @@ from mpcbox.errors import InvalidArgumentError, InvalidTypeError, RunError, Unkn
 from mpcbox.registry import TASKS, task_class
 from mpcbox.sim.disturbances import MAX_FORCE, ActuatorNoise, ModelMismatch, Push
 from mpcbox.validation import (
-    SEED_MAX,
     checked_keywords,
     instance,
-    integers,
     number,
     positive,
 )
 from mpcbox.validation import seed as check_seed
+from mpcbox.validation import seeds as check_seeds
 
 
 def _local(problem: object, controller: object, executor: object) -> bool:
@@ -174,7 +173,7 @@ def survival(
             mismatch=mismatch,
             progress=progress,
         )
-    seed_list = integers("seeds", seeds, 0, SEED_MAX)
+    seed_list = check_seeds("seeds", seeds)
     positive("duration", duration)
     scenario = Scenario(
         name="survival",

@@ -23,14 +23,13 @@ from mpcbox.errors import InvalidArgumentError, InvalidTypeError
 from mpcbox.sim.disturbances import MAX_FORCE, ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.simulation import SimulationResult, simulate
 from mpcbox.validation import (
-    SEED_MAX,
     checked_keywords,
     instance,
-    integers,
     number,
     positive,
 )
 from mpcbox.validation import seed as check_seed
+from mpcbox.validation import seeds as check_seeds
 
 #: The push test used when none is given (every :class:`PushTest` default).
 DEFAULT_PUSH = PushTest()
@@ -120,7 +119,7 @@ def survival(
         progress: Show a progress bar.
     """
     _check_runner(problem, controller)
-    seeds = np.asarray(integers("seeds", seeds, 0, SEED_MAX), dtype=int)
+    seeds = np.asarray(check_seeds("seeds", seeds), dtype=int)
     positive("duration", duration)
     iterator = seeds
     if progress:

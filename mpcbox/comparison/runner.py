@@ -49,14 +49,13 @@ from mpcbox.registry import (
     task_class,
 )
 from mpcbox.validation import (
-    SEED_MAX,
     boolean,
     check_class_options,
     checked_keywords,
-    integers,
     positive_int,
 )
 from mpcbox.validation import instance as instance_of
+from mpcbox.validation import seeds as check_seeds
 
 ControllerFactory = Callable[[Problem], Controller]
 ControllerSpec = str | Controller | ControllerFactory
@@ -222,7 +221,7 @@ def compare(
     seed_list = tuple(
         range(positive_int("seeds", seeds))
         if isinstance(seeds, int | np.integer) and not isinstance(seeds, bool)
-        else integers("seeds", seeds, 0, SEED_MAX)
+        else check_seeds("seeds", seeds)
     )
     repeated = sorted({s for s in seed_list if seed_list.count(s) > 1})
     if repeated:  # a run is identified by its seed (rows, checkpoint)
