@@ -199,3 +199,18 @@ def test_osqp_setting_values_are_checked_when_the_config_is_built(settings, erro
 def test_usual_osqp_settings_pass():
     settings = {"rho": 0.3, "check_dualgap": False, "adaptive_rho": True, "max_iter": 400}
     assert mpcbox.QPMPCConfig(osqp_settings=settings).osqp_settings == settings
+
+
+def test_rollout_models_are_checked(problem):
+    state, ctrls = problem.reference_state(), np.zeros((2, 3, problem.nu))
+    with pytest.raises(mpcbox.InvalidTypeError, match=r"model must be a mujoco\.MjModel"):
+        problem.rollout(state, ctrls, model=42)
+    with pytest.raises(mpcbox.ShapeError, match=r"one MjModel per batch row \(2\), got 1"):
+        problem.rollout(state, ctrls, model=[problem.planning_model])
+    other = mpcbox.Problem(
+        PENDULUM.replace('<motor joint="slider" ctrlrange="-5 5" ctrllimited="true"/>', "")
+    )
+    with pytest.raises(mpcbox.ShapeError, match=r"model\[0\] must have the planning model's"):
+        problem.rollout(state, ctrls[0], model=other.planning_model)
+    both = problem.rollout(state, ctrls, model=[problem.planning_model] * 2)
+    np.testing.assert_allclose(both.states, problem.rollout(state, ctrls).states)

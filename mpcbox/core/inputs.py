@@ -20,7 +20,9 @@ from mpcbox.errors import (
     DivergenceError,
     EquilibriumWarning,
     InvalidArgumentError,
+    InvalidTypeError,
     NoControlAuthorityError,
+    ShapeError,
 )
 from mpcbox.validation import as_array
 
@@ -150,3 +152,36 @@ def check_authority(B: np.ndarray, what: str) -> None:
             "control authority): check the actuators' gear, gain and transmission, and "
             "that the operating control is inside ctrlrange"
         )
+
+
+def check_rollout_models(
+    models: object, planning_model: mujoco.MjModel, batch: int
+) -> mujoco.MjModel | list[mujoco.MjModel] | None:
+    """``model`` of :meth:`~mpcbox.Problem.rollout`: ``None``, one model, or one per batch row,
+    each with the planning model's sizes (``nq``, ``nv``, ``nu``, ``na``).
+
+    Raises:
+        InvalidTypeError: For something that is not an ``MjModel`` (or a sequence of them).
+        ShapeError: For another number of models than ``batch``, or models of other sizes.
+    """
+    if models is None:
+        return None
+    single = isinstance(models, mujoco.MjModel)
+    if not single and not isinstance(models, (list, tuple)):
+        raise InvalidTypeError(
+            f"model must be a mujoco.MjModel or a sequence of them, got {type(models).__name__}"
+        )
+    listed = [models] if single else list(models)
+    if not single and len(listed) != batch:
+        raise ShapeError(f"model must hold one MjModel per batch row ({batch}), got {len(listed)}")
+    sizes = ("nq", "nv", "nu", "na")
+    want = tuple(getattr(planning_model, s) for s in sizes)
+    for i, one in enumerate(listed):
+        if not isinstance(one, mujoco.MjModel):
+            raise InvalidTypeError(f"model[{i}] must be a mujoco.MjModel, got {type(one).__name__}")
+        got = tuple(getattr(one, s) for s in sizes)
+        if got != want:
+            raise ShapeError(
+                f"model[{i}] must have the planning model's (nq, nv, nu, na) = {want}, got {got}"
+            )
+    return models if single else listed

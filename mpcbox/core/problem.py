@@ -371,6 +371,7 @@ class Problem(ProblemCosts):
                 f"ctrls must have shape (T, {self.nu}) or (B, T, {self.nu}), T >= 1, got "
                 f"{ctrls.shape}"
             )
+        model = inputs.check_rollout_models(model, self.planning_model, ctrls.shape[0])
         return self.dynamics.rollout(state, self.clip_ctrl(ctrls), model)
 
     def full_physics_state(self, state: np.ndarray) -> np.ndarray:

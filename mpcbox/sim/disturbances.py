@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from mpcbox.core.model import object_id
+from mpcbox.core.model import check_mjmodel, object_id
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError
 from mpcbox.validation import checked_options, finite_array, integer, non_negative, positive, string
 from mpcbox.validation import seed as check_seed
@@ -147,6 +147,7 @@ class ModelMismatch:
 
     def apply(self, model: mujoco.MjModel) -> mujoco.MjModel:
         """A modified copy of ``model``."""
+        model = check_mjmodel(model)
         out = copy.copy(model)
         scale = np.full(model.nbody, positive("mass_scale", self.mass_scale))
         for name, value in (self.body_mass_scale or {}).items():
