@@ -148,14 +148,22 @@ def main() -> None:
         metavar="KEY=VALUE",
         help="override an option of the task's MPPI config (VALUE as a Python literal)",
     )
+    parser.add_argument(
+        "--ilqr-set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override an option of the task's iLQR config (VALUE as a Python literal)",
+    )
     args = parser.parse_args()
     chosen = args.controllers.split(",")
     unknown = sorted(set(chosen) - {"ilqr", "lqr", "offline", "mppi"})
     if unknown:
         parser.error(f"--controllers: unknown {unknown}; choose from ilqr, lqr, offline, mppi")
-    mppi_options = {
-        key: ast.literal_eval(value) for key, _, value in (s.partition("=") for s in args.mppi_set)
-    }
+    mppi_options, ilqr_options = (
+        {key: ast.literal_eval(value) for key, _, value in (s.partition("=") for s in given)}
+        for given in (args.mppi_set, args.ilqr_set)
+    )
 
     rows = []
     for seed in range(args.seeds):
@@ -167,7 +175,7 @@ def main() -> None:
             "excluded_contacts": [f"{c.parent}/{c.child}" for c in problem.excluded_contacts],
         }
         if "ilqr" in chosen:
-            row["ilqr_mpc"] = closed_loop(problem, "ilqr", args.duration)
+            row["ilqr_mpc"] = closed_loop(problem, "ilqr", args.duration, ilqr_options)
         if "lqr" in chosen:
             row["lqr_at_ik_posture"] = closed_loop(problem, "lqr", args.duration)
         if "mppi" in chosen:
@@ -206,9 +214,7 @@ def main() -> None:
         "python": platform.python_version(),
         "command": "python benchmarks/panda_reach.py " + " ".join(sys.argv[1:]),
         "settings": vars(args) | {"tolerance_m": TOLERANCE},
-        "ilqr_config": {
-            k: v for k, v in config_options(ArmReach.controller_configs["ilqr"]).items()
-        },
+        "ilqr_config": config_options(ArmReach.controller_configs["ilqr"]) | ilqr_options,
         "mppi_config": config_options(ArmReach.controller_configs["mppi"]) | mppi_options,
         "summary": summary,
         "seeds": rows,
