@@ -234,8 +234,21 @@ def checked_options(init: F) -> F:
         init.__init__ = checked_options(init.__init__)  # type: ignore[misc]
         return init
 
+    params = list(inspect.signature(init).parameters.values())[1:]  # without self
+    kinds = (inspect.Parameter.POSITIONAL_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+    positional = [p.name for p in params if p.kind in kinds]
+    any_positional = any(p.kind is inspect.Parameter.VAR_POSITIONAL for p in params)
+
     @functools.wraps(init)
     def wrapper(self: Any, *args: Any, **kwargs: Any) -> Any:
+        if len(args) > len(positional) and not any_positional:
+            owner = type(self).__name__
+            if positional:
+                takes = f"only {', '.join(positional)} by position"
+            else:
+                first = params[0].name if params else "name"
+                takes = f"keyword arguments only (e.g. {owner}({first}=...))"
+            raise InvalidTypeError(f"{owner} takes {takes}, got {len(args)} positional argument(s)")
         check_class_options(type(self), kwargs, type(self).__name__)
         return init(self, *args, **kwargs)
 

@@ -214,3 +214,23 @@ def test_rollout_models_are_checked(problem):
         problem.rollout(state, ctrls[0], model=other.planning_model)
     both = problem.rollout(state, ctrls, model=[problem.planning_model] * 2)
     np.testing.assert_allclose(both.states, problem.rollout(state, ctrls).states)
+
+
+def test_keyword_only_classes_name_a_positional_call():
+    with pytest.raises(mpcbox.InvalidTypeError, match=r"Push takes keyword arguments only"):
+        mpcbox.Push([1.0, 0.0, 0.0])
+    with pytest.raises(mpcbox.InvalidTypeError, match=r"ActuatorNoise\(std=\.\.\.\)"):
+        mpcbox.ActuatorNoise(0.1)
+    with pytest.raises(mpcbox.InvalidTypeError, match=r"only joint, target by position, got 3"):
+        mpcbox.WrappedAngle("hinge", 0.0, 1.0)
+    assert mpcbox.WrappedAngle("hinge", 0.0, weight=1.0).joint == "hinge"
+
+
+def test_clip_ctrl_and_set_state_check_their_arguments(problem):
+    with pytest.raises(mpcbox.ShapeError, match=r"ctrl must have shape \(2,\), got \(3,\)"):
+        problem.clip_ctrl(np.zeros(3))
+    with pytest.raises(mpcbox.InvalidTypeError, match="ctrl must be a numeric array"):
+        problem.clip_ctrl("a")
+    np.testing.assert_allclose(problem.clip_ctrl([[9.0, -9.0]]), [[5.0, -5.0]])
+    with pytest.raises(mpcbox.InvalidTypeError, match="data"):
+        problem.set_state(42, problem.reference_state())

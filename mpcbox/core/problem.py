@@ -240,6 +240,7 @@ class Problem(ProblemCosts):
 
     def set_state(self, data: mujoco.MjData, state: np.ndarray) -> None:
         """Write a state ``(nstate,)`` into ``data``."""
+        instance("data", data, mujoco.MjData, "a mujoco.MjData")
         _write_state(data, self.check_state(state))
 
     def state_difference(
@@ -273,7 +274,8 @@ class Problem(ProblemCosts):
         return self.tangent.state_add(self.planning_model, state, dx)
 
     def clip_ctrl(self, ctrl: np.ndarray) -> np.ndarray:
-        """Clamp controls to the actuators' ``ctrlrange`` (where limited)."""
+        """Clamp controls ``(..., nu)`` to the actuators' ``ctrlrange`` (where limited)."""
+        ctrl = as_array("ctrl", ctrl, (None,) * (max(np.ndim(ctrl), 1) - 1) + (self.nu,))
         return np.clip(ctrl, self.ctrl_low, self.ctrl_high)
 
     def check_state(self, state: np.ndarray, name: str = "state") -> np.ndarray:
