@@ -228,7 +228,9 @@ def checked_options(init: F) -> F:
 
     The valid names are the keyword parameters of every ``__init__`` in the class hierarchy
     of the instance (so a subclass that forwards ``**kwargs`` to the decorated one is covered
-    too), without ``*args``/``**kwargs`` themselves.
+    too), without ``*args``/``**kwargs`` themselves. More positional arguments than the
+    ``__init__`` takes by position raise :class:`~mpcbox.errors.InvalidTypeError` naming
+    those it takes (``Push([50, 0, 0])`` on a keyword-only dataclass, for one).
     """
     if isinstance(init, type):
         init.__init__ = checked_options(init.__init__)  # type: ignore[misc]
