@@ -24,6 +24,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from quadruped_walk import parse_set  # benchmarks/ is not a package
 
 OUT = Path(__file__).parent / "results" / "menagerie_robots.json"
 
@@ -71,22 +72,6 @@ def chosen_robots(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
     if not os.environ.get("MENAGERIE_ROOT"):
         parser.error("set MENAGERIE_ROOT to an offline Menagerie copy")
     return [r for r in args.robots.split(",") if r]
-
-
-def parse_options(parser: argparse.ArgumentParser, text: str) -> dict:
-    """``"key=literal,key=literal"`` as a dict (a usage error names a malformed item)."""
-    import ast
-
-    options: dict = {}
-    for item in filter(None, (part.strip() for part in text.split(","))):
-        key, sep, value = item.partition("=")
-        try:
-            if not sep or not key.strip().isidentifier():
-                raise ValueError
-            options[key.strip()] = ast.literal_eval(value.strip())
-        except (ValueError, SyntaxError):
-            parser.error(f"--task-set: expected key=literal, got {item!r}")
-    return options
 
 
 def _error(exc: BaseException) -> str:
@@ -217,7 +202,7 @@ def main() -> int:
     parser.add_argument(
         "--task-set",
         default="",
-        help="task options for every robot, as Python literals: 'joint_cost=10,ctrl_cost=1.0'",
+        help="task options for every robot, read as realtime.py reads them: 'joint_cost=10'",
     )
     parser.add_argument("--noise-scale", type=float, default=1.0, help="x the noise recipe")
     parser.add_argument("--first-seed", type=int, default=0)
@@ -231,7 +216,7 @@ def main() -> int:
     args = parser.parse_args()
     robots = chosen_robots(parser, args)
     controllers = tuple(c for c in args.controllers.split(",") if c)
-    task_options = parse_options(parser, args.task_set)
+    task_options = parse_set(args.task_set)
     jobs = [
         (
             r,

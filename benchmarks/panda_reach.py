@@ -13,7 +13,6 @@ iLQR-MPC's time to 1 cm to LQR's. Needs ``MENAGERIE_ROOT`` (an offline Menagerie
 from __future__ import annotations
 
 import argparse
-import ast
 import json
 import platform
 import sys
@@ -24,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 import mpcbox
+from mpcbox.cli.compare import parse_sets
 from mpcbox.config import config_options
 from mpcbox.controllers.ilqr.controller import ILQR
 from mpcbox.core.menagerie import MissingMeshWarning
@@ -160,10 +160,8 @@ def main() -> None:
     unknown = sorted(set(chosen) - {"ilqr", "lqr", "offline", "mppi"})
     if unknown:
         parser.error(f"--controllers: unknown {unknown}; choose from ilqr, lqr, offline, mppi")
-    mppi_options, ilqr_options = (
-        {key: ast.literal_eval(value) for key, _, value in (s.partition("=") for s in given)}
-        for given in (args.mppi_set, args.ilqr_set)
-    )
+    sets = parse_sets([f"mppi.{s}" for s in args.mppi_set] + [f"ilqr.{s}" for s in args.ilqr_set])
+    mppi_options, ilqr_options = sets.get("mppi", {}), sets.get("ilqr", {})
 
     rows = []
     for seed in range(args.seeds):

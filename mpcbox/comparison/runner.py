@@ -202,10 +202,11 @@ def compare(
         if isinstance(spec, str) and controller_class(spec).config_class is not None:
             config_class = controller_class(spec).config_class
             owner = f"controller_options[{name!r}]"
-            check_option_names(config_class, options, owner)
             tuned = getattr(instance or problem_class, "controller_configs", {}).get(spec)
-            if isinstance(tuned, config_class):  # the values too, before any run starts
+            if isinstance(tuned, config_class):  # names and values, before any run starts
                 resolve_config(config_class, tuned, options, owner)
+            else:
+                check_option_names(config_class, options, owner)
 
     if scenarios is None:
         scenarios = (Scenario(),)

@@ -197,7 +197,7 @@ class Problem(ProblemCosts):
         self.planning_changes: tuple[str, ...] = ()
         self.cost.bind(self.planning_model)
         self.ctrl_low, self.ctrl_high = inputs.ctrl_limits(pm)  # same in the copy
-        self.dynamics = Dynamics(self.planning_model, self.threads, self.drops_friction)
+        self.dynamics = self.make_dynamics(self.planning_model)
         if planning_timestep is not None:
             check_planning_step(self)  # PlanningDivergenceError if the step is too coarse
 
@@ -220,6 +220,11 @@ class Problem(ProblemCosts):
     def drops_friction(self) -> bool:
         """Whether linearizations leave out dry friction (``dry_friction="drop"``)."""
         return self.dry_friction == "drop"
+
+    def make_dynamics(self, model: mujoco.MjModel) -> Dynamics:
+        """:class:`~mpcbox.core.dynamics.Dynamics` of ``model`` (this Problem's planning model
+        or a copy of it) with this Problem's threads and ``dry_friction`` choice."""
+        return Dynamics(model, self.threads, self.drops_friction)
 
     @property
     def dt(self) -> float:
@@ -437,7 +442,7 @@ class Problem(ProblemCosts):
         clone = copy.copy(self)
         clone.planning_model = copy.copy(self.planning_model)
         clone.planning_model.opt.timestep = positive("timestep", timestep)
-        clone.dynamics = Dynamics(clone.planning_model, self.threads, self.drops_friction)
+        clone.dynamics = clone.make_dynamics(clone.planning_model)
         check_planning_step(clone)
         return clone
 
@@ -455,7 +460,7 @@ class Problem(ProblemCosts):
         clone = copy.copy(self)
         clone.cost = cost
         cost.bind(self.planning_model)
-        clone.dynamics = Dynamics(self.planning_model, self.threads, self.drops_friction)
+        clone.dynamics = clone.make_dynamics(self.planning_model)
         return clone
 
     def replace_planning_model(self, model: mujoco.MjModel, change: str) -> None:
@@ -464,10 +469,11 @@ class Problem(ProblemCosts):
         self.planning_model = model
         self.cost.bind(model)
         self.dynamics.close()
-        self.dynamics = Dynamics(model, self.threads, self.drops_friction)
+        self.dynamics = self.make_dynamics(model)
         self.planning_changes = (*self.planning_changes, string("change", change))
 
-    def close(self) -> None:  # shut down the thread pool
+    def close(self) -> None:
+        """Shut down the thread pool."""
         self.dynamics.close()
 
     def __repr__(self) -> str:

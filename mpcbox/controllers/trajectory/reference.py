@@ -34,7 +34,6 @@ import numpy as np
 
 from mpcbox.controllers.trajectory.quintic import JointTrajectory
 from mpcbox.core.actuator_scales import actuator_scales
-from mpcbox.core.dynamics import Dynamics
 from mpcbox.core.equilibrium import find_equilibrium
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError
@@ -115,7 +114,7 @@ def unlimited(problem: Problem) -> Problem:
     model.actuator_forcelimited[:] = 0
     model.jnt_actfrclimited[:] = 0
     clone.planning_model = model
-    clone.dynamics = Dynamics(model, problem.threads, problem.drops_friction)
+    clone.dynamics = clone.make_dynamics(model)
     return clone
 
 
