@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mpcbox.controllers.ilqr.backward_pass import backward_pass
+from mpcbox.controllers.ilqr.backward_pass import _guessed_active_set, backward_pass
 from mpcbox.controllers.ilqr.boxqp import solve_box_qp
 from mpcbox.core.problem import Linearization, Quadratization
 from mpcbox.errors import SolverError
@@ -92,3 +92,36 @@ def test_non_definite_q_uu_raises_a_solver_error_naming_the_knot():
     quad = quad._replace(luu=luu)
     with pytest.raises(SolverError, match="knot 3"):
         backward_pass(lin, quad, ctrls, np.full(2, -1.0), np.full(2, 1.0), 0.0)
+
+
+def test_guessed_active_set_is_the_box_qp_minimizer_or_declines():
+    """The fast path that clamps the bounds the unconstrained step crosses returns the box
+    QP's minimizer (checked against the projected-Newton solver run to a tight tolerance)
+    and its gains, or declines and leaves the gains alone."""
+    rng = np.random.default_rng(7)
+    accepted = declined = 0
+    for _ in range(400):
+        n, nx = int(rng.integers(2, 8)), 4
+        M = rng.normal(size=(n, n))
+        H = M @ M.T + 0.1 * np.eye(n)
+        Q = rng.normal(size=(n, 1 + nx))
+        low, high = -rng.uniform(0.0, 1.0, n), rng.uniform(0.0, 1.0, n)
+        gain = -np.linalg.solve(H, Q)
+        if np.all((gain[:, 0] >= low) & (gain[:, 0] <= high)):
+            continue  # the backward pass only asks when the step leaves the box
+        before = gain.copy()
+        free = _guessed_active_set(gain, H, Q, low, high)
+        if free is None:
+            declined += 1
+            assert np.array_equal(gain, before)
+            continue
+        accepted += 1
+        res = solve_box_qp(
+            H, Q[:, 0], low, high, check=False, min_gradient=1e-13, min_relative_improvement=0
+        )
+        assert np.allclose(gain[:, 0], res.x, rtol=0, atol=1e-9)
+        assert np.array_equal(free, res.free)
+        gains = np.zeros((n, nx))
+        gains[free] = -np.linalg.solve(H[np.ix_(free, free)], Q[free, 1:])
+        assert np.allclose(gain[:, 1:], gains, rtol=1e-12, atol=1e-12)
+    assert accepted > 50 and declined > 50

@@ -234,3 +234,14 @@ def test_clip_ctrl_and_set_state_check_their_arguments(problem):
     np.testing.assert_allclose(problem.clip_ctrl([[9.0, -9.0]]), [[5.0, -5.0]])
     with pytest.raises(mpcbox.InvalidTypeError, match="data"):
         problem.set_state(42, problem.reference_state())
+
+
+@pytest.mark.parametrize("bad", ["states", "ctrls"])
+def test_quadratize_trajectory_refuses_non_finite_input(problem, bad):
+    states = np.tile(problem.reference_state(), (4, 1))
+    ctrls = np.tile(problem.ctrl_ref, (3, 1))
+    quad = problem.quadratize_trajectory(states, ctrls)
+    assert np.all(np.isfinite(quad.lx))
+    {"states": states, "ctrls": ctrls}[bad][1, 0] = np.nan
+    with pytest.raises(mpcbox.DivergenceError, match=f"{bad} holds non-finite"):
+        problem.quadratize_trajectory(states, ctrls)

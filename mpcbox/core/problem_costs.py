@@ -6,10 +6,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mpcbox.core import derivatives
+from mpcbox.core import derivatives, inputs
 from mpcbox.core.cost import Features
 from mpcbox.core.derivatives import Quadratization
 from mpcbox.core.dynamics import Rollout
+from mpcbox.errors import DivergenceError
 from mpcbox.validation import as_array, boolean, positive_int
 
 if TYPE_CHECKING:
@@ -71,9 +72,16 @@ class ProblemCosts:
 
         ``states`` ``(T + 1, nstate)`` and ``ctrls`` ``(T, nu)`` give arrays with leading size
         ``T + 1`` (see :func:`~mpcbox.core.derivatives.quadratize_trajectory`).
+
+        Raises:
+            ShapeError: For other shapes.
+            DivergenceError: If ``states`` or ``ctrls`` hold NaN or infinity.
+            InvalidArgumentError: For a control beyond MuJoCo's limit.
         """
         states = as_array("states", states, (None, self.nstate))
-        ctrls = as_array("ctrls", ctrls, (states.shape[0] - 1, self.nu))
+        if not np.all(np.isfinite(states)):
+            raise DivergenceError("states holds non-finite values (NaN or inf)")
+        ctrls = inputs.check_ctrl("ctrls", ctrls, (states.shape[0] - 1, self.nu))
         threads = None if threads is None else positive_int("threads", threads)
         return derivatives.quadratize_trajectory(
             self.dynamics, self.tangent, self.cost, states, ctrls, self.fd_eps, threads

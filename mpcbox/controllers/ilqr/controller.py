@@ -21,6 +21,7 @@ from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.ilqr.multiple_shooting import optimize_multiple_shooting
 from mpcbox.controllers.ilqr.result import ILQRResult, Timing
 from mpcbox.controllers.ilqr.solver import ILQRSolver
+from mpcbox.core.mujoco_warnings import captured_warnings
 from mpcbox.core.problem import Problem
 from mpcbox.errors import MpcboxError
 from mpcbox.validation import as_array
@@ -169,12 +170,15 @@ class ILQR(ILQRSolver, Controller):
             else:
                 guess = self._shifted_states(time, state) if cfg.warm_start_states else None
             try:
-                if guess is None:
-                    result = self._optimize(state, warm, iters, self._regularization, None)
-                else:
-                    result = optimize_multiple_shooting(
-                        self, state, guess, warm, iters, self._regularization
-                    )
+                # MuJoCo's warnings of diverged rollouts are counted (result.divergences),
+                # not printed.
+                with captured_warnings():
+                    if guess is None:
+                        result = self._optimize(state, warm, iters, self._regularization, None)
+                    else:
+                        result = optimize_multiple_shooting(
+                            self, state, guess, warm, iters, self._regularization
+                        )
             except MpcboxError:
                 result = None
             if result is None:

@@ -19,6 +19,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
+from mpcbox.core.divergence import unstable_warning
 from mpcbox.core.problem import Problem, Rollout
 
 #: A rolled-out candidate: states ``(T + 1, nstate)``, controls ``(T, nu)`` and the total
@@ -35,7 +36,12 @@ class ClosedLoopRollout:
     parallel line search rolls out several step sizes at once), with the tangent deviation
     written into a preallocated buffer in the inner loop (``mj_differentiatePos``, which
     allocates nothing, where :meth:`~mpcbox.Problem.state_difference` is vectorized for
-    batches).
+    batches; a plain subtraction when the model has no ball or free joint).
+
+    A rollout that diverges is scored ``inf``: non-finite states or controls, or MuJoCo's
+    own reset after a bad position, velocity or acceleration (its warning counters,
+    :func:`~mpcbox.core.divergence.unstable_warning`), which would otherwise continue from
+    the model's reference pose with a finite cost.
 
     Args:
         problem: The Problem whose planning model is rolled out.
@@ -48,6 +54,8 @@ class ClosedLoopRollout:
         self.ctrl_low = ctrl_low
         self.ctrl_high = ctrl_high
         self._model = problem.planning_model
+        # Without ball or free joints every position difference is a subtraction.
+        self._plain = problem.nq == problem.nv
 
     def deviation(self, state: np.ndarray, nominal: np.ndarray, out: np.ndarray) -> None:
         """Write ``state ⊖ nominal`` ``(nx,)`` into ``out``.
@@ -55,9 +63,12 @@ class ClosedLoopRollout:
         The same as :meth:`mpcbox.Problem.state_difference` for one state, without
         allocating: it runs once per knot of every rollout.
         """
+        if self._plain:
+            np.subtract(state, nominal, out=out)
+            return
         nq, nv = self.problem.nq, self.problem.nv
         mujoco.mj_differentiatePos(self._model, out[:nv], 1.0, nominal[:nq], state[:nq])
-        out[nv:] = state[nq:] - nominal[nq:]
+        np.subtract(state[nq:], nominal[nq:], out=out[nv:])
 
     def __call__(
         self,
@@ -84,6 +95,7 @@ class ClosedLoopRollout:
         p, m = self.problem, self._model
         d = p.scratch_data()  # the thread's own MjData, reset below
         nq, nv, horizon = p.nq, p.nv, len(ctrls)
+        low, high = self.ctrl_low, self.ctrl_high
         mujoco.mj_resetData(m, d)
         new_states = np.empty_like(states)
         new_ctrls = np.empty_like(ctrls)
@@ -94,10 +106,14 @@ class ClosedLoopRollout:
         d.qvel[:] = x0[nq : nq + nv]
         d.act[:] = x0[nq + nv :]
         with np.errstate(all="ignore"):
+            feedforward = ctrls + alpha * k
             for t in range(horizon):
                 self.deviation(new_states[t], states[t], dx)
-                u = np.clip(ctrls[t] + alpha * k[t] + K[t] @ dx, self.ctrl_low, self.ctrl_high)
-                new_ctrls[t] = u
+                u = new_ctrls[t]
+                np.matmul(K[t], dx, out=u)
+                u += feedforward[t]
+                np.minimum(u, high, out=u)
+                np.maximum(u, low, out=u)
                 d.ctrl[:] = u
                 mujoco.mj_step(m, d)
                 sens[0, t] = d.sensordata
@@ -105,12 +121,26 @@ class ClosedLoopRollout:
                 x[:nq] = d.qpos
                 x[nq : nq + nv] = d.qvel
                 x[nq + nv :] = d.act
-                if not np.all(np.isfinite(x)):
-                    return new_states, new_ctrls, np.inf
+            if diverged(d, new_states, new_ctrls):
+                return new_states, new_ctrls, np.inf
             mujoco.mj_forward(m, d)
             sens[0, horizon] = d.sensordata
             cost = float(p.rollout_cost(Rollout(new_states[None], sens, new_ctrls[None]))[0])
         return new_states, new_ctrls, cost if np.isfinite(cost) else np.inf
+
+
+def diverged(data: mujoco.MjData, states: np.ndarray, ctrls: np.ndarray) -> bool:
+    """Whether a rollout on ``data`` (reset before it) diverged.
+
+    True if MuJoCo counted a bad position, velocity or acceleration (after which it reset
+    ``data`` and carried on) or a state ``(T + 1, nstate)`` or control ``(T, nu)`` is not
+    finite.
+    """
+    return (
+        unstable_warning(data) is not None
+        or not np.isfinite(states).all()
+        or not np.isfinite(ctrls).all()
+    )
 
 
 class LineSearchResult(NamedTuple):
@@ -184,4 +214,4 @@ def line_search(
     return LineSearchResult(best, alpha, n_div, False)
 
 
-__all__ = ["Candidate", "ClosedLoopRollout", "LineSearchResult", "line_search"]
+__all__ = ["Candidate", "ClosedLoopRollout", "LineSearchResult", "diverged", "line_search"]

@@ -36,7 +36,7 @@ import mujoco
 import numpy as np
 
 from mpcbox.controllers.ilqr.backward_pass import backward_pass
-from mpcbox.controllers.ilqr.forward_pass import Candidate, ClosedLoopRollout
+from mpcbox.controllers.ilqr.forward_pass import Candidate, ClosedLoopRollout, diverged
 from mpcbox.controllers.ilqr.result import ILQRResult, StopReason, Timing
 from mpcbox.core.problem import Problem, Rollout
 from mpcbox.errors import InvalidArgumentError, SolverError
@@ -129,6 +129,8 @@ class GappedRollout(ClosedLoopRollout):
                 sens[0, t] = d.sensordata
                 self._read(d, x)
                 self.deviation(x, states[t + 1], gaps[t])
+            if diverged(d, gaps, ctrls):  # MuJoCo reset a step: that defect is meaningless
+                return gaps, np.inf
             self._write(d, states[horizon])
             mujoco.mj_forward(m, d)
             sens[0, horizon] = d.sensordata
@@ -182,10 +184,10 @@ class GappedRollout(ClosedLoopRollout):
                 mujoco.mj_step(m, d)
                 sens[0, t] = d.sensordata
                 self._read(d, x)
-                if not np.all(np.isfinite(x)):
-                    return new_states, new_ctrls, np.inf
                 new_states[t + 1] = p.tangent.state_add(m, x, -(1.0 - alpha) * gaps[t])
                 self._write(d, new_states[t + 1])
+            if diverged(d, new_states, new_ctrls):
+                return new_states, new_ctrls, np.inf
             mujoco.mj_forward(m, d)
             sens[0, horizon] = d.sensordata
             cost = float(p.rollout_cost(Rollout(new_states[None], sens, new_ctrls[None]))[0])

@@ -26,6 +26,7 @@ from mpcbox.controllers.ilqr.regularization import Regularization
 from mpcbox.controllers.ilqr.result import ILQRResult, StopReason, Timing
 from mpcbox.controllers.lqr import with_lqr_terminal_value
 from mpcbox.core.divergence import check_planning_step
+from mpcbox.core.mujoco_warnings import captured_warnings
 from mpcbox.core.problem import Linearization, Problem, Quadratization
 from mpcbox.errors import DivergenceError, InvalidArgumentError, SolverError
 from mpcbox.validation import as_array, finite_array, positive_int
@@ -209,9 +210,11 @@ class ILQRSolver:
         )
         reg = self.config.regularization if regularization is None else float(regularization)
         states = self.states_init if states_init is None else self._initial_states(states_init)
-        if states is None:
-            return self._optimize(x0, ctrls, iters, reg, None)
-        return optimize_multiple_shooting(self, x0, states, ctrls, iters, reg)
+        # Diverged rollouts are counted (``divergences``); MuJoCo's warnings are not printed.
+        with captured_warnings():
+            if states is None:
+                return self._optimize(x0, ctrls, iters, reg, None)
+            return optimize_multiple_shooting(self, x0, states, ctrls, iters, reg)
 
     def _optimize(
         self,
