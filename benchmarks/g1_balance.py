@@ -24,7 +24,7 @@ Measured:
 Needs ``MENAGERIE_ROOT`` (or the mujoco-menagerie package)::
 
     python benchmarks/g1_balance.py --json benchmarks/results/g1_balance.json
-    python benchmarks/g1_balance.py --seeds 3 --mpc-seeds 1 --duration 3
+    python benchmarks/g1_balance.py --seeds 3 --mpc-seeds 1 --duration 3 [--first-seed 100]
 """
 
 from __future__ import annotations
@@ -86,6 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, default=20, help="LQR seeds (two feet, one foot)")
     parser.add_argument("--mpc", default="qp,ilqr", help="MPC controllers to compare")
     parser.add_argument("--mpc-seeds", type=int, default=5, help="seeds of each MPC")
+    parser.add_argument("--first-seed", type=int, default=0, help="seeds run from this one")
     parser.add_argument("--duration", type=float, default=10.0, help="seconds per run")
     parser.add_argument("--push-tolerance", type=float, default=5.0, help="bisection (N)")
     parser.add_argument("--workers", type=int, default=2, help="worker processes")
@@ -102,12 +103,15 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     mpcs = [m for m in args.mpc.split(",") if m]
     noise = Scenario(name="noise", duration=args.duration)
+    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    mpc_seeds = range(args.first_seed, args.first_seed + args.mpc_seeds)
     out: dict = {
         "benchmark": "g1_balance",
         "model": MODEL,
         "task": "biped_stand (LeggedBalance defaults; noise recipe: 5 % of each range)",
         "seeds": args.seeds,
         "mpc_seeds": args.mpc_seeds,
+        "first_seed": args.first_seed,
         "duration_s": args.duration,
         "dry_friction": args.dry_friction,
         "push": {"start_s": 1.0, "duration_s": 0.1, "settle_s": 2.0, "noise": 0},
@@ -127,12 +131,10 @@ def main(argv: list[str] | None = None) -> int:
         entry: dict = {"reference": reference(probe), "controllers": {}}
         common = dict(problem_options=options, workers=args.workers or None, progress=False)
         t1 = time.perf_counter()
-        lqr = compare("biped_stand", ["lqr"], noise, range(args.seeds), push_tests=[test], **common)
+        lqr = compare("biped_stand", ["lqr"], noise, seeds, push_tests=[test], **common)
         entry["controllers"]["lqr"] = controller_summary(lqr, "lqr")
         if stance == "two" and mpcs:
-            mpc = compare(
-                "biped_stand", mpcs, noise, range(args.mpc_seeds), push_tests=[test], **common
-            )
+            mpc = compare("biped_stand", mpcs, noise, mpc_seeds, push_tests=[test], **common)
             base = entry["controllers"]["lqr"]["largest_push_forward"]["force_N"]
             for name in mpcs:
                 entry["controllers"][name] = controller_summary(mpc, name)

@@ -118,6 +118,7 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--seeds", type=int, default=20)
+    parser.add_argument("--first-seed", type=int, default=0, help="seeds run from this one")
     parser.add_argument("--duration", type=float, default=10.0, help="seconds per run")
     parser.add_argument("--push-tolerance", type=float, default=5.0, help="bisection (N)")
     parser.add_argument("--sweep-seeds", type=int, default=2)
@@ -126,6 +127,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-targets", dest="targets", action="store_false")
     parser.add_argument("--workers", type=int, default=1, help="processes for the targets")
     parser.add_argument("--json", default="", help="also write the JSON here")
+    parser.add_argument("--machine", default="", help="what runs it (default: the sandbox)")
     args = parser.parse_args(argv)
     warnings.filterwarnings("ignore")
     t0 = time.perf_counter()
@@ -134,6 +136,7 @@ def main(argv: list[str] | None = None) -> int:
         "robot": "menagerie:unitree_go2",
         "task": "quadruped_stand defaults (noise recipe: 5 % of each actuator's range)",
         "seeds": args.seeds,
+        "first_seed": args.first_seed,
         "duration_s": args.duration,
         "push": {"start_s": 1.0, "duration_s": 0.1, "settle_s": 2.0, "noise": 0},
     }
@@ -141,6 +144,7 @@ def main(argv: list[str] | None = None) -> int:
         ns = argparse.Namespace(
             controllers="lqr,qp",
             seeds=args.seeds,
+            first_seed=args.first_seed,
             duration=args.duration,
             push_tolerance=args.push_tolerance,
             push=True,
@@ -165,7 +169,9 @@ def main(argv: list[str] | None = None) -> int:
             if r
         },
     }
-    machine = f"2-core sandbox CPU, shared with other jobs; one thread, {args.workers} process(es)"
+    machine = args.machine or (
+        f"2-core sandbox CPU, shared with other jobs; one thread, {args.workers} process(es)"
+    )
     return finish(out, args.json, started=t0, machine=machine)
 
 

@@ -7,7 +7,7 @@ replan tick; offline iLQR over ``--offline-horizon`` s from the start: its stop 
 the final error of its plan; LQR about the IK goal posture in closed loop, and the ratio of
 iLQR-MPC's time to 1 cm to LQR's. Needs ``MENAGERIE_ROOT`` (an offline Menagerie copy).
 
-    MENAGERIE_ROOT=/work/menagerie python benchmarks/panda_reach.py [--seeds 5]
+    MENAGERIE_ROOT=/work/menagerie python benchmarks/panda_reach.py [--seeds 5] [--first-seed 0]
 """
 
 from __future__ import annotations
@@ -117,6 +117,7 @@ def main() -> None:
         "--offset", type=float, nargs=3, default=OFFSET.tolist(), help="nominal target offset (m)"
     )
     parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--first-seed", type=int, default=0, help="seeds run from this one")
     parser.add_argument("--duration", type=float, default=2.0)
     parser.add_argument("--posture-noise", type=float, default=0.1)
     parser.add_argument("--target-noise", type=float, default=0.03)
@@ -164,7 +165,7 @@ def main() -> None:
     mppi_options, ilqr_options = sets.get("mppi", {}), sets.get("ilqr", {})
 
     rows = []
-    for seed in range(args.seeds):
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
         problem = build(seed, args)
         row = {
             "seed": seed,

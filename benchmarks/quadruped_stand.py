@@ -96,7 +96,7 @@ def evaluate(robot: str, args: argparse.Namespace) -> dict:
         "quadruped_stand",
         args.controllers.split(","),
         Scenario(name="noise", duration=args.duration),
-        range(args.seeds),
+        range(args.first_seed, args.first_seed + args.seeds),
         push_tests=[test] if args.push else [],
         problem_options={"model": model, "threads": 1},
         controller_options=json.loads(args.controller_options),
@@ -135,6 +135,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--robots", default=",".join(ROBOTS), help="Menagerie names")
     parser.add_argument("--controllers", default="lqr,qp", help="comma-separated names")
     parser.add_argument("--seeds", type=int, default=20)
+    parser.add_argument("--first-seed", type=int, default=0, help="seeds run from this one")
     parser.add_argument("--duration", type=float, default=10.0, help="seconds per run")
     parser.add_argument("--push-tolerance", type=float, default=5.0, help="bisection (N)")
     parser.add_argument("--no-push", dest="push", action="store_false", help="skip pushes")

@@ -19,7 +19,7 @@ multiple-shooting warm starts and 3 iterations per replan);
 ``benchmarks/dm_acrobot_dm_starts.py`` runs 12 fixed dm_control starts against an offline
 5 s oracle per start.
 
-    nice -n 5 python benchmarks/swingup_dm_control.py [--seeds 3] [--duration 6]
+    nice -n 5 python benchmarks/swingup_dm_control.py [--seeds 3] [--first-seed 0] [--duration 6]
         [--models cartpole,acrobot] [--controllers ilqr,mppi] [--start hanging|dm]
 
 Prints the JSON and writes it to ``benchmarks/results/swingup_dm_control.json``.
@@ -121,6 +121,7 @@ def main() -> None:
     parser.add_argument("--models", default="cartpole,acrobot")
     parser.add_argument("--controllers", default="ilqr,mppi")
     parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--first-seed", type=int, default=0, help="seeds run from this one")
     parser.add_argument("--duration", type=float, default=6.0)
     parser.add_argument("--perturbation", type=float, default=0.05)
     parser.add_argument("--start", choices=("hanging", "dm"), default="hanging")
@@ -131,7 +132,10 @@ def main() -> None:
     groups = []
     for model in args.models.split(","):
         for controller in args.controllers.split(","):
-            runs = [run_one(model, controller, seed, args) for seed in range(args.seeds)]
+            runs = [
+                run_one(model, controller, seed, args)
+                for seed in range(args.first_seed, args.first_seed + args.seeds)
+            ]
             times = [r["time_to_upright_s"] for r in runs if r["success"]]
             groups.append(
                 {
