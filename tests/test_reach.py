@@ -129,3 +129,60 @@ def test_aloha_ilqr_mpc_reaches_and_a_short_offline_solve_says_it_stopped_short(
     result = mpcbox.simulate(aloha, controller, 0.7, seed=0)
     assert aloha.goal_failure(result.time, result.states) is None
     assert result.metrics.measures["reach_error_overshoot_m"] <= aloha.tolerance
+
+
+TORQUE_ARM = """
+<mujoco>
+  <option timestep="0.005" integrator="implicitfast"/>
+  <default><joint damping="0.5" armature="0.01"/><motor ctrlrange="-20 20"/></default>
+  <worldbody>
+    <body name="upper" pos="0 0 0.5">
+      <joint name="shoulder" type="hinge" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/>
+      <body name="fore" pos="0.3 0 0">
+        <joint name="elbow" type="hinge" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.025" mass="0.6"/>
+        <site name="tip" pos="0.3 0 0"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator><motor joint="shoulder"/><motor joint="elbow"/></actuator>
+  <keyframe><key qpos="0.3 0.6"/></keyframe>
+</mujoco>
+"""
+
+
+def _guess_costs(problem: ArmReach, x0: np.ndarray, guesses: list[np.ndarray]) -> np.ndarray:
+    return problem.rollout_cost(problem.rollout(x0, np.stack(guesses)))
+
+
+def test_a_torque_arm_starts_from_holding_its_start_posture() -> None:
+    """With motors the goal's gravity torques let the arm fall from the start; the default
+    guess of iLQR is then the control that holds the start, the cheaper rollout."""
+    problem = ArmReach(TORQUE_ARM, frame="tip", target=[-0.1, 0.0, 0.2], relative=True)
+    x0, horizon = problem.initial_state(), 60
+    hold = mpcbox.find_equilibrium(problem.model, x0[: problem.nq]).ctrl
+    goal = np.tile(problem.ctrl_ref, (horizon, 1))
+    guess = problem.initial_ctrls(x0, horizon)
+    np.testing.assert_allclose(guess, np.tile(hold, (horizon, 1)))
+    hold_cost, goal_cost = _guess_costs(problem, x0, [guess, goal])
+    assert hold_cost < goal_cost
+    # iLQR asks the Problem for its guess from each start state, unless given one.
+    np.testing.assert_allclose(ILQR(problem, horizon=horizon).default_ctrls(x0), guess)
+    given = ILQR(problem, horizon=horizon, ctrls_init=problem.ctrl_ref)
+    np.testing.assert_allclose(given.default_ctrls(x0), goal)
+    solver = ILQR(problem, horizon=horizon)
+    solver.ctrls_init = goal  # an assigned guess (a hand-over's plan) is kept as well
+    np.testing.assert_allclose(solver.default_ctrls(x0), goal)
+
+
+def test_a_servo_arm_starts_from_the_goal_set_points(aloha: ArmReach) -> None:
+    """With position servos the goal's set-points drive the arm there: the cheaper guess under
+    the tuned iLQR's cost (its horizon, the LQR value as terminal cost)."""
+    solver = ILQR(aloha, aloha.controller_configs["ilqr"])
+    planned, x0 = solver.problem, aloha.initial_state()
+    goal = np.tile(aloha.clip_ctrl(aloha.ctrl_ref), (solver.horizon, 1))
+    np.testing.assert_allclose(solver.default_ctrls(x0), goal)
+    hold = aloha.clip_ctrl(mpcbox.find_equilibrium(aloha.model, x0[: aloha.nq]).ctrl)
+    goal_cost, hold_cost = _guess_costs(planned, x0, [goal, np.tile(hold, (solver.horizon, 1))])
+    assert goal_cost < hold_cost

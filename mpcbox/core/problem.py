@@ -239,6 +239,12 @@ class Problem(ProblemCosts):
         """The state a simulation starts from (default: the reference state)."""
         return self.reference_state()
 
+    def initial_ctrls(self, state: np.ndarray, horizon: int) -> np.ndarray:
+        """Trajectory optimizers' default guess ``(horizon, nu)`` from ``state``: here
+        ``ctrl_ref`` at every knot, within the control range; tasks may choose better
+        (:meth:`mpcbox.tasks.reach.ArmReach.initial_ctrls`)."""
+        return np.tile(self.clip_ctrl(self.ctrl_ref), (horizon, 1))
+
     def get_state(self, data: mujoco.MjData) -> np.ndarray:
         """The state ``[qpos, qvel, act]`` held in ``data``."""
         return _read_state(data)

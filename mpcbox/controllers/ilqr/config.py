@@ -96,7 +96,9 @@ class ILQRConfig:
         fd_centered: Centered finite differences for the dynamics (default: the Problem's).
         ctrl_low: Lower control bounds ``(nu,)`` (default and outer limit: the Problem's).
         ctrl_high: Upper control bounds ``(nu,)``.
-        ctrls_init: Initial control guess ``(T, nu)`` or ``(nu,)`` (default ``ctrl_ref``).
+        ctrls_init: Initial control guess ``(T, nu)`` or ``(nu,)`` (default: the Problem's
+            guess from the start state, :meth:`mpcbox.Problem.initial_ctrls`: ``ctrl_ref``
+            unless the task chooses better).
         states_init: Initial state guess ``(T + 1, nstate)`` of the first solve: multiple
             shooting (:mod:`~mpcbox.controllers.ilqr.multiple_shooting`, FDDP), whose defects
             between shooting nodes are closed during the iterations. ``None``: single

@@ -103,10 +103,10 @@ class ILQR(ILQRSolver, Controller):
         out["regularization"] = float(self._regularization)
         return out
 
-    def _shifted_ctrls(self, time: float) -> np.ndarray:
+    def _shifted_ctrls(self, time: float, state: np.ndarray) -> np.ndarray:
         plan, dt = self._last_result, self.problem.dt
         if plan is None:
-            return self.ctrls_init.copy()
+            return self.default_ctrls(state)
         old_t = self._plan_time + dt * np.arange(self.horizon)
         new_t = time + dt * np.arange(self.horizon)
         out = np.empty_like(plan.ctrls)
@@ -160,7 +160,7 @@ class ILQR(ILQRSolver, Controller):
             self._counts["fallbacks"] += 1
             return self._last_ctrl.copy()
         if due:
-            warm = self._shifted_ctrls(time)
+            warm = self._shifted_ctrls(time, state)
             first = self._last_result is None
             iters = cfg.effective_first_iterations if first else cfg.mpc_iterations
             if first and iters > cfg.mpc_iterations:

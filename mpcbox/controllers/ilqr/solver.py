@@ -52,7 +52,7 @@ class ILQRSolver:
         horizon: Number of knots ``T``.
         ctrl_low: Lower control bounds ``(nu,)``, inside the Problem's.
         ctrl_high: Upper control bounds ``(nu,)``.
-        ctrls_init: Default initial guess ``(T, nu)``.
+        ctrls_init: The config's initial guess ``(T, nu)`` (see :meth:`default_ctrls`).
         states_init: Default state guess ``(T + 1, nstate)`` or ``None`` (single shooting).
         threads: Threads for derivatives and the parallel line search.
 
@@ -84,7 +84,8 @@ class ILQRSolver:
         self.horizon = cfg.horizon
         self.threads = problem.threads if cfg.threads is None else cfg.threads
         self.ctrl_low, self.ctrl_high = _control_bounds(problem, cfg)
-        self.ctrls_init = self._initial_ctrls(cfg.ctrls_init)
+        self._ctrls_init = self._initial_ctrls(cfg.ctrls_init)
+        self._guess_given = cfg.ctrls_init is not None
         self.states_init = (
             None if cfg.states_init is None else self._initial_states(cfg.states_init)
         )
@@ -93,6 +94,29 @@ class ILQRSolver:
             np.r_[np.arange(0, self.horizon, cfg.linearize_every), self.horizon - 1]
         )
         self._reference_lin = None if cfg.linearization == "trajectory" else self._at_reference()
+
+    @property
+    def ctrls_init(self) -> np.ndarray:
+        """The guess ``(T, nu)`` of the config's ``ctrls_init`` (``ctrl_ref`` without one).
+
+        Assigning it makes it the guess of every later solve without one given; otherwise
+        :meth:`default_ctrls` asks the Problem for a guess from each start state.
+        """
+        return self._ctrls_init
+
+    @ctrls_init.setter
+    def ctrls_init(self, value: np.ndarray) -> None:
+        self._ctrls_init = self._initial_ctrls(value)
+        self._guess_given = True
+
+    def default_ctrls(self, x0: np.ndarray) -> np.ndarray:
+        """The initial guess ``(T, nu)`` of a solve from ``x0`` that is given none: the
+        config's (or an assigned) ``ctrls_init``, else the Problem's
+        :meth:`~mpcbox.Problem.initial_ctrls` (``ctrl_ref`` unless the task chooses better),
+        within the bounds."""
+        if self._guess_given:
+            return self._ctrls_init.copy()
+        return self._initial_ctrls(self.problem.initial_ctrls(x0, self.horizon))
 
     # ------------------------------------------------------------------ helpers
     def _initial_ctrls(self, ctrls: np.ndarray | None, name: str = "ctrls_init") -> np.ndarray:
@@ -180,8 +204,8 @@ class ILQRSolver:
 
         Args:
             x0: Start state ``(nstate,)``.
-            ctrls_init: Initial controls ``(T, nu)`` or ``(nu,)`` (default: the config's
-                ``ctrls_init``, else ``ctrl_ref``).
+            ctrls_init: Initial controls ``(T, nu)`` or ``(nu,)`` (default:
+                :meth:`default_ctrls`).
             states_init: State guess ``(T + 1, nstate)`` (default: the config's
                 ``states_init``): solve by multiple shooting
                 (:func:`~mpcbox.controllers.ilqr.multiple_shooting.optimize_multiple_shooting`);
@@ -202,7 +226,7 @@ class ILQRSolver:
         x0 = as_array("x0", x0, (p.nstate,))
         if not np.all(np.isfinite(x0)):
             raise DivergenceError("x0 holds non-finite values (NaN or inf)")
-        ctrls = self.ctrls_init.copy() if ctrls_init is None else self._initial_ctrls(ctrls_init)
+        ctrls = self.default_ctrls(x0) if ctrls_init is None else self._initial_ctrls(ctrls_init)
         iters = (
             self.config.max_iterations
             if max_iterations is None
