@@ -5,7 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mpcbox.controllers.ilqr.backward_pass import _guessed_active_set, backward_pass
+from mpcbox.controllers.ilqr.backward_pass import (
+    _guessed_active_set,
+    backward_pass,
+    dynamics_blocks,
+)
 from mpcbox.controllers.ilqr.boxqp import solve_box_qp
 from mpcbox.core.problem import Linearization, Quadratization
 from mpcbox.errors import SolverError
@@ -82,6 +86,9 @@ def test_lapack_pass_equals_the_per_knot_recursion(nu, bound, with_gaps):
     assert _relative(got.k, k) < 1e-12
     assert _relative(got.K, K) < 1e-12
     assert np.allclose(got.expected, expected, rtol=1e-12, atol=0.0)
+    # The linearization's blocks kept by a solver give the same pass.
+    kept = backward_pass(lin, quad, ctrls, low, high, 1e-3, warm, gaps, dynamics_blocks(lin))
+    assert np.array_equal(kept.k, got.k) and np.array_equal(kept.K, got.K)
 
 
 def test_non_definite_q_uu_raises_a_solver_error_naming_the_knot():

@@ -76,26 +76,40 @@ def interpolate_linearization(
     return Linearization((1 - w) * A[seg] + w * A[seg + 1], (1 - w) * B[seg] + w * B[seg + 1])
 
 
-def _stack(
-    A: np.ndarray, B: np.ndarray, quad: Quadratization, horizon: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    r"""Batched per-knot blocks of the recursion, built once per pass.
+class DynamicsBlocks(NamedTuple):
+    """The linearization's per-knot blocks of the recursion (:func:`dynamics_blocks`).
 
-    Returns:
-        ``FA = blockdiag(1, [A_t B_t])`` ``(T, 1 + nx, 1 + n)`` (so that
-        ``[V_x | V_xx] @ FA[t] = [V_x | V_xx F_t]``), the transpose of ``F_t = [A_t B_t]``
-        ``(T, n, nx)`` (contiguous) and the
-        cost model ``[\ell_t | \ell_{zz,t}]`` ``(T, n, 1 + n)`` over :math:`z = (x, u)`,
-        ``n = nx + nu``: the gradient in column 0, the Hessian
-        :math:`\begin{pmatrix} \ell_{xx} & \ell_{ux}^T \\ \ell_{ux} & \ell_{uu}
-        \end{pmatrix}` in the rest.
+    Attributes:
+        FA: ``blockdiag(1, [A_t B_t])`` ``(T, 1 + nx, 1 + nx + nu)``, so that
+            ``[V_x | V_xx] @ FA[t] = [V_x | V_xx F_t]``.
+        FT: The transpose of ``F_t = [A_t B_t]``, ``(T, nx + nu, nx)``, contiguous.
     """
-    nx, nu = B.shape[1], B.shape[2]
+
+    FA: np.ndarray
+    FT: np.ndarray
+
+
+def dynamics_blocks(lin: Linearization) -> DynamicsBlocks:
+    """The blocks of ``lin`` that every backward pass over it uses.
+
+    A solve builds them once per linearization (once per solver when the dynamics are
+    linearized only at the reference) instead of once per backward pass: the retries after
+    a failed line search and a receding horizon's replans reuse them.
+    """
+    A, B = lin
+    horizon, nx, nu = B.shape
     F = np.concatenate([A, B], axis=2)
-    FT = np.ascontiguousarray(F.transpose(0, 2, 1))
     FA = np.zeros((horizon, 1 + nx, 1 + nx + nu))
     FA[:, 0, 0] = 1.0
     FA[:, 1:, 1:] = F
+    return DynamicsBlocks(FA, np.ascontiguousarray(F.transpose(0, 2, 1)))
+
+
+def _cost_blocks(quad: Quadratization, horizon: int, nx: int, nu: int) -> np.ndarray:
+    r"""The cost model ``[\ell_t | \ell_{zz,t}]`` ``(T, n, 1 + n)`` over :math:`z = (x, u)`,
+    ``n = nx + nu``: the gradient in column 0, the Hessian
+    :math:`\begin{pmatrix} \ell_{xx} & \ell_{ux}^T \\ \ell_{ux} & \ell_{uu}
+    \end{pmatrix}` in the rest."""
     LQ = np.empty((horizon, nx + nu, 1 + nx + nu))
     LQ[:, :nx, 0] = quad.lx[:horizon]
     LQ[:, nx:, 0] = quad.lu[:horizon]
@@ -103,7 +117,7 @@ def _stack(
     LQ[:, :nx, 1 + nx :] = quad.lux[:horizon].transpose(0, 2, 1)
     LQ[:, nx:, 1 : 1 + nx] = quad.lux[:horizon]
     LQ[:, nx:, 1 + nx :] = quad.luu[:horizon]
-    return FA, FT, LQ
+    return LQ
 
 
 def _guessed_active_set(
@@ -208,6 +222,7 @@ def backward_pass(
     regularization: float,
     k_init: np.ndarray | None = None,
     gaps: np.ndarray | None = None,
+    blocks: DynamicsBlocks | None = None,
 ) -> BackwardPass:
     r"""Riccati recursion with box-constrained feed-forward (see the module docstring).
 
@@ -224,6 +239,7 @@ def backward_pass(
             :math:`dx_{t+1} = A_t dx_t + B_t du_t + f_t`, so the value gradient seen from knot
             ``t`` is :math:`V_x + V_{xx} f_t` (FDDP, Mastalli et al. 2020). ``None``: no
             defects (single shooting).
+        blocks: :func:`dynamics_blocks` of ``lin``, when the caller keeps them.
 
     Returns:
         A :class:`BackwardPass`.
@@ -232,10 +248,10 @@ def backward_pass(
         SolverError: If a regularized :math:`Q_{uu}` is not positive definite or the
             recursion produced non-finite numbers (raise the regularization and retry).
     """
-    A, B = lin
-    horizon, nx, nu = B.shape
+    horizon, nx, nu = lin.B.shape
     limited = bool(np.any(np.isfinite(ctrl_low)) or np.any(np.isfinite(ctrl_high)))
-    FA, FT, LQ = _stack(A, B, quad, horizon)
+    FA, FT = dynamics_blocks(lin) if blocks is None else blocks
+    LQ = _cost_blocks(quad, horizon, nx, nu)
     low, high = ctrl_low - ctrls, ctrl_high - ctrls
     k = np.zeros((horizon, nu))
     K = np.zeros((horizon, nu, nx))
@@ -284,4 +300,10 @@ def backward_pass(
     return BackwardPass(k, K, (dv1, dv2), free)
 
 
-__all__ = ["BackwardPass", "backward_pass", "interpolate_linearization"]
+__all__ = [
+    "BackwardPass",
+    "DynamicsBlocks",
+    "backward_pass",
+    "dynamics_blocks",
+    "interpolate_linearization",
+]

@@ -238,6 +238,7 @@ def optimize_multiple_shooting(
     while defect > cfg.defect_tolerance and iteration < iters and np.isfinite(cost):
         t0 = _time.perf_counter()
         lin, quad = solver._derivatives(states, ctrls)
+        blocks = solver._blocks(lin)
         t_der += _time.perf_counter() - t0
         iteration += 1
         candidate, retries = None, 0
@@ -245,7 +246,7 @@ def optimize_multiple_shooting(
             t0 = _time.perf_counter()
             try:
                 bp = backward_pass(
-                    lin, quad, ctrls, solver.ctrl_low, solver.ctrl_high, mu.value, k, gaps
+                    lin, quad, ctrls, solver.ctrl_low, solver.ctrl_high, mu.value, k, gaps, blocks
                 )
             except SolverError:
                 bp = None

@@ -18,7 +18,12 @@ import numpy as np
 
 from mpcbox.config import resolve_config
 from mpcbox.controllers.base import check_problem
-from mpcbox.controllers.ilqr.backward_pass import backward_pass, interpolate_linearization
+from mpcbox.controllers.ilqr.backward_pass import (
+    DynamicsBlocks,
+    backward_pass,
+    dynamics_blocks,
+    interpolate_linearization,
+)
 from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.ilqr.forward_pass import Candidate, ClosedLoopRollout, line_search
 from mpcbox.controllers.ilqr.multiple_shooting import optimize_multiple_shooting
@@ -94,6 +99,9 @@ class ILQRSolver:
             np.r_[np.arange(0, self.horizon, cfg.linearize_every), self.horizon - 1]
         )
         self._reference_lin = None if cfg.linearization == "trajectory" else self._at_reference()
+        self._reference_blocks = (
+            None if self._reference_lin is None else dynamics_blocks(self._reference_lin)
+        )
 
     @property
     def ctrls_init(self) -> np.ndarray:
@@ -182,6 +190,13 @@ class ILQRSolver:
             lin = interpolate_linearization(lin.A, lin.B, knots, self.horizon)
         quad = p.quadratize_trajectory(states, ctrls, threads=self.threads)
         return lin, quad
+
+    def _blocks(self, lin: Linearization) -> DynamicsBlocks:
+        """The backward pass's blocks of ``lin``: kept for the solver's life when the dynamics
+        are linearized only at the reference."""
+        if self._reference_blocks is not None and lin is self._reference_lin:
+            return self._reference_blocks
+        return dynamics_blocks(lin)
 
     def _schedule(self, value: float) -> Regularization:
         """The regularization of one solve, starting at ``value``, on the config's schedule."""
@@ -273,7 +288,7 @@ class ILQRSolver:
         reason, status = StopReason.ITERATION_LIMIT, "iteration limit"
         iteration = 0
         need_derivatives = True
-        lin = quad = None
+        lin = quad = blocks = None
         retries = 0
         pool = p.executor() if cfg.line_search == "parallel" and self.threads != 1 else None
         full_step = max(cfg.step_sizes)
@@ -284,12 +299,15 @@ class ILQRSolver:
                 retries = 0
                 t0 = _time.perf_counter()
                 lin, quad = self._derivatives(states, ctrls)
+                blocks = self._blocks(lin)
                 t_der += _time.perf_counter() - t0
                 need_derivatives = False
                 iteration += 1
             t0 = _time.perf_counter()
             try:
-                bp = backward_pass(lin, quad, ctrls, self.ctrl_low, self.ctrl_high, mu.value, k)
+                bp = backward_pass(
+                    lin, quad, ctrls, self.ctrl_low, self.ctrl_high, mu.value, k, blocks=blocks
+                )
             except SolverError:
                 t_back += _time.perf_counter() - t0
                 mu.increase()
@@ -353,7 +371,7 @@ class ILQRSolver:
                     status = f"short step (relative decrease below tolerance at alpha={ls.alpha})"
                 break
         if gains_mu > mu_start and lin is not None and quad is not None:
-            K = self._gains_at(lin, quad, gains_ctrls, mu_start, k, K)
+            K = self._gains_at(lin, quad, gains_ctrls, mu_start, k, K, blocks)
         total = _time.perf_counter() - t_start
         return ILQRResult(
             states=states,
@@ -379,6 +397,7 @@ class ILQRSolver:
         regularization: float,
         k: np.ndarray,
         K: np.ndarray,
+        blocks: DynamicsBlocks | None = None,
     ) -> np.ndarray:
         r"""Feedback gains ``(T, nu, nx)`` of the last linearization at the solve's starting
         :math:`\mu`, or ``K`` if that backward pass fails.
@@ -389,7 +408,9 @@ class ILQRSolver:
         replan. The feedback law is the Riccati gain of the model, not a step-size device.
         """
         try:
-            bp = backward_pass(lin, quad, ctrls, self.ctrl_low, self.ctrl_high, regularization, k)
+            bp = backward_pass(
+                lin, quad, ctrls, self.ctrl_low, self.ctrl_high, regularization, k, blocks=blocks
+            )
         except SolverError:
             return K
         return bp.K
