@@ -33,6 +33,9 @@ from mpcbox.sim.trajectory import jsonable
 from mpcbox.tasks.reach import ArmReach
 from mpcbox.tasks.reach_measures import arrival
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from quadruped_walk import parse_set  # benchmarks/ is not a package
+
 #: The default nominal target offset from the hand's start position (40 cm; ``--offset``).
 OFFSET = np.array([0.0, 0.3, -0.2646])
 TOLERANCE = 0.01
@@ -45,6 +48,7 @@ def build(seed: int, args: argparse.Namespace) -> ArmReach:
         warnings.simplefilter("ignore", MissingMeshWarning)
         nominal = np.asarray(args.offset, dtype=float)
         options = {"parent_contacts": args.parent_contacts, "dry_friction": args.dry_friction}
+        options.update(parse_set(getattr(args, "task_set", "")))
         model = args.model
         if args.timestep:
             model = load_spec(args.model)
@@ -137,6 +141,11 @@ def main() -> None:
         help="linearize without the joints' frictionloss (drop, ArmReach's default) or with it",
     )
     parser.add_argument("--timestep", type=float, default=None, help="replace the model's")
+    parser.add_argument(
+        "--task-set",
+        default="",
+        help="ArmReach options for every seed, 'key=value,...' (e.g. velocity_weight=0.1)",
+    )
     parser.add_argument(
         "--controllers",
         default="ilqr,lqr,offline",
