@@ -129,18 +129,14 @@ class ClosedLoopRollout:
         return new_states, new_ctrls, cost if np.isfinite(cost) else np.inf
 
 
-def diverged(data: mujoco.MjData, states: np.ndarray, ctrls: np.ndarray) -> bool:
+def diverged(data: mujoco.MjData, *written: np.ndarray) -> bool:
     """Whether a rollout on ``data`` (reset before it) diverged.
 
     True if MuJoCo counted a bad position, velocity or acceleration (after which it reset
-    ``data`` and carried on) or a state ``(T + 1, nstate)`` or control ``(T, nu)`` is not
-    finite.
+    ``data`` and carried on) or an array the rollout wrote (its states, controls or
+    defects) holds a non-finite value.
     """
-    return (
-        unstable_warning(data) is not None
-        or not np.isfinite(states).all()
-        or not np.isfinite(ctrls).all()
-    )
+    return unstable_warning(data) is not None or not all(np.isfinite(a).all() for a in written)
 
 
 class LineSearchResult(NamedTuple):
