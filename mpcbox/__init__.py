@@ -57,6 +57,8 @@ _LAZY: dict[str, str] = {
     "Controller": "mpcbox.controllers.base",
     "Equilibrium": "mpcbox.core.equilibrium",
     "find_equilibrium": "mpcbox.core.equilibrium",
+    "servo_ringing": "mpcbox.core.servo_ringing",
+    "ServoRinging": "mpcbox.core.servo_ringing",
     "LQR": "mpcbox.controllers.lqr",
     "LQRConfig": "mpcbox.controllers.lqr",
     "ILQR": "mpcbox.controllers.ilqr.controller",

@@ -186,3 +186,34 @@ def test_a_servo_arm_starts_from_the_goal_set_points(aloha: ArmReach) -> None:
     hold = aloha.clip_ctrl(mpcbox.find_equilibrium(aloha.model, x0[: aloha.nq]).ctrl)
     goal_cost, hold_cost = _guess_costs(planned, x0, [goal, np.tile(hold, (solver.horizon, 1))])
     assert goal_cost < hold_cost
+
+
+def test_every_planner_cold_starts_from_the_task_guess() -> None:
+    """The sampling controllers' first nominal and IPOPT's first iterate come from
+    ``Problem.initial_ctrls`` too: on the torque arm, holding the start rather than the
+    goal's gravity torques."""
+    problem = ArmReach(TORQUE_ARM, frame="tip", target=[-0.1, 0.0, 0.2], relative=True)
+    x0 = problem.initial_state()
+    hold = mpcbox.find_equilibrium(problem.model, x0[: problem.nq]).ctrl
+    mppi = make_controller("mppi", problem, backend="cpu", num_samples=8, seed=0)
+    knots = mppi.nominal_knots(x0)
+    np.testing.assert_allclose(knots, np.tile(hold, (mppi.spline.num_knots, 1)))
+    assert not np.allclose(knots, mppi.nominal_knots())  # without a state: ctrl_ref
+    mppi(x0, 0.0)  # the first tick scores that nominal as candidate 0
+    steps = mppi.horizon_steps
+    expected = mppi.problem.rollout_cost(mppi.problem.rollout(x0, np.tile(hold, (steps, 1))))
+    np.testing.assert_allclose(mppi.last.nominal_cost, expected[0], rtol=1e-9)
+    calls: list[tuple[np.ndarray, int]] = []
+    original = problem.initial_ctrls
+
+    def recorded(state: np.ndarray, horizon: int) -> np.ndarray:
+        calls.append((np.array(state), horizon))
+        return original(state, horizon)
+
+    problem.initial_ctrls = recorded  # type: ignore[method-assign]
+    pytest.importorskip("casadi")
+    from mpcbox.controllers.ipopt import solve_ipopt
+
+    solve_ipopt(problem, x0, 5, max_iterations=1)
+    assert len(calls) == 1 and calls[0][1] == 5
+    np.testing.assert_allclose(calls[0][0], x0)

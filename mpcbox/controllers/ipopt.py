@@ -205,7 +205,9 @@ def solve_ipopt(
         problem: The Problem (``nq == nv``: no free or ball joints).
         x0: Start state ``(nstate,)``.
         horizon: Number of knots ``T``.
-        ctrls_init: Initial controls ``(T, nu)`` or ``(nu,)`` (default ``ctrl_ref``).
+        ctrls_init: Initial controls ``(T, nu)`` or ``(nu,)`` (default: the task's first
+            guess, :meth:`mpcbox.Problem.initial_ctrls`, ``ctrl_ref`` unless it chooses
+            better).
         states_init: Initial states ``(T + 1, nstate)`` (default: rollout of ``ctrls_init``).
         max_iterations: IPOPT iteration cap.
         tolerance: IPOPT's ``tol``.
@@ -234,7 +236,7 @@ def solve_ipopt(
     if not np.all(np.isfinite(x0)):
         raise InvalidArgumentError("x0 must be finite")
     if ctrls_init is None:
-        ctrls_init = problem.ctrl_ref
+        ctrls_init = problem.initial_ctrls(x0, horizon)
     ctrls_init = np.asarray(ctrls_init, dtype=np.float64)
     if ctrls_init.ndim == 1:
         ctrls_init = np.tile(as_array("ctrls_init", ctrls_init, (nu,)), (horizon, 1))

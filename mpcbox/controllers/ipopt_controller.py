@@ -50,7 +50,8 @@ class IpoptConfig:
         planning_timestep: Plan on a copy of the Problem with this planning timestep
             (:meth:`~mpcbox.Problem.with_planning_timestep`).
         ctrls_init: Initial controls ``(T, nu)`` or ``(nu,)`` of :func:`solve_ipopt` (and of
-            the iLQR warm start); default ``ctrl_ref``.
+            the iLQR warm start); default: the task's first guess from the planned state
+            (:meth:`~mpcbox.Problem.initial_ctrls`).
         states_init: Initial states ``(T + 1, nstate)`` of :func:`solve_ipopt`.
         max_iterations: IPOPT iteration cap.
         tolerance: IPOPT's ``tol``.

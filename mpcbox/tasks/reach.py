@@ -22,6 +22,7 @@ typically stalls (short steps, then the regularization limit); its ``stop_reason
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
@@ -38,7 +39,8 @@ from mpcbox.core.free_bodies import free_objects, weld_free_bodies
 from mpcbox.core.model import ModelSource, frame_position, load_spec, object_id
 from mpcbox.core.posture import reach_posture
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError, MpcboxError
+from mpcbox.core.servo_ringing import ServoRinging, servo_ringing
+from mpcbox.errors import InvalidArgumentError, ModelWarning, MpcboxError, UnsupportedModelError
 from mpcbox.tasks.reach_measures import ReachError
 from mpcbox.validation import finite_array, one_of, positive
 
@@ -80,6 +82,11 @@ class ArmReach(Problem):
             the default stays 1.0 (results/arm_reach_velocity_weight.json).
         ctrl_weight: :math:`w_u`, in the units of the controls.
         avoid_collisions: Keep the IK goal posture free of collisions.
+        servo_check: Step-test the actuators at the start posture
+            (:func:`~mpcbox.core.servo_ringing.servo_ringing`) and warn (a
+            :class:`~mpcbox.ModelWarning` naming them) about any that ring at the model's
+            timestep, as the Unitree Z1's wrist servos do; the report is kept in
+            :attr:`servo_report`.
         free_objects: What to do with free bodies that do not carry ``frame`` (a pot on the
             table): ``"weld"`` them to the world at their start pose, which removes their
             uncontrollable joints from the state (LQR's Riccati equation has no stabilizing
@@ -90,6 +97,8 @@ class ArmReach(Problem):
 
     Attributes:
         welded: Names of the free objects welded to the world.
+        servo_report: The :class:`~mpcbox.core.servo_ringing.ServoRinging` of the start
+            posture, or ``None`` (``servo_check=False``, or actuators it cannot rest).
 
     Raises:
         InvalidArgumentError: For free objects with ``free_objects="error"`` or a compiled
@@ -155,6 +164,7 @@ class ArmReach(Problem):
         velocity_weight: float = 1.0,
         ctrl_weight: float = 0.01,
         avoid_collisions: bool = True,
+        servo_check: bool = True,
         free_objects: str = "weld",
         **kwargs: Any,
     ) -> None:
@@ -172,6 +182,8 @@ class ArmReach(Problem):
             "ctrl_weight": float(ctrl_weight),
         }
         self.avoid_collisions = bool(avoid_collisions)
+        self.servo_check = bool(servo_check)
+        self.servo_report: ServoRinging | None = None
         self._start_key = keyframe
         self._start_qpos = None if start_qpos is None else np.asarray(start_qpos, dtype=float)
         self.welded: tuple[str, ...] = ()
@@ -217,6 +229,8 @@ class ArmReach(Problem):
         self.start_qpos = self._key_qpos(model)
         if self._start_qpos is not None:
             self.start_qpos = finite_array("start_qpos", self._start_qpos, (model.nq,)).copy()
+        if self.servo_check:
+            self._check_servos(model)
         data = mujoco.MjData(model)
         data.qpos[:] = self.start_qpos
         mujoco.mj_forward(model, data)
@@ -236,6 +250,16 @@ class ArmReach(Problem):
         self.goal = goal
         self.qpos_ref = goal.qpos.copy()
         self.ctrl_ref = find_equilibrium(model, goal.qpos).ctrl.copy()
+
+    def _check_servos(self, model: mujoco.MjModel) -> None:
+        """Keep the start posture's servo step test; warn about actuators that ring."""
+        try:
+            self.servo_report = servo_ringing(model, self.start_qpos)
+        except UnsupportedModelError:  # an actuator without a resting state to step from
+            return
+        message = self.servo_report.message()
+        if message:
+            warnings.warn(message, ModelWarning, stacklevel=6)
 
     def build_cost(self, model: mujoco.MjModel) -> Cost:
         w = self.weights

@@ -257,8 +257,8 @@ class SamplingController(Controller):
 
         Args:
             knots: Nominal knots ``(K, nu)`` planned at ``time`` (clamped to the control
-                range), or ``None`` for a cold start from the reference control at the next
-                tick.
+                range), or ``None`` for a cold start at the next tick
+                (:meth:`nominal_knots` from its state).
             time: Simulated time the knots start at (s).
 
         Raises:
@@ -274,10 +274,29 @@ class SamplingController(Controller):
         self._plan_time = None if knots is None else float(time)
         self.reset_algorithm()
 
-    def nominal_knots(self) -> np.ndarray:
-        """The reference control on every knot ``(K, nu)`` (the cold start)."""
-        ref = self.problem.clip_ctrl(self.problem.ctrl_ref)
-        return np.tile(ref, (self.spline.num_knots, 1))
+    def nominal_knots(self, state: np.ndarray | None = None) -> np.ndarray:
+        """The cold start's knots ``(K, nu)``.
+
+        Without a state, the reference control on every knot. From ``state``, the task's
+        first guess over the planning horizon (:meth:`mpcbox.Problem.initial_ctrls`,
+        ``(T, nu)``: ``ctrl_ref`` unless the task chooses better) read at the knot times,
+        the same guess the trajectory optimizers start from.
+
+        Args:
+            state: The state ``(nstate,)`` the first tick plans from, or ``None``.
+        """
+        k = self.spline.num_knots
+        if state is None:
+            return np.tile(self.problem.clip_ctrl(self.problem.ctrl_ref), (k, 1))
+        steps = self.horizon_steps
+        guess = np.asarray(self.problem.initial_ctrls(state, steps), dtype=np.float64)
+        if guess.shape != (steps, self.problem.nu) or not np.all(np.isfinite(guess)):
+            raise InvalidArgumentError(
+                f"{type(self.problem).__name__}.initial_ctrls must return finite controls "
+                f"of shape {(steps, self.problem.nu)}, got shape {guess.shape}"
+            )
+        index = np.rint(self.spline.knot_times / self.problem.dt).astype(int)
+        return self.problem.clip_ctrl(guess[np.clip(index, 0, steps - 1)])
 
     def evaluate(
         self, state: np.ndarray, candidates: np.ndarray, *, prefetch: bool = False
@@ -314,7 +333,7 @@ class SamplingController(Controller):
         start = _time.perf_counter()
         state = self.problem.check_state(state)
         if self.knots is None or self._plan_time is None:
-            self.knots = self.nominal_knots()
+            self.knots = self.nominal_knots(state)
         else:
             elapsed = time - self._plan_time
             if self.config.shift == "least_squares":
