@@ -26,7 +26,7 @@ import mpcbox
 from mpcbox.cli.compare import parse_sets
 from mpcbox.config import config_options
 from mpcbox.controllers.ilqr.controller import ILQR
-from mpcbox.core.menagerie import MissingMeshWarning
+from mpcbox.core.menagerie import MissingMeshWarning, model_source
 from mpcbox.core.model import load_spec
 from mpcbox.registry import make_controller
 from mpcbox.sim.trajectory import jsonable
@@ -49,9 +49,9 @@ def build(seed: int, args: argparse.Namespace) -> ArmReach:
         nominal = np.asarray(args.offset, dtype=float)
         options = {"parent_contacts": args.parent_contacts, "dry_friction": args.dry_friction}
         options.update(parse_set(getattr(args, "task_set", "")))
-        model = args.model
+        model = model_source(args.model)
         if args.timestep:
-            model = load_spec(args.model)
+            model = load_spec(model)
             model.option.timestep = args.timestep
         home = ArmReach(model, frame=args.frame, target=nominal, relative=True, **options)
         start = home.start_qpos.copy()

@@ -208,6 +208,9 @@ def test_planning_model_is_separate():
 def test_bad_inputs_raise_clear_errors(balance):
     with pytest.raises(mpcbox.ModelNotFoundError, match="no MJCF file"):
         mpcbox.Problem("does/not/exist.xml")
+    # A bare name (a Menagerie robot given the way problems/*.py take it) gets a hint.
+    with pytest.raises(mpcbox.ModelNotFoundError, match="write 'menagerie:unitree_g1'"):
+        mpcbox.Problem("unitree_g1")
     with pytest.raises(mpcbox.UnknownNameError, match="stand_on_left_leg"):
         mpcbox.Problem(HUMANOID, keyframe="nope")
     with pytest.raises(mpcbox.UnknownNameError, match="foot_left"):

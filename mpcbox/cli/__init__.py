@@ -8,6 +8,7 @@ Commands::
     mpcbox options CONTROLLER                     a controller's options and their defaults
     mpcbox replay FILE [--video OUT.mp4|OUT.gif]  re-simulate or render a saved run
     mpcbox validate [SCENE] [options]             MuJoCo-to-MJWarp gates on a scene
+    mpcbox inspect MODEL [options]                a robot's model checked before control
     mpcbox --version
 
 ``mpcbox simulate`` also takes ``--save-trajectory PATH``, ``--video FILE`` and
@@ -50,8 +51,8 @@ __all__ = [
     "run_task_script",
 ]
 
-COMMANDS = ("list", "compare", "simulate", "options", "replay", "validate")
-USAGE = """usage: mpcbox {list,compare,simulate,options,replay,validate} ... | --version
+COMMANDS = ("list", "compare", "simulate", "options", "replay", "validate", "inspect")
+USAGE = """usage: mpcbox {list,compare,simulate,options,replay,validate,inspect} ... | --version
 
   mpcbox list                                   tasks and controllers
   mpcbox compare TASK [options]                 compare controllers on a task (--help)
@@ -59,6 +60,7 @@ USAGE = """usage: mpcbox {list,compare,simulate,options,replay,validate} ... | -
   mpcbox options CONTROLLER                     a controller's options and defaults
   mpcbox replay FILE [--video OUT]              re-simulate or render a saved run (--help)
   mpcbox validate [SCENE] [options]             MuJoCo-to-MJWarp gates on a scene (--help)
+  mpcbox inspect MODEL [options]                check a robot's model before control (--help)
 """
 
 
@@ -195,6 +197,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             from mpcbox.cli.validate import run_validate
 
             return run_validate(rest)
+        if command == "inspect":
+            from mpcbox.cli.inspect_model import run_inspect
+
+            return run_inspect(rest)
         if command != "compare":
             raise UnknownNameError("command", command, COMMANDS)
         if not rest or rest[0].startswith("-"):

@@ -90,7 +90,10 @@ def load_spec(source: str | Path | mujoco.MjSpec) -> mujoco.MjSpec:
             raise ModelLoadError(f"model: MuJoCo could not parse the XML string: {exc}") from exc
     path = Path(source)
     if not path.is_file():
-        raise ModelNotFoundError(f"model: no MJCF file at {str(path)!r}")
+        hint = ""
+        if isinstance(source, str) and menagerie.model_source(source) != source:
+            hint = f"; for a MuJoCo Menagerie robot write {menagerie.PREFIX + source!r}"
+        raise ModelNotFoundError(f"model: no MJCF file at {str(path)!r}{hint}")
     try:
         return mujoco.MjSpec.from_file(str(path))
     except Exception as exc:

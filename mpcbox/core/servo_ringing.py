@@ -66,28 +66,32 @@ class ServoRinging(NamedTuple):
         return tuple(n for n, r in zip(self.names, self.ringing) if r)
 
     def message(self) -> str:
-        """One sentence per ringing actuator, and what to change; ``""`` if none rings."""
-        lines = []
-        for j in np.flatnonzero(self.ringing):
-            ratio = self.velocity_gain_ratio[j]
-            why = (
-                f"; kv h / I = {ratio:.3g} > 2, so its velocity gain is unstable whenever its "
-                "force saturates"
-                if np.isfinite(ratio) and ratio > 2.0
-                else ""
-            )
-            lines.append(
-                f"actuator {self.names[j]!r} rings after a set-point step at the "
-                f"{1e3 * self.timestep:g} ms timestep: its velocity changes sign on "
-                f"{100 * self.crossing_rate[j]:.0f}% of steps at "
-                f"{100 * self.amplitude[j]:.0f}% of its peak speed{why}"
-            )
-        if not lines:
+        """What rings, the evidence, and what to change; ``""`` if nothing rings."""
+        rings = np.flatnonzero(self.ringing)
+        if rings.size == 0:
             return ""
-        return (
-            "; ".join(lines) + ". Controllers cannot hold such a joint: lower the servo's kv "
-            "or force limit, add joint armature, or shorten the timestep, and test again "
-            "(mpcbox.core.servo_ringing.servo_ringing)."
+
+        def span(values: np.ndarray, scale: float = 1.0, fmt: str = ".0f") -> str:
+            lo, hi = scale * float(np.min(values)), scale * float(np.max(values))
+            return f"{lo:{fmt}}" if f"{lo:{fmt}}" == f"{hi:{fmt}}" else f"{lo:{fmt}}-{hi:{fmt}}"
+
+        names = ", ".join(repr(self.names[j]) for j in rings)
+        text = (
+            f"{'actuator' if rings.size == 1 else 'actuators'} {names} "
+            f"{'rings' if rings.size == 1 else 'ring'} after a set-point step at the "
+            f"{1e3 * self.timestep:g} ms timestep: the velocity changes sign on "
+            f"{span(self.crossing_rate[rings], 100)}% of the late steps, at "
+            f"{span(self.amplitude[rings], 100)}% of the peak speed"
+        )
+        ratio = self.velocity_gain_ratio[rings]
+        if np.any(np.isfinite(ratio) & (ratio > 2.0)):
+            text += (
+                f"; kv h / I = {span(ratio[np.isfinite(ratio)], fmt='.3g')} (above 2 the "
+                "velocity gain is unstable whenever the force saturates)"
+            )
+        return text + (
+            ". Controllers cannot hold such a joint: lower the servo's kv or force limit, add "
+            "joint armature, or shorten the timestep, and test again (mpcbox.servo_ringing)."
         )
 
 
