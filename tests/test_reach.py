@@ -158,7 +158,7 @@ def _guess_costs(problem: ArmReach, x0: np.ndarray, guesses: list[np.ndarray]) -
 
 def test_a_torque_arm_starts_from_holding_its_start_posture() -> None:
     """With motors the goal's gravity torques let the arm fall from the start; the default
-    guess of iLQR is then the control that holds the start, the cheaper rollout."""
+    guess of iLQR is then the control that holds the start, which also rolls out cheaper."""
     problem = ArmReach(TORQUE_ARM, frame="tip", target=[-0.1, 0.0, 0.2], relative=True)
     x0, horizon = problem.initial_state(), 60
     hold = mpcbox.find_equilibrium(problem.model, x0[: problem.nq]).ctrl
@@ -217,3 +217,16 @@ def test_every_planner_cold_starts_from_the_task_guess() -> None:
     solve_ipopt(problem, x0, 5, max_iterations=1)
     assert len(calls) == 1 and calls[0][1] == 5
     np.testing.assert_allclose(calls[0][0], x0)
+
+
+def test_a_mixed_arm_gets_set_points_for_its_servos_and_holding_torques_for_its_motors() -> None:
+    xml = TORQUE_ARM.replace(
+        '<motor joint="shoulder"/>', '<position joint="shoulder" kp="200" ctrlrange="-3 3"/>'
+    )
+    problem = ArmReach(xml, frame="tip", target=[-0.1, 0.0, 0.2], relative=True)
+    x0 = problem.initial_state()
+    guess = problem.initial_ctrls(x0, 4)
+    hold = mpcbox.find_equilibrium(problem.model, x0[: problem.nq]).ctrl
+    np.testing.assert_allclose(guess[:, 0], problem.ctrl_ref[0])  # the goal's set-point
+    np.testing.assert_allclose(guess[:, 1], hold[1])  # the elbow motor holds the start
+    assert not np.isclose(hold[1], problem.ctrl_ref[1])

@@ -91,7 +91,7 @@ def load_spec(source: str | Path | mujoco.MjSpec) -> mujoco.MjSpec:
     path = Path(source)
     if not path.is_file():
         hint = ""
-        if isinstance(source, str) and menagerie.model_source(source) != source:
+        if isinstance(source, str) and not path.suffix and not source.startswith("/"):
             hint = f"; for a MuJoCo Menagerie robot write {menagerie.PREFIX + source!r}"
         raise ModelNotFoundError(f"model: no MJCF file at {str(path)!r}{hint}")
     try:
