@@ -122,3 +122,12 @@ def test_the_command_prints_writes_json_and_exits_by_level(tmp_path, capsys) -> 
     with pytest.raises(SystemExit) as exc:
         main(["inspect", str(path), "--hold", "-1"])
     assert exc.value.code == 2
+
+
+def test_a_floating_robot_gets_the_legged_task_that_finds_its_feet(capsys) -> None:
+    suite = pytest.importorskip("dm_control.suite")
+    quadruped = str(pathlib.Path(suite.__file__).parent / "quadruped.xml")
+    assert main(["inspect", quadruped, "--hold", "0", "--no-servo-test"]) == 0
+    out = " ".join(capsys.readouterr().out.split())  # the lines are wrapped
+    assert "stands on 4 feet (body:toe_front_left" in out
+    assert f"mpcbox compare quadruped_stand --model {quadruped}" in out

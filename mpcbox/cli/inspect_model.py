@@ -42,6 +42,34 @@ def build_inspect_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _legged_finding(report, name: str):
+    """For a floating root: the feet found on the ground, and the task that balances it."""
+    from mpcbox.core.model import free_body
+    from mpcbox.core.robot_check import Finding
+    from mpcbox.errors import MpcboxError
+    from mpcbox.tasks.legged.ground_feet import ground_feet
+
+    model = report.model
+    if free_body(model) is None or model.nu == 0:
+        return None
+    for count, task in ((2, "biped_stand"), (4, "quadruped_stand")):
+        try:
+            feet = ground_feet(model, report.posture, count)
+        except MpcboxError:
+            continue
+        return Finding(
+            "legged task",
+            "ok",
+            f"stands on {count} feet ({', '.join(feet)}): mpcbox compare {task} --model {name}",
+        )
+    return Finding(
+        "legged task",
+        "note",
+        "the bodies on the ground form neither 2 nor 4 legs: name the feet "
+        "(mpcbox.tasks.legged.balance.LeggedBalance(model, feet=[...]))",
+    )
+
+
 def run_inspect(argv: Sequence[str], stream=None) -> int:
     """Run ``mpcbox inspect`` with ``argv`` (after the command name).
 
@@ -68,6 +96,9 @@ def run_inspect(argv: Sequence[str], stream=None) -> int:
         hold=args.hold,
         servo_test=not args.no_servo_test,
     )
+    legged = _legged_finding(report, args.model)
+    if legged is not None:
+        report = report._replace(findings=(*report.findings, legged))
     print(f"{args.model}: {report.level}", file=stream)
     print(report.format(), file=stream)
     if args.json:

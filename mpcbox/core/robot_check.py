@@ -68,10 +68,12 @@ class RobotCheck(NamedTuple):
     Attributes:
         findings: One :class:`Finding` per topic checked.
         posture: The posture checked ``(nq,)`` (the keyframe's).
+        model: The compiled model checked.
     """
 
     findings: tuple[Finding, ...]
     posture: np.ndarray
+    model: mujoco.MjModel
 
     @property
     def level(self) -> str:
@@ -86,7 +88,14 @@ class RobotCheck(NamedTuple):
         for f in self.findings:
             head = f"{marks[f.level]} {f.topic:<{width}}  "
             lines.append(
-                textwrap.fill(f.text, 100, initial_indent=head, subsequent_indent=" " * len(head))
+                textwrap.fill(
+                    f.text,
+                    100,
+                    initial_indent=head,
+                    subsequent_indent=" " * len(head),
+                    break_long_words=False,
+                    break_on_hyphens=False,
+                )
             )
         return "\n".join(lines)
 
@@ -271,7 +280,7 @@ def check_robot(
         findings.append(
             Finding("actuators", "error", "the model has no actuators: nothing to control")
         )
-        return RobotCheck(tuple(findings), qpos)
+        return RobotCheck(tuple(findings), qpos, m)
     findings += [_limits(m, qpos), _parents(m, qpos), _friction(m)]
     if servo_test:
         findings.append(_ringing(m, qpos))
@@ -281,11 +290,11 @@ def check_robot(
     except MpcboxError as exc:
         hint = " (choose a standing keyframe)" if free_body(m) is not None else ""
         findings.append(Finding("equilibrium", "warning", f"{type(exc).__name__}: {exc}{hint}"))
-        return RobotCheck(tuple(findings), qpos)
+        return RobotCheck(tuple(findings), qpos, m)
     findings.append(_equilibrium(m, eq))
     if hold > 0:
         findings.append(_hold(m, eq, hold))
-    return RobotCheck(tuple(findings), qpos)
+    return RobotCheck(tuple(findings), qpos, m)
 
 
 def _equilibrium(model: mujoco.MjModel, eq) -> Finding:
