@@ -69,7 +69,12 @@ def test_each_known_problem_is_named_at_its_level() -> None:
     assert rk4["integrator"][0] == "note" and "plan_rk4=True" in rk4["integrator"][1]
     ringing = check_robot(RINGING_ARM.format(dt=0.002, armature=0.0))
     assert ringing.level == "warning"
-    assert "'wrist_servo'" in topics(ringing)["servo ringing"][1]
+    text = " ".join(topics(ringing)["servo ringing"][1].split())
+    assert "'wrist_servo'" in text and "At 0.5 ms 'wrist_servo' still rings" in text
+    # A little armature: it rings at 2 ms and the check says that 1 ms cures it.
+    cured = topics(check_robot(RINGING_ARM.format(dt=0.002, armature=0.001), hold=0))
+    assert cured["servo ringing"][0] == "warning"
+    assert cured["servo ringing"][1].endswith("At 1 ms none rings.")
     parent = topics(check_robot(PARENT_ARM.format(option="")))
     assert (
         parent["parent contacts"][0] == "note"
