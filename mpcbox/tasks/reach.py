@@ -115,17 +115,20 @@ class ArmReach(Problem):
         "lqr": LQRConfig(),
         # Planned at the model's own timestep (see the module docstring): 100 knots, the
         # LQR value at the goal as terminal cost, two iterations per 0.02 s replan (five for
-        # the first), derivatives at every second knot. With one iteration per replan the
-        # KUKA iiwa 14 never came within 1 cm (it wandered 2-6 cm from the target for 2 s);
-        # with two, it, the UR5e, the Sawyer and the Panda all reach (benchmarks/
-        # panda_reach.py --model ..., results/arm_reach_*.json).
+        # the first), dynamics derivatives at every fourth knot (interpolated between). With
+        # one iteration per replan the KUKA iiwa 14 never came within 1 cm (it wandered 2-6
+        # cm from the target for 2 s); with two, it, the UR5e, the Sawyer and the Panda all
+        # reach (benchmarks/panda_reach.py --model ..., results/arm_reach_*.json). Every
+        # fourth knot rather than every second: the same arrivals on six arms (3/3 each), a
+        # 15-25 % shorter tick (Panda 82-84 against 97-101 ms on 2 cores;
+        # results/arm_reach_ilqr_linearize_every.json).
         "ilqr": ILQRConfig(
             horizon=100,
             terminal_value="lqr",
             first_iterations=5,
             mpc_iterations=2,
             replan_period=0.02,
-            linearize_every=2,
+            linearize_every=4,
         ),
         # Sampling on the CPU: 32 rollouts of 1 s (six knots) per 0.02 s tick. A 0.3 s
         # horizon of four knots reached on the Panda (0.41 s) and the KUKA iiwa 14 but left
