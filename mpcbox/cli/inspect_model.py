@@ -14,6 +14,10 @@ import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from mpcbox.core.robot_check import Finding, RobotCheck
 
 
 def _seconds(text: str) -> float:
@@ -42,7 +46,7 @@ def build_inspect_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _legged_finding(report, name: str):
+def _legged_finding(report: RobotCheck, name: str) -> Finding | None:
     """For a floating root: the feet found on the ground, and the task that balances it."""
     from mpcbox.core.model import free_body
     from mpcbox.core.robot_check import Finding

@@ -34,12 +34,12 @@ import mujoco
 import numpy as np
 
 from mpcbox.core.divergence import unstable_warning
-from mpcbox.core.equilibrium import find_equilibrium
+from mpcbox.core.equilibrium import Equilibrium, find_equilibrium
 from mpcbox.core.joint_limits import clear_of_limits, describe_moves
 from mpcbox.core.menagerie import MissingMeshWarning
 from mpcbox.core.model import ModelSource, compile_spec, free_body, load_spec, object_id
 from mpcbox.core.parent_contacts import describe, static_parent_contacts
-from mpcbox.core.servo_ringing import servo_ringing
+from mpcbox.core.servo_ringing import ServoRinging, servo_ringing
 from mpcbox.errors import MpcboxError
 from mpcbox.validation import boolean, non_negative
 
@@ -212,7 +212,7 @@ def _ringing(model: mujoco.MjModel, qpos: np.ndarray) -> Finding:
     return Finding("servo ringing", "warning", report.message() + _finer(model, qpos, report))
 
 
-def _finer(model: mujoco.MjModel, qpos: np.ndarray, report) -> str:
+def _finer(model: mujoco.MjModel, qpos: np.ndarray, report: ServoRinging) -> str:
     """Whether halving the timestep (twice at most) stops the ringing, said in one sentence."""
     finer = copy.copy(model)
     for _ in range(2):
@@ -228,7 +228,7 @@ def _finer(model: mujoco.MjModel, qpos: np.ndarray, report) -> str:
     )
 
 
-def _hold(model: mujoco.MjModel, eq, seconds: float) -> Finding:
+def _hold(model: mujoco.MjModel, eq: Equilibrium, seconds: float) -> Finding:
     """Hold the equilibrium control open-loop for ``seconds``: warnings and drift."""
     data = mujoco.MjData(model)
     data.qpos[:], data.ctrl[:] = eq.qpos, eq.ctrl
@@ -314,7 +314,7 @@ def check_robot(
     return RobotCheck(tuple(findings), qpos, m)
 
 
-def _equilibrium(model: mujoco.MjModel, eq) -> Finding:
+def _equilibrium(model: mujoco.MjModel, eq: Equilibrium) -> Finding:
     lo, hi = model.actuator_ctrlrange.T
     limited = model.actuator_ctrllimited.astype(bool)
     at_limit = limited & ((eq.ctrl <= lo + 1e-9) | (eq.ctrl >= hi - 1e-9))
