@@ -6,7 +6,8 @@ one posture and says, per topic, what it found and what mpcbox or the user can d
 
 * ``model``: bodies, joints, actuators by kind, keyframes, a floating root;
 * ``integrator``: RK4, which linearization cannot differentiate (a planning copy is used);
-* ``meshes``: visual-only meshes dropped because their files are missing;
+* ``loading``: visual-only meshes dropped because their files are missing, and what MuJoCo
+  said while compiling;
 * ``actuators``: none, or an actuator model the equilibrium cannot invert;
 * ``joint limits``: driven joints on or past a limit in the posture
   (:func:`~mpcbox.core.joint_limits.clear_of_limits`);
@@ -38,6 +39,7 @@ from mpcbox.core.equilibrium import Equilibrium, find_equilibrium
 from mpcbox.core.joint_limits import clear_of_limits, describe_moves
 from mpcbox.core.menagerie import MissingMeshWarning
 from mpcbox.core.model import ModelSource, compile_spec, free_body, load_spec, object_id
+from mpcbox.core.mujoco_warnings import captured_warnings
 from mpcbox.core.parent_contacts import describe, static_parent_contacts
 from mpcbox.core.servo_ringing import ServoRinging, servo_ringing
 from mpcbox.errors import MpcboxError
@@ -102,13 +104,14 @@ class RobotCheck(NamedTuple):
 
 
 def _load(source: ModelSource | mujoco.MjModel) -> tuple[mujoco.MjModel, list[str]]:
-    """The compiled model, and the warnings about meshes dropped while loading it."""
+    """The compiled model, and what loading it said (meshes dropped, MuJoCo's warnings)."""
     if isinstance(source, mujoco.MjModel):
         return source, []
-    with warnings.catch_warnings(record=True) as caught:
+    with warnings.catch_warnings(record=True) as caught, captured_warnings() as said:
         warnings.simplefilter("always", MissingMeshWarning)
         model = compile_spec(load_spec(source))
-    return model, [str(w.message) for w in caught if issubclass(w.category, MissingMeshWarning)]
+    notes = [str(w.message) for w in caught if issubclass(w.category, MissingMeshWarning)]
+    return model, notes + [f"MuJoCo said while loading: {m.strip()}" for m in said]
 
 
 def _actuator_kinds(model: mujoco.MjModel) -> Counter:
@@ -139,8 +142,8 @@ def _summary(model: mujoco.MjModel) -> Finding:
         f"{model.nbody - 1} bodies, {model.njnt} joints (nq={model.nq}, nv={model.nv}), "
         f"actuators: {kinds}; keyframes: {', '.join(keys) or 'none (qpos0 is used)'}; "
         + (
-            f"floating root {model.body(root).name!r}: balance it with a legged task "
-            "(mpcbox.tasks: BipedStand, QuadrupedStand, LeggedBalance) naming its feet"
+            f"floating root {model.body(root).name or f'body {root}'!r} (a legged task "
+            "balances it: BipedStand, QuadrupedStand or LeggedBalance of mpcbox.tasks.legged)"
             if root is not None
             else "fixed base"
         )
@@ -205,7 +208,7 @@ def _ringing(model: mujoco.MjModel, qpos: np.ndarray) -> Finding:
         report = servo_ringing(model, qpos)
     except MpcboxError as exc:
         return Finding("servo ringing", "note", f"not tested: {exc}")
-    if not report.ringing.any():
+    if not report.flagged.any():
         return Finding(
             "servo ringing", "ok", f"no actuator rings after a set-point step ({model.nu} tested)"
         )
@@ -213,15 +216,22 @@ def _ringing(model: mujoco.MjModel, qpos: np.ndarray) -> Finding:
 
 
 def _finer(model: mujoco.MjModel, qpos: np.ndarray, report: ServoRinging) -> str:
-    """Whether halving the timestep (twice at most) stops the ringing, said in one sentence."""
+    """Whether halving the timestep (twice at most) cures the flagged actuators, in a sentence."""
     finer = copy.copy(model)
     for _ in range(2):
         finer.opt.timestep /= 2
-        ringing = servo_ringing(finer, qpos).ringing & report.ringing
-        if not ringing.any():
-            return f" At {1e3 * finer.opt.timestep:g} ms none rings."
-    names = [repr(n) for n, r in zip(report.names, ringing) if r]
-    verb = "rings" if len(names) == 1 else "ring"
+        again = servo_ringing(finer, qpos)
+        still = again.flagged & report.flagged
+        if not still.any():
+            return f" At {1e3 * finer.opt.timestep:g} ms none rings or diverges."
+    names = [repr(n) for n, r in zip(report.names, still) if r]
+    one = len(names) == 1
+    if not (again.diverged & still).any():
+        verb = "rings" if one else "ring"
+    elif not (again.ringing & still).any():
+        verb = "diverges" if one else "diverge"
+    else:
+        verb = "ring or diverge"
     return (
         f" At {1e3 * finer.opt.timestep:g} ms {', '.join(names)} still {verb}: a shorter "
         "timestep is no cure there."
@@ -230,6 +240,11 @@ def _finer(model: mujoco.MjModel, qpos: np.ndarray, report: ServoRinging) -> str
 
 def _hold(model: mujoco.MjModel, eq: Equilibrium, seconds: float) -> Finding:
     """Hold the equilibrium control open-loop for ``seconds``: warnings and drift."""
+    with captured_warnings():  # read from data.warning below, not printed
+        return _held(model, eq, seconds)
+
+
+def _held(model: mujoco.MjModel, eq: Equilibrium, seconds: float) -> Finding:
     data = mujoco.MjData(model)
     data.qpos[:], data.ctrl[:] = eq.qpos, eq.ctrl
     if model.na:
@@ -292,7 +307,7 @@ def check_robot(
         qpos = (m.key_qpos[0] if m.nkey else m.qpos0).copy()
     findings = [_summary(m), _integrator(m)]
     if dropped:
-        findings.append(Finding("meshes", "note", "; ".join(dropped)))
+        findings.append(Finding("loading", "note", "; ".join(dropped)))
     if m.nu == 0:
         findings.append(
             Finding("actuators", "error", "the model has no actuators: nothing to control")

@@ -28,7 +28,9 @@ import mujoco
 import numpy as np
 
 from mpcbox.core.actuation import actuation_map, actuator_name, actuator_state, control_owner
+from mpcbox.core.divergence import unstable_warning
 from mpcbox.core.model import check_mjmodel
+from mpcbox.core.mujoco_warnings import captured_warnings
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.validation import as_array, positive
 
@@ -42,7 +44,7 @@ class ServoRinging(NamedTuple):
         names: The actuator of each control.
         ringing: Whether it rings: its velocity changes sign on at least
             ``min_crossing_rate`` of the late steps, with a late RMS of at least
-            ``min_amplitude`` of the peak speed.
+            ``min_amplitude`` of the peak speed (and the test did not diverge).
         crossing_rate: Fraction of the late steps on which the velocity changes sign.
         amplitude: RMS of the actuator's velocity over the late steps, over its peak speed
             during the whole run.
@@ -51,6 +53,9 @@ class ServoRinging(NamedTuple):
             the actuator has no velocity gain or drives no inertia; the explicit step in
             the velocity is unstable above 2.
         timestep: The timestep tested (s).
+        diverged: Whether the step test blew the simulation up (MuJoCo's instability
+            warning, which is collected rather than printed, or a non-finite velocity); such
+            an actuator's rates cover the steps before it.
     """
 
     names: tuple[str, ...]
@@ -59,6 +64,7 @@ class ServoRinging(NamedTuple):
     amplitude: np.ndarray
     velocity_gain_ratio: np.ndarray
     timestep: float
+    diverged: np.ndarray
 
     @property
     def ringing_names(self) -> tuple[str, ...]:
@@ -66,10 +72,29 @@ class ServoRinging(NamedTuple):
         return tuple(n for n, r in zip(self.names, self.ringing) if r)
 
     def message(self) -> str:
-        """What rings, the evidence, and what to change; ``""`` if nothing rings."""
+        """What rings or diverges, the evidence, and what to change; ``""`` if nothing does."""
         rings = np.flatnonzero(self.ringing)
-        if rings.size == 0:
+        blown = np.flatnonzero(self.diverged)
+        if rings.size == 0 and blown.size == 0:
             return ""
+        text = ""
+        if blown.size:
+            names = ", ".join(repr(self.names[j]) for j in blown)
+            text = (
+                f"the simulation diverges after a set-point step of {names} at the "
+                f"{1e3 * self.timestep:g} ms timestep"
+            )
+        if rings.size == 0:
+            return text + ": shorten the timestep or check those actuators' gains."
+        return (f"{text}; " if text else "") + self._ringing_message(rings)
+
+    @property
+    def flagged(self) -> np.ndarray:
+        """Actuators that ring or whose step test diverged ``(nu,)``."""
+        return self.ringing | self.diverged
+
+    def _ringing_message(self, rings: np.ndarray) -> str:
+        """The sentence on the ringing actuators ``rings`` (indices)."""
 
         def span(values: np.ndarray, scale: float = 1.0, fmt: str = ".0f") -> str:
             lo, hi = scale * float(np.min(values)), scale * float(np.max(values))
@@ -191,7 +216,8 @@ def servo_ringing(
     steps = max(round(duration / h), 4)
     late = slice(steps // 2, steps)
     crossing, amplitude, ratio = np.zeros(nu), np.zeros(nu), np.full(nu, np.nan)
-    velocity = np.empty(steps)
+    diverged = np.zeros(nu, dtype=bool)
+    velocity = np.zeros(steps)
     for j, i in enumerate(owner):
         lo, hi = _step_size(test, i, step)
         x = rest.copy()
@@ -200,9 +226,15 @@ def servo_ringing(
         mujoco.mj_resetData(test, data)
         data.qpos[:] = qpos
         data.ctrl[:], data.act[:] = actuator_state(test, x)
-        for k in range(steps):
-            mujoco.mj_step(test, data)
-            velocity[k] = data.actuator_velocity[i]
+        velocity[:] = 0.0
+        with captured_warnings():
+            for k in range(steps):
+                mujoco.mj_step(test, data)
+                velocity[k] = data.actuator_velocity[i]
+                if unstable_warning(data) is not None or not np.isfinite(velocity[k]):
+                    diverged[j] = True
+                    velocity[k] = 0.0
+                    break
         tail = velocity[late]
         peak = float(np.max(np.abs(velocity)))
         signs = np.sign(tail)
@@ -211,7 +243,7 @@ def servo_ringing(
         kv = _velocity_gain(test, i, x[j])
         if kv > 0.0 and np.isfinite(inertia[i]):
             ratio[j] = kv * h / inertia[i]
-    ringing = (crossing >= min_crossing_rate) & (amplitude >= min_amplitude)
+    ringing = (crossing >= min_crossing_rate) & (amplitude >= min_amplitude) & ~diverged
     return ServoRinging(
         names=tuple(actuator_name(model, int(i)) for i in owner),
         ringing=ringing,
@@ -219,4 +251,5 @@ def servo_ringing(
         amplitude=amplitude,
         velocity_gain_ratio=ratio,
         timestep=h,
+        diverged=diverged,
     )
