@@ -5,6 +5,7 @@ user would name it, and records every finding's level and text and the wall time
 
     MENAGERIE_ROOT=... python benchmarks/inspect_robots.py [--robots unitree_g1,...]
         [--out benchmarks/results/inspect_robots.json]
+    python benchmarks/inspect_robots.py --every-test-model  # 56 third-party MJCFs
 """
 
 from __future__ import annotations
@@ -15,6 +16,25 @@ from pathlib import Path
 
 from json_report import finish  # benchmarks/ is not a package
 from servo_ringing import ROBOTS
+
+
+def every_test_model() -> list[str]:
+    """Every MJCF of dm_control's suite and of mujoco-warp's test data, where installed."""
+    paths: list[str] = []
+    try:
+        import dm_control
+
+        paths += sorted(str(p) for p in (Path(dm_control.__file__).parent / "suite").glob("*.xml"))
+    except ImportError:
+        pass
+    try:
+        import mujoco_warp
+
+        data = Path(mujoco_warp.__file__).parent / "test_data"
+        paths += sorted(str(p) for p in data.rglob("*.xml"))
+    except ImportError:
+        pass
+    return paths
 
 
 def third_party() -> list[str]:
@@ -42,13 +62,21 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robots", default=",".join([f"menagerie:{r}" for r in ROBOTS]))
     parser.add_argument("--no-third-party", action="store_true")
+    parser.add_argument(
+        "--every-test-model",
+        action="store_true",
+        help="every MJCF of dm_control's suite and mujoco-warp's test data instead",
+    )
     parser.add_argument("--out", default="")
     args = parser.parse_args()
     from mpcbox.core.robot_check import check_robot
+    from mpcbox.errors import MpcboxError
 
     started = time.perf_counter()
     names = [r for r in args.robots.split(",") if r]
-    if not args.no_third_party:
+    if args.every_test_model:
+        names = every_test_model()
+    elif not args.no_third_party:
         names += third_party()
     rows = {}
     for name in names:
@@ -59,13 +87,18 @@ def main() -> int:
                 "level": report.level,
                 "findings": {f.topic: [f.level, f.text] for f in report.findings},
             }
-        except Exception as exc:  # recorded: a model that does not load
+        except MpcboxError as exc:  # a named refusal (a model that does not load)
+            rows[name] = {"refused": f"{type(exc).__name__}: {exc}"}
+        except Exception as exc:  # recorded: any other exception is a bug
             rows[name] = {"error": f"{type(exc).__name__}: {exc}"}
         rows[name]["seconds"] = round(time.perf_counter() - tic, 2)
     out = {
         "benchmark": "inspect_robots: mpcbox inspect's checks (check_robot) on each model",
         "command": "MENAGERIE_ROOT=... python benchmarks/inspect_robots.py",
-        "levels": {k: v.get("level", "load error") for k, v in rows.items()},
+        "levels": {
+            k: v.get("level", "refused" if "refused" in v else "ERROR") for k, v in rows.items()
+        },
+        "raw_errors": sum("error" in v for v in rows.values()),
         "models": rows,
     }
     return finish(out, args.out, started=started)
