@@ -31,6 +31,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import mpcbox
+from mpcbox.cli.compare import parse_sets
 from mpcbox.controllers.ilqr import solver as ilqr_solver
 from mpcbox.registry import make_controller
 
@@ -61,8 +62,8 @@ def _stand(seed: int):
 ROBOTS = {"panda": _reach, "g1": _stand}
 
 
-def run(robot: str, seed: int) -> dict:
-    """One closed loop with every replan's timing recorded."""
+def run(robot: str, seed: int, options: dict | None = None) -> dict:
+    """One closed loop with every replan's timing recorded (``options``: iLQR overrides)."""
     timings: list = []
     original = ilqr_solver.ILQRSolver._optimize
 
@@ -74,7 +75,7 @@ def run(robot: str, seed: int) -> dict:
     ilqr_solver.ILQRSolver._optimize = recorded
     try:
         problem, duration, noise = ROBOTS[robot](seed)
-        controller = make_controller("ilqr", problem)
+        controller = make_controller("ilqr", problem, **(options or {}))
         sim = mpcbox.simulate(problem, controller, duration, noise=noise, seed=seed)
     finally:
         ilqr_solver.ILQRSolver._optimize = original
@@ -103,12 +104,20 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--machine", default="2-core sandbox CPU, shared")
     parser.add_argument("--out", default="", help="also write the JSON here")
+    parser.add_argument(
+        "--ilqr-set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override an option of the task's iLQR config (repeatable)",
+    )
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     robots = [r for r in args.robots.split(",") if r]
     unknown = sorted(set(robots) - set(ROBOTS))
     if unknown:
         parser.error(f"--robots: unknown {unknown}; choose from {sorted(ROBOTS)}")
+    options = parse_sets([f"ilqr.{s}" for s in args.ilqr_set]).get("ilqr", {})
     t0 = time.perf_counter()
     seeds = range(args.first_seed, args.first_seed + args.seeds)
     out = {
@@ -116,7 +125,8 @@ def main() -> None:
         "mpcbox": str(Path(mpcbox.__file__).resolve().parent),
         "machine": args.machine,
         "command": "python benchmarks/ilqr_tick.py " + " ".join(sys.argv[1:]),
-        "robots": {robot: [run(robot, seed) for seed in seeds] for robot in robots},
+        "ilqr_options": options,
+        "robots": {robot: [run(robot, seed, options) for seed in seeds] for robot in robots},
     }
     out["wall_s"] = round(time.perf_counter() - t0, 1)
     text = json.dumps(out, indent=2)
