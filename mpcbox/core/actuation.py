@@ -96,13 +96,17 @@ def actuator_name(model: mujoco.MjModel, i: int) -> str:
     return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or f"actuator {i}"
 
 
+def position_servo_actuators(model: mujoco.MjModel) -> np.ndarray:
+    """Which actuators are position servos, one flag per actuator: an affine bias that pulls
+    the actuator's length toward its control (``biasprm[1] < 0``, e.g. ``<position
+    kp=...>``), so that the control is a set-point rather than a force."""
+    affine = model.actuator_biastype == mujoco.mjtBias.mjBIAS_AFFINE
+    return affine & (model.actuator_biasprm[:, 1] < 0)
+
+
 def position_servos(model: mujoco.MjModel) -> np.ndarray:
-    """Which controls ``(nu,)`` drive a position servo: an actuator whose affine bias pulls
-    its length toward the control (``biasprm[1] < 0``, e.g. ``<position kp=...>``), so that
-    its control is a set-point rather than a force."""
-    owner = control_owner(model)
-    affine = model.actuator_biastype[owner] == mujoco.mjtBias.mjBIAS_AFFINE
-    return affine & (model.actuator_biasprm[owner, 1] < 0)
+    """Which controls ``(nu,)`` drive a position servo (:func:`position_servo_actuators`)."""
+    return position_servo_actuators(model)[control_owner(model)]
 
 
 def control_owner(model: mujoco.MjModel) -> np.ndarray:

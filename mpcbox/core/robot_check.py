@@ -34,6 +34,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
+from mpcbox.core.actuation import actuator_name, position_servo_actuators
 from mpcbox.core.divergence import unstable_warning
 from mpcbox.core.equilibrium import Equilibrium, find_equilibrium
 from mpcbox.core.joint_limits import clear_of_limits, describe_moves
@@ -116,12 +117,13 @@ def _load(source: ModelSource | mujoco.MjModel) -> tuple[mujoco.MjModel, list[st
 
 def _actuator_kinds(model: mujoco.MjModel) -> Counter:
     kinds: Counter = Counter()
-    for i in range(model.nu):
+    servo = position_servo_actuators(model)
+    for i in range(len(servo)):
         gain, bias = model.actuator_gaintype[i], model.actuator_biastype[i]
         dyn = model.actuator_dyntype[i]
         if gain == mujoco.mjtGain.mjGAIN_MUSCLE:
             kinds["muscle"] += 1
-        elif bias == mujoco.mjtBias.mjBIAS_AFFINE and model.actuator_biasprm[i, 1] < 0:
+        elif servo[i]:
             kinds["position servo"] += 1
         elif bias == mujoco.mjtBias.mjBIAS_AFFINE and model.actuator_biasprm[i, 2] < 0:
             kinds["velocity servo"] += 1
@@ -341,7 +343,7 @@ def _equilibrium(model: mujoco.MjModel, eq: Equilibrium) -> Finding:
         )
     parts.append(f"actuators supply all but {eq.shortfall:.3g} N or N m on the joints they drive")
     if at_limit.any():
-        names = [model.actuator(i).name or f"actuator {i}" for i in np.flatnonzero(at_limit)]
+        names = [actuator_name(model, int(i)) for i in np.flatnonzero(at_limit)]
         parts.append(f"controls at their range's end: {', '.join(names[:6])}")
     # A shortfall counts above 1 % of the largest force the actuated dofs need (a 0.01 N m
     # residual is round-off on a 100 kg humanoid, not on a gripper).

@@ -27,7 +27,13 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from mpcbox.core.actuation import actuation_map, actuator_name, actuator_state, control_owner
+from mpcbox.core.actuation import (
+    actuation_map,
+    actuator_moment,
+    actuator_name,
+    actuator_state,
+    control_owner,
+)
 from mpcbox.core.divergence import unstable_warning
 from mpcbox.core.model import check_mjmodel
 from mpcbox.core.mujoco_warnings import captured_warnings
@@ -120,12 +126,9 @@ class ServoRinging(NamedTuple):
         )
 
 
-def _effective_inertia(model: mujoco.MjModel, data: mujoco.MjData, nout: int) -> np.ndarray:
+def _effective_inertia(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
     """``1 / (m M^-1 m^T)`` per actuator output at the posture in ``data`` (``(nout,)``)."""
-    moment = np.zeros((nout, model.nv))
-    mujoco.mju_sparse2dense(
-        moment, data.actuator_moment, data.moment_rownnz, data.moment_rowadr, data.moment_colind
-    )
+    moment = actuator_moment(model, data)
     mass = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, mass)
     mobility = np.einsum("ij,ij->i", moment, np.linalg.solve(mass, moment.T).T)
@@ -212,7 +215,7 @@ def servo_ringing(
         slope = amap.force_matrix[i, j]
         rest[j] = -amap.force_offset[i] / slope if slope != 0.0 else 0.0
     rest = np.clip(rest, amap.lower, amap.upper)
-    inertia = _effective_inertia(test, data, amap.force_matrix.shape[0])
+    inertia = _effective_inertia(test, data)
     steps = max(round(duration / h), 4)
     late = slice(steps // 2, steps)
     crossing, amplitude, ratio = np.zeros(nu), np.zeros(nu), np.full(nu, np.nan)
