@@ -53,6 +53,16 @@ def unstable_warning(data: mujoco.MjData) -> str | None:
     return None
 
 
+def diverged(data: mujoco.MjData, *written: np.ndarray) -> bool:
+    """Whether a simulation on ``data`` (reset before it) diverged.
+
+    True if MuJoCo counted a bad position, velocity or acceleration (after which it reset
+    ``data`` and carried on) or an array the simulation wrote (states, controls, defects,
+    velocities) holds a non-finite value.
+    """
+    return unstable_warning(data) is not None or not all(np.isfinite(a).all() for a in written)
+
+
 def check_planning_step(
     problem: PlanningProblem, *, duration: float = 0.1, max_steps: int = 200
 ) -> None:

@@ -35,7 +35,7 @@ import mujoco
 import numpy as np
 
 from mpcbox.core.actuation import actuator_name, position_servo_actuators
-from mpcbox.core.divergence import unstable_warning
+from mpcbox.core.divergence import diverged, unstable_warning
 from mpcbox.core.equilibrium import Equilibrium, find_equilibrium
 from mpcbox.core.joint_limits import clear_of_limits, describe_moves
 from mpcbox.core.menagerie import MissingMeshWarning
@@ -256,8 +256,8 @@ def _held(model: mujoco.MjModel, eq: Equilibrium, seconds: float) -> Finding:
     steps = round(seconds / model.opt.timestep)
     for _ in range(steps):
         mujoco.mj_step(model, data)
-        problem = unstable_warning(data)
-        if problem is not None or not np.all(np.isfinite(data.qpos)):
+        if diverged(data, data.qpos):
+            problem = unstable_warning(data)
             return Finding(
                 "open-loop hold",
                 "error",

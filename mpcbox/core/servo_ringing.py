@@ -34,7 +34,7 @@ from mpcbox.core.actuation import (
     actuator_state,
     control_owner,
 )
-from mpcbox.core.divergence import unstable_warning
+from mpcbox.core.divergence import diverged
 from mpcbox.core.model import check_mjmodel
 from mpcbox.core.mujoco_warnings import captured_warnings
 from mpcbox.errors import InvalidArgumentError
@@ -219,7 +219,7 @@ def servo_ringing(
     steps = max(round(duration / h), 4)
     late = slice(steps // 2, steps)
     crossing, amplitude, ratio = np.zeros(nu), np.zeros(nu), np.full(nu, np.nan)
-    diverged = np.zeros(nu, dtype=bool)
+    blown = np.zeros(nu, dtype=bool)
     velocity = np.zeros(steps)
     for j, i in enumerate(owner):
         lo, hi = _step_size(test, i, step)
@@ -234,8 +234,8 @@ def servo_ringing(
             for k in range(steps):
                 mujoco.mj_step(test, data)
                 velocity[k] = data.actuator_velocity[i]
-                if unstable_warning(data) is not None or not np.isfinite(velocity[k]):
-                    diverged[j] = True
+                if diverged(data, velocity[k : k + 1]):
+                    blown[j] = True
                     velocity[k] = 0.0
                     break
         tail = velocity[late]
@@ -246,7 +246,7 @@ def servo_ringing(
         kv = _velocity_gain(test, i, x[j])
         if kv > 0.0 and np.isfinite(inertia[i]):
             ratio[j] = kv * h / inertia[i]
-    ringing = (crossing >= min_crossing_rate) & (amplitude >= min_amplitude) & ~diverged
+    ringing = (crossing >= min_crossing_rate) & (amplitude >= min_amplitude) & ~blown
     return ServoRinging(
         names=tuple(actuator_name(model, int(i)) for i in owner),
         ringing=ringing,
@@ -254,5 +254,5 @@ def servo_ringing(
         amplitude=amplitude,
         velocity_gain_ratio=ratio,
         timestep=h,
-        diverged=diverged,
+        diverged=blown,
     )

@@ -19,7 +19,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from mpcbox.core.divergence import unstable_warning
+from mpcbox.core.divergence import diverged
 from mpcbox.core.problem import Problem, Rollout
 
 #: A rolled-out candidate: states ``(T + 1, nstate)``, controls ``(T, nu)`` and the total
@@ -40,7 +40,7 @@ class ClosedLoopRollout:
 
     A rollout that diverges is scored ``inf``: non-finite states or controls, or MuJoCo's
     own reset after a bad position, velocity or acceleration (its warning counters,
-    :func:`~mpcbox.core.divergence.unstable_warning`), which would otherwise continue from
+    :func:`~mpcbox.core.divergence.diverged`), which would otherwise continue from
     the model's reference pose with a finite cost.
 
     Args:
@@ -129,16 +129,6 @@ class ClosedLoopRollout:
         return new_states, new_ctrls, cost if np.isfinite(cost) else np.inf
 
 
-def diverged(data: mujoco.MjData, *written: np.ndarray) -> bool:
-    """Whether a rollout on ``data`` (reset before it) diverged.
-
-    True if MuJoCo counted a bad position, velocity or acceleration (after which it reset
-    ``data`` and carried on) or an array the rollout wrote (its states, controls or
-    defects) holds a non-finite value.
-    """
-    return unstable_warning(data) is not None or not all(np.isfinite(a).all() for a in written)
-
-
 class LineSearchResult(NamedTuple):
     """Outcome of :func:`line_search`.
 
@@ -210,4 +200,4 @@ def line_search(
     return LineSearchResult(best, alpha, n_div, False)
 
 
-__all__ = ["Candidate", "ClosedLoopRollout", "LineSearchResult", "diverged", "line_search"]
+__all__ = ["Candidate", "ClosedLoopRollout", "LineSearchResult", "line_search"]

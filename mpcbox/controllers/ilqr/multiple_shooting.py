@@ -36,8 +36,9 @@ import mujoco
 import numpy as np
 
 from mpcbox.controllers.ilqr.backward_pass import backward_pass
-from mpcbox.controllers.ilqr.forward_pass import Candidate, ClosedLoopRollout, diverged
+from mpcbox.controllers.ilqr.forward_pass import Candidate, ClosedLoopRollout
 from mpcbox.controllers.ilqr.result import ILQRResult, StopReason, Timing
+from mpcbox.core.divergence import diverged
 from mpcbox.core.problem import Problem, Rollout
 from mpcbox.errors import InvalidArgumentError, SolverError
 from mpcbox.validation import positive_int
