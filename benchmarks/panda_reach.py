@@ -90,7 +90,9 @@ def closed_loop(problem: ArmReach, name: str, duration: float, options: dict | N
     if replans:  # called every step; the replans are the expensive calls
         ticks = np.sort(sim.compute_times)[-replans:]
         out["median_replan_tick_ms"] = float(1e3 * np.median(ticks))
+        out["p99_replan_tick_ms"] = sim.metrics.compute_p99_ms  # online solves only
         out["fallbacks"] = int(stats.get("fallbacks", 0))
+        out["replans"] = replans
     out["median_call_ms"] = float(1e3 * np.median(sim.compute_times))
     return out
 

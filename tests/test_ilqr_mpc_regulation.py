@@ -76,10 +76,10 @@ def test_reference_linearization_is_checked():
         ILQR(problem, horizon=5, linearization="knots")
 
 
-def test_a_stalled_replan_keeps_riccati_gains_and_the_next_starts_afresh():
-    # A point mass on two sliders: linear dynamics, quadratic cost, so every backward pass
-    # at the configured regularization gives the same gains wherever the trajectory is.
-    problem = mpcbox.Problem(
+def point_mass() -> mpcbox.Problem:
+    """A point mass on two sliders: linear dynamics, quadratic cost, so every backward pass
+    at the configured regularization gives the same gains wherever the trajectory is."""
+    return mpcbox.Problem(
         """
         <mujoco>
           <option timestep="0.05" gravity="0 0 0"/>
@@ -96,6 +96,10 @@ def test_a_stalled_replan_keeps_riccati_gains_and_the_next_starts_afresh():
         ),
         threads=1,
     )
+
+
+def test_a_stalled_replan_keeps_riccati_gains_and_the_next_starts_afresh():
+    problem = point_mass()
 
     class Stalling(ILQR):
         stall = True
@@ -125,3 +129,34 @@ def test_a_stalled_replan_keeps_riccati_gains_and_the_next_starts_afresh():
     # Carried over, the raised regularization would have started the second replan there.
     assert second.regularization <= ctrl.config.regularization
     np.testing.assert_allclose(second.K, gains, rtol=1e-6, atol=1e-9)
+
+
+def test_replans_after_the_first_stop_at_mpc_max_retries():
+    # Every rollout diverges, so every line search fails at all six step sizes and each
+    # failure raises the regularization once more until the cap: the cold first solve may
+    # retry max_retries times, every later replan only mpc_max_retries times.
+    class Failing(ILQR):
+        rollouts = 0
+
+        def _forward(self, *args):
+            Failing.rollouts += 1
+            out = super()._forward(*args)
+            return out[0] * np.nan, out[1], np.inf
+
+    ctrl = Failing(point_mass(), horizon=10, replan_period=0.1, max_retries=6, mpc_max_retries=2)
+    steps = len(ctrl.config.step_sizes)
+    ctrl(np.array([1.0, -0.5, 0.0, 0.0]), 0.0)
+    assert ctrl.last_result.stop_reason.stalled
+    assert Failing.rollouts == steps * (6 + 1)
+    Failing.rollouts = 0
+    ctrl(np.array([0.9, -0.4, -0.5, 0.5]), 0.1)
+    assert ctrl.last_result.stop_reason.stalled
+    assert Failing.rollouts == steps * (2 + 1)
+    assert ctrl.stats["fallbacks"] == 2
+    # Without mpc_max_retries the replans keep max_retries.
+    assert ILQR(point_mass(), horizon=10, max_retries=6).config.effective_mpc_max_retries == 6
+
+
+def test_mpc_max_retries_is_checked():
+    with pytest.raises(InvalidArgumentError, match="mpc_max_retries"):
+        ILQR(point_mass(), horizon=5, mpc_max_retries=0)

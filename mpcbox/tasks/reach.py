@@ -18,6 +18,15 @@ goal torques let it fall from the start the control that holds the start
 (:meth:`ArmReach.initial_ctrls`). Offline iLQR over a
 long horizon meets the servos' torque limits (their derivatives vanish once saturated) and
 typically stalls (short steps, then the regularization limit); its ``stop_reason`` says so.
+
+Force limits also make the planning model's step discontinuous: MuJoCo's implicit
+integrators treat a servo's velocity gain implicitly only while its force is inside
+``forcerange``, so the velocity after one step jumps where a servo saturates (on the Panda's
+wrist by up to about 0.2 rad/s). The cost along an iLQR search direction is then jagged,
+and about half the line searches of the Panda's replans find no step size that lowers it
+(``benchmarks/ilqr_servo_saturation.py``: the jumps vanish on a copy without the force
+limits). The replans therefore give up after one regularization increase
+(``mpc_max_retries=1``) and keep their warm start; such replans count as stalled.
 """
 
 from __future__ import annotations
@@ -121,7 +130,11 @@ class ArmReach(Problem):
         # reach (benchmarks/panda_reach.py --model ..., results/arm_reach_*.json). Every
         # fourth knot rather than every second: the same arrivals on six arms (3/3 each), a
         # 15-25 % shorter tick (Panda 82-84 against 97-101 ms on 2 cores;
-        # results/arm_reach_ilqr_linearize_every.json).
+        # results/arm_reach_ilqr_linearize_every.json). A replan whose line search fails
+        # at every step size raises the regularization once, not up to 20 times: the
+        # servos' force limits make MuJoCo's step jump (ILQRConfig.mpc_max_retries), and on
+        # the Panda about half the line searches failed; the p99 tick fell from 588-885 to
+        # 177-200 ms with the same arrivals on six arms (results/arm_reach_mpc_retries.json).
         "ilqr": ILQRConfig(
             horizon=100,
             terminal_value="lqr",
@@ -129,6 +142,7 @@ class ArmReach(Problem):
             mpc_iterations=2,
             replan_period=0.02,
             linearize_every=4,
+            mpc_max_retries=1,
         ),
         # Sampling on the CPU: 32 rollouts of 1 s (six knots) per 0.02 s tick. A 0.3 s
         # horizon of four knots reached on the Panda (0.41 s) and the KUKA iiwa 14 but left

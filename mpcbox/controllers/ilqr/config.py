@@ -91,6 +91,17 @@ class ILQRConfig:
             predicted one, in [0, 1).
         max_retries: Regularization increases (after a failed backward pass or line search)
             allowed per iteration before giving up and keeping the current trajectory.
+        mpc_max_retries: The same cap for the receding-horizon replans after the first
+            (default ``max_retries``; the first, cold solve always uses ``max_retries``). A
+            replan starts from the shifted previous plan, which is already a good
+            trajectory; when no step size improves it, raising :math:`\mu` again and again
+            buys steps too small to matter at the price of a backward pass and a line search
+            each. That happens when the planning model's step is discontinuous, as MuJoCo's
+            implicit integrators make it wherever a position servo meets its force limit (the
+            servo's damping is integrated implicitly only while unsaturated, so the velocity
+            after one step jumps there): the cost along a search direction is then jagged,
+            and a replan can sit at a low point of it. A replan that stops at this cap keeps
+            its trajectory and counts as a stalled replan (``RETRY_LIMIT``).
         linearize_every: Linearize the dynamics at every ``linearize_every``-th knot (and the
             last) and interpolate ``A``, ``B`` in between.
         fd_centered: Centered finite differences for the dynamics (default: the Problem's).
@@ -150,6 +161,7 @@ class ILQRConfig:
     line_search: LineSearch = "backtracking"
     armijo: float = 1e-4
     max_retries: int = 20
+    mpc_max_retries: int | None = None
     linearize_every: int = 1
     fd_centered: bool | None = None
     ctrl_low: np.ndarray | None = None
@@ -170,8 +182,9 @@ class ILQRConfig:
         for name in ("horizon", "max_iterations", "mpc_iterations", "max_retries"):
             put(name, positive_int(name, getattr(self, name)))
         put("linearize_every", positive_int("linearize_every", self.linearize_every))
-        if self.first_iterations is not None:
-            put("first_iterations", positive_int("first_iterations", self.first_iterations))
+        for name in ("first_iterations", "mpc_max_retries"):
+            if getattr(self, name) is not None:
+                put(name, positive_int(name, getattr(self, name)))
         if self.threads is not None:
             put("threads", positive_int("threads", self.threads))
         for name in ("tolerance", "replan_period", "regularization_min", "regularization_max"):
@@ -228,6 +241,11 @@ class ILQRConfig:
     def effective_first_iterations(self) -> int:
         """``first_iterations``, or ``mpc_iterations`` when it is ``None``."""
         return self.mpc_iterations if self.first_iterations is None else self.first_iterations
+
+    @property
+    def effective_mpc_max_retries(self) -> int:
+        """``mpc_max_retries``, or ``max_retries`` when it is ``None``."""
+        return self.max_retries if self.mpc_max_retries is None else self.mpc_max_retries
 
 
 __all__ = [

@@ -163,6 +163,7 @@ class ILQR(ILQRSolver, Controller):
             warm = self._shifted_ctrls(time, state)
             first = self._last_result is None
             iters = cfg.effective_first_iterations if first else cfg.mpc_iterations
+            retries = cfg.max_retries if first else cfg.effective_mpc_max_retries
             if first and iters > cfg.mpc_iterations:
                 self.last_call = "offline"  # the warm-up solve a real robot does beforehand
             if first:
@@ -174,10 +175,12 @@ class ILQR(ILQRSolver, Controller):
                 # not printed.
                 with captured_warnings():
                     if guess is None:
-                        result = self._optimize(state, warm, iters, self._regularization, None)
+                        result = self._optimize(
+                            state, warm, iters, self._regularization, None, retries
+                        )
                     else:
                         result = optimize_multiple_shooting(
-                            self, state, guess, warm, iters, self._regularization
+                            self, state, guess, warm, iters, self._regularization, retries
                         )
             except MpcboxError:
                 result = None

@@ -202,6 +202,7 @@ def optimize_multiple_shooting(
     ctrls: np.ndarray,
     iters: int,
     reg: float,
+    max_retries: int | None = None,
 ) -> ILQRResult:
     """FDDP iterations from a state and control guess, then single shooting once feasible.
 
@@ -214,6 +215,8 @@ def optimize_multiple_shooting(
         ctrls: Control guess ``(T, nu)``, within the bounds.
         iters: Iteration cap of the whole solve.
         reg: Initial regularization.
+        max_retries: Regularization increases allowed per iteration (default the config's
+            ``max_retries``).
 
     Returns:
         An :class:`~mpcbox.controllers.ilqr.result.ILQRResult` whose ``defect`` is the
@@ -221,6 +224,7 @@ def optimize_multiple_shooting(
         ``defect_tolerance``.
     """
     cfg, p = solver.config, solver.problem
+    max_retries = cfg.max_retries if max_retries is None else max_retries
     t_start = _time.perf_counter()
     t_der = t_back = t_roll = 0.0
     roll = GappedRollout(p, solver.ctrl_low, solver.ctrl_high)
@@ -265,7 +269,7 @@ def optimize_multiple_shooting(
             if candidate is None:
                 mu.increase()
                 retries += 1
-                if mu.value > cfg.regularization_max or retries > cfg.max_retries:
+                if mu.value > cfg.regularization_max or retries > max_retries:
                     reason = solver._stall_reason(mu.value, diverged=bp is not None)
                     status = f"{reason.value} (defects open)"
                     break
@@ -295,7 +299,7 @@ def optimize_multiple_shooting(
             defect=defect,
         )
     # Feasible: its controls roll out to its states; continue as single shooting.
-    rest = solver._optimize(x0, ctrls, iters - iteration, mu, k)
+    rest = solver._optimize(x0, ctrls, iters - iteration, mu, k, max_retries)
     timing = Timing(*(a + b for a, b in zip(elapsed, rest.timing)))
     return rest._replace(
         costs=np.r_[costs[:-1], rest.costs] if iteration else rest.costs,

@@ -262,8 +262,10 @@ class ILQRSolver:
         iters: int,
         reg: float | Regularization,
         k_warm: np.ndarray | None,
+        max_retries: int | None = None,
     ) -> ILQRResult:
         p, cfg = self.problem, self.config
+        max_retries = cfg.max_retries if max_retries is None else max_retries
         mu = reg if isinstance(reg, Regularization) else self._schedule(reg)
         mu_start, gains_mu, gains_ctrls = mu.value, mu.value, ctrls
         t_start = _time.perf_counter()
@@ -312,7 +314,7 @@ class ILQRSolver:
                 t_back += _time.perf_counter() - t0
                 mu.increase()
                 retries += 1
-                if mu.value > cfg.regularization_max or retries > cfg.max_retries:
+                if mu.value > cfg.regularization_max or retries > max_retries:
                     reason = self._stall_reason(mu.value, diverged=False)
                     status = f"{reason.value} (backward pass)"
                     break
@@ -349,7 +351,7 @@ class ILQRSolver:
             if ls.candidate is None:
                 mu.increase()
                 retries += 1
-                if mu.value > cfg.regularization_max or retries > cfg.max_retries:
+                if mu.value > cfg.regularization_max or retries > max_retries:
                     reason = self._stall_reason(mu.value, diverged=ls.all_diverged)
                     status = f"{reason.value} (line search)"
                     break
