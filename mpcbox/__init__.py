@@ -59,6 +59,8 @@ _LAZY: dict[str, str] = {
     "find_equilibrium": "mpcbox.core.equilibrium",
     "servo_ringing": "mpcbox.core.servo_ringing",
     "ServoRinging": "mpcbox.core.servo_ringing",
+    "saturation_jumps": "mpcbox.core.saturation_jumps",
+    "SaturationJumps": "mpcbox.core.saturation_jumps",
     "LQR": "mpcbox.controllers.lqr",
     "LQRConfig": "mpcbox.controllers.lqr",
     "ILQR": "mpcbox.controllers.ilqr.controller",

@@ -96,6 +96,17 @@ def actuator_name(model: mujoco.MjModel, i: int) -> str:
     return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or f"actuator {i}"
 
 
+def velocity_gain(model: mujoco.MjModel, i: int, x: float = 0.0) -> float:
+    """Magnitude of actuator ``i``'s force per unit of its velocity (a servo's ``kv``) at
+    variable ``x`` (the control, or the activation); 0 when the force does not fall with it."""
+    gain = 0.0
+    if model.actuator_biastype[i] == mujoco.mjtBias.mjBIAS_AFFINE:
+        gain -= float(model.actuator_biasprm[i, 2])
+    if model.actuator_gaintype[i] == mujoco.mjtGain.mjGAIN_AFFINE:
+        gain -= float(model.actuator_gainprm[i, 2]) * x
+    return max(gain, 0.0)
+
+
 def position_servo_actuators(model: mujoco.MjModel) -> np.ndarray:
     """Which actuators are position servos, one flag per actuator: an affine bias that pulls
     the actuator's length toward its control (``biasprm[1] < 0``, e.g. ``<position

@@ -15,6 +15,8 @@ one posture and says, per topic, what it found and what mpcbox or the user can d
   (:mod:`~mpcbox.core.parent_contacts`);
 * ``dry friction``: joints with ``frictionloss``, which stick in a linearization at rest;
 * ``servo ringing``: servos that ring at the timestep (:mod:`~mpcbox.core.servo_ringing`);
+* ``servo saturation``: servos whose velocity jumps in one step where their force saturates
+  under an implicit integrator (:mod:`~mpcbox.core.saturation_jumps`);
 * ``equilibrium``: the control that holds the posture through the actuator model, and what
   the actuators cannot supply (:func:`~mpcbox.find_equilibrium`);
 * ``open-loop hold``: the model held at that control, without feedback, for ``hold``
@@ -42,6 +44,7 @@ from mpcbox.core.menagerie import MissingMeshWarning
 from mpcbox.core.model import ModelSource, compile_spec, free_body, load_spec, object_id
 from mpcbox.core.mujoco_warnings import captured_warnings
 from mpcbox.core.parent_contacts import describe, static_parent_contacts
+from mpcbox.core.saturation_jumps import saturation_jumps
 from mpcbox.core.servo_ringing import ServoRinging, servo_ringing
 from mpcbox.errors import MpcboxError
 from mpcbox.validation import boolean, non_negative
@@ -217,6 +220,26 @@ def _ringing(model: mujoco.MjModel, qpos: np.ndarray) -> Finding:
     return Finding("servo ringing", "warning", report.message() + _finer(model, qpos, report))
 
 
+def _saturation(model: mujoco.MjModel, qpos: np.ndarray) -> Finding:
+    jumps = saturation_jumps(model, qpos)
+    if not jumps.implicit:
+        return Finding(
+            "servo saturation",
+            "ok",
+            "the integrator treats velocity gains explicitly: no jump where a force saturates",
+        )
+    message = jumps.message()
+    if message:
+        return Finding("servo saturation", "note", message)
+    limited = int(np.count_nonzero(jumps.velocity_jump))
+    return Finding(
+        "servo saturation",
+        "ok",
+        f"no servo's velocity jumps by half a step's change where its force saturates "
+        f"({limited} force-limited with a velocity gain)",
+    )
+
+
 def _finer(model: mujoco.MjModel, qpos: np.ndarray, report: ServoRinging) -> str:
     """Whether halving the timestep (twice at most) cures the flagged actuators, in a sentence."""
     finer = copy.copy(model)
@@ -318,6 +341,7 @@ def check_robot(
     findings += [_limits(m, qpos), _parents(m, qpos), _friction(m)]
     if servo_test:
         findings.append(_ringing(m, qpos))
+    findings.append(_saturation(m, qpos))
     qpos, _ = clear_of_limits(m, qpos)
     try:
         eq = find_equilibrium(m, qpos, on_infeasible="ignore")

@@ -33,6 +33,7 @@ from mpcbox.core.actuation import (
     actuator_name,
     actuator_state,
     control_owner,
+    velocity_gain,
 )
 from mpcbox.core.divergence import diverged
 from mpcbox.core.model import check_mjmodel
@@ -136,16 +137,6 @@ def _effective_inertia(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray
         return np.where(mobility > 0.0, 1.0 / mobility, np.inf)
 
 
-def _velocity_gain(model: mujoco.MjModel, i: int, x: float) -> float:
-    """Magnitude of the actuator's force per unit of velocity (its ``kv``) at variable ``x``."""
-    gain = 0.0
-    if model.actuator_biastype[i] == mujoco.mjtBias.mjBIAS_AFFINE:
-        gain -= float(model.actuator_biasprm[i, 2])
-    if model.actuator_gaintype[i] == mujoco.mjtGain.mjGAIN_AFFINE:
-        gain -= float(model.actuator_gainprm[i, 2]) * x
-    return max(gain, 0.0)
-
-
 def _step_size(model: mujoco.MjModel, i: int, step: float) -> tuple[float, float]:
     """The range a step of actuator ``i``'s variable is a fraction of: ctrlrange, or the
     activation range of an integrator, or ``(-1, 1)`` when unlimited."""
@@ -243,7 +234,7 @@ def servo_ringing(
         signs = np.sign(tail)
         crossing[j] = float(np.mean(signs[1:] * signs[:-1] < 0.0))
         amplitude[j] = float(np.sqrt(np.mean(tail**2)) / peak) if peak > 0.0 else 0.0
-        kv = _velocity_gain(test, i, x[j])
+        kv = velocity_gain(test, i, x[j])
         if kv > 0.0 and np.isfinite(inertia[i]):
             ratio[j] = kv * h / inertia[i]
     ringing = (crossing >= min_crossing_rate) & (amplitude >= min_amplitude) & ~blown
