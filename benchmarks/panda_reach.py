@@ -70,8 +70,12 @@ def build(seed: int, args: argparse.Namespace) -> ArmReach:
 
 
 def closed_loop(problem: ArmReach, name: str, duration: float, options: dict | None = None) -> dict:
-    """One closed-loop run: final error, time to 1 cm, ticks."""
-    controller = make_controller(name, problem, **(options or {}))
+    """One closed-loop run: final error, time to 1 cm, ticks (``"mppi_servo"``: MPPI of
+    joint set-points through :meth:`ArmReach.servo_planner`, for torque-driven arms)."""
+    if name == "mppi_servo":
+        controller = problem.servo_planner("mppi", **(options or {}))
+    else:
+        controller = make_controller(name, problem, **(options or {}))
     t0 = time.perf_counter()
     sim = mpcbox.simulate(problem, controller, duration, seed=0)
     wall = time.perf_counter() - t0
@@ -94,6 +98,7 @@ def closed_loop(problem: ArmReach, name: str, duration: float, options: dict | N
         out["fallbacks"] = int(stats.get("fallbacks", 0))
         out["replans"] = replans
     out["median_call_ms"] = float(1e3 * np.median(sim.compute_times))
+    out["median_solve_ms"] = sim.metrics.compute_p50_ms  # calls that planned, not held
     return out
 
 
@@ -151,7 +156,8 @@ def main() -> None:
     parser.add_argument(
         "--controllers",
         default="ilqr,lqr,offline",
-        help="comma-separated from ilqr, lqr, offline, mppi (CPU sampling)",
+        help="comma-separated from ilqr, lqr, offline, mppi (CPU sampling), mppi_servo (MPPI "
+        "of joint set-points on a torque-driven arm, ArmReach.servo_planner)",
     )
     parser.add_argument(
         "--mppi-set",
@@ -169,9 +175,10 @@ def main() -> None:
     )
     args = parser.parse_args()
     chosen = args.controllers.split(",")
-    unknown = sorted(set(chosen) - {"ilqr", "lqr", "offline", "mppi"})
+    known = {"ilqr", "lqr", "offline", "mppi", "mppi_servo"}
+    unknown = sorted(set(chosen) - known)
     if unknown:
-        parser.error(f"--controllers: unknown {unknown}; choose from ilqr, lqr, offline, mppi")
+        parser.error(f"--controllers: unknown {unknown}; choose from {', '.join(sorted(known))}")
     sets = parse_sets([f"mppi.{s}" for s in args.mppi_set] + [f"ilqr.{s}" for s in args.ilqr_set])
     mppi_options, ilqr_options = sets.get("mppi", {}), sets.get("ilqr", {})
 
@@ -190,6 +197,8 @@ def main() -> None:
             row["lqr_at_ik_posture"] = closed_loop(problem, "lqr", args.duration)
         if "mppi" in chosen:
             row["mppi_cpu"] = closed_loop(problem, "mppi", args.duration, mppi_options)
+        if "mppi_servo" in chosen:
+            row["mppi_servo"] = closed_loop(problem, "mppi_servo", args.duration, mppi_options)
         if "offline" in chosen:
             row["ilqr_offline"] = offline(problem, args.offline_horizon, args.offline_iterations)
         mpc, lqr = row.get("ilqr_mpc"), row.get("lqr_at_ik_posture")
@@ -203,6 +212,7 @@ def main() -> None:
     for key, label in (
         ("ilqr_mpc", "ilqr_mpc"),
         ("mppi_cpu", "mppi"),
+        ("mppi_servo", "mppi_servo"),
         ("lqr_at_ik_posture", "lqr"),
     ):
         runs = [r[key] for r in rows if key in r]

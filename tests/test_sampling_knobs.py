@@ -202,3 +202,29 @@ def test_warp_backend_supports_the_knobs(problem, warp_device):
     )
     np.testing.assert_allclose(cem.std[:, 0], 0.1 * np.arange(1, 5) / 4)
     assert np.all(np.isfinite(cem(state, 0.0)))
+
+
+# ------------------------------------------------------------------ the task's guess
+def test_guess_candidate_scores_the_tasks_guess_at_every_tick(problem):
+    seen: list = []
+
+    class Recording(MPPI):
+        def evaluate(self, state, candidates, **kwargs):
+            seen.append((np.array(state), np.array(candidates)))
+            return super().evaluate(state, candidates, **kwargs)
+
+    ctrl = Recording(problem, num_samples=8, horizon=0.2, num_knots=3, guess_candidate=True)
+    state = problem.initial_state()
+    for tick in range(3):
+        ctrl(state, 0.02 * tick)
+        state = state + 0.01  # another measured state each tick
+    assert len(seen) == 3
+    for measured, cand in seen:
+        np.testing.assert_array_equal(cand[-1], ctrl.nominal_knots(measured))
+    # Off (the default), the last candidate is noise like the others.
+    seen.clear()
+    plain = Recording(problem, num_samples=8, horizon=0.2, num_knots=3)
+    plain(problem.initial_state(), 0.0)
+    assert not np.allclose(seen[0][1][-1], plain.nominal_knots(problem.initial_state()))
+    with pytest.raises(InvalidArgumentError, match="guess_candidate"):
+        MPPI(problem, guess_candidate="yes")

@@ -41,6 +41,7 @@ import numpy as np
 from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.lqr import LQRConfig
 from mpcbox.controllers.sampling.config import MPPIConfig
+from mpcbox.controllers.servo_actions import ServoActions, servo_spec
 from mpcbox.core.actuation import position_servos
 from mpcbox.core.cost import ControlCost, Cost, FramePosition, StateCost
 from mpcbox.core.end_effector import end_effector
@@ -154,7 +155,12 @@ class ArmReach(Problem):
         # Gen3 (stiff servos on links without armature: a set-point moves the joint within a
         # tick) followed each tick's best sample's noise and wandered 2-21 cm from the target
         # over 3 s; with the ramp it arrived in 0.19 s and stayed within 0.3 mm, and the
-        # other four arms stayed within 3.6 mm (results/arm_reach_mppi_ramp.json).
+        # other four arms stayed within 3.6 mm (results/arm_reach_mppi_ramp.json). The
+        # goal's set-points are scored at every tick (guess_candidate): the same arrivals on
+        # five servo arms, final errors 0.001-0.17 mm against 0.07-0.79 mm (a Gen3 seed had
+        # wandered back to 2 cm), and on a torque arm planned through servos
+        # (servo_planner) MPPI without it walked 5-6 cm off the target it had reached
+        # (results/arm_reach_mppi_guess.json).
         "mppi": MPPIConfig(
             num_samples=32,
             horizon=1.0,
@@ -163,6 +169,7 @@ class ArmReach(Problem):
             noise_scale=0.1,
             temperature=0.1,
             period=0.02,
+            guess_candidate=True,
         ),
     }
 
@@ -211,6 +218,7 @@ class ArmReach(Problem):
         # sticks (Unitree's Z1, 1 N m a joint: LQR drove the arm 23-32 cm from a 20 cm
         # target with it, 0.9-1.5 cm without; results/arm_reach_z1.json).
         kwargs.setdefault("dry_friction", "drop")
+        self._source, self._options = model, dict(kwargs)  # for servo_planner's twin
         super().__init__(model, **kwargs)
 
     def _without_free_objects(self, source: ModelSource, mode: str) -> ModelSource:
@@ -335,6 +343,60 @@ class ArmReach(Problem):
         except MpcboxError:  # an actuator model find_equilibrium cannot invert
             return goal
         return np.where(servo, goal, self.clip_ctrl(hold))
+
+    def servo_planner(
+        self,
+        name: str = "mppi",
+        *,
+        bandwidth: float = 30.0,
+        damping_ratio: float = 1.0,
+        replan_period: float | None = None,
+        **options: Any,
+    ) -> ServoActions:
+        """A planner of joint set-points for a torque-driven arm (its motors as servos).
+
+        Builds this reach again on :func:`~mpcbox.controllers.servo_actions.servo_spec`'s
+        model (each motor a position servo of the motor's torque range, gains from
+        ``bandwidth`` and ``damping_ratio`` at the start posture; same frame, target, start
+        and weights), makes the task's ``name`` controller on it, called every step and
+        replanning every ``replan_period`` (default its config's ``period``), and wraps it
+        in :class:`~mpcbox.controllers.servo_actions.ServoActions`, which sends this arm the
+        motor torques of the same servo law.
+
+        Args:
+            name: A registered controller (``"mppi"``, ``"ps"``, ``"cem"``, ...).
+            bandwidth: Servo bandwidth (rad/s).
+            damping_ratio: Servo damping ratio.
+            replan_period: Seconds between replans.
+            **options: The controller's options (e.g. ``num_samples=64``).
+
+        Raises:
+            UnsupportedModelError: If the arm has no motor (e.g. already position servos).
+        """
+        from mpcbox.registry import make_controller
+
+        spec, law = servo_spec(
+            self._source, bandwidth=bandwidth, damping_ratio=damping_ratio, qpos=self.start_qpos
+        )
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ModelWarning)  # this arm's were shown already
+            twin = ArmReach(
+                spec,
+                frame=self.frame,
+                target=self.target,
+                orientation=self.orientation,
+                start_qpos=self.start_qpos,
+                tolerance=self.tolerance,
+                avoid_collisions=self.avoid_collisions,
+                servo_check=False,
+                **self.weights,
+                **self._options,
+            )
+        config = twin.controller_configs.get(name)
+        period = getattr(config, "period", None)
+        replan = replan_period if replan_period is not None else (period or 0.02)
+        options = {"period": None, "replan_period": replan, **options}
+        return ServoActions(self, make_controller(name, twin, **options), law)
 
     # ------------------------------------------------------------------ measures
     def frame_position(self, state: np.ndarray) -> np.ndarray:

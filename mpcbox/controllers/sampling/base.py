@@ -345,8 +345,11 @@ class SamplingController(Controller):
         self._plan_time = float(time)
         best, nominal, valid = np.nan, np.nan, 0
         scored: tuple[np.ndarray, np.ndarray] | None = None
+        guess = self.nominal_knots(state) if self.config.guess_candidate else None
         for it in range(self.iterations):
             cand = self.problem.clip_ctrl(self.sample())
+            if it == 0 and guess is not None and len(cand) > 1:
+                cand[-1] = guess  # the task's guess is scored at every tick
             costs = self.evaluate(state, cand, prefetch=True)
             finite = np.isfinite(costs)
             valid = int(finite.sum())

@@ -135,6 +135,13 @@ class SamplingConfig:
             whose control then comes from the shifted plan alone) or one non-negative value
             per knot ``(K,)``.
         iterations: Sample/update rounds per control tick.
+        guess_candidate: Replace the last candidate of each tick's first iteration by the
+            task's guess from the measured state (:meth:`mpcbox.Problem.initial_ctrls` read
+            at the knot times, the cold start's nominal): a plan that holds the equilibrium
+            for a balancing task, the goal's set-points for a reach. Near a goal the random
+            candidates differ little in cost, and their weighted average (MPPI) or the
+            luckiest one (predictive sampling) walks away from it; a planner that always
+            scores the guess keeps it when nothing beats it.
         terminal_value: ``"lqr"`` adds the infinite-horizon LQR value function of the planning
             model at the reference to the terminal cost
             (:func:`~mpcbox.controllers.lqr.with_lqr_terminal_value`), so a short horizon
@@ -210,6 +217,7 @@ class SamplingConfig:
     noise_scale: float | Sequence[float] = 0.3
     noise_schedule: NoiseSchedule | Sequence[float] = "constant"
     iterations: int = 1
+    guess_candidate: bool = False
     shift: ShiftMode = "resample"
     terminal_value: TerminalValue | None = None
     catch: Catch | None = None
@@ -286,6 +294,7 @@ class SamplingConfig:
             string("device", self.device)
         check_seed("seed", self.seed)
         boolean("use_graph", self.use_graph)
+        boolean("guess_candidate", self.guess_candidate)
         if self.randomization is not None:
             instance("randomization", self.randomization, Randomization)
             self.randomization.validate()
