@@ -74,8 +74,10 @@ def test_the_world_through_the_law_moves_as_the_servo_model():
     setpoints = np.array([0.6, 0.3, 0.03])
     planned = run(servo, lambda s: setpoints)
     moved = run(world, lambda s: law.controls(s, setpoints, world.nq))
-    np.testing.assert_allclose(moved, planned, atol=2e-3)
+    np.testing.assert_allclose(moved, planned, atol=1e-4)
     assert abs(planned[1] - 0.3) < 0.05  # the elbow servo got there (gravity sags it a bit)
+    # The default bandwidth is 0.1 / timestep.
+    np.testing.assert_allclose(servo_spec(ARM)[1].kp, inertia * (0.1 / 0.002) ** 2)
     # Saturated: the world's motor control is clipped to its range.
     far = law.controls(np.r_[world.key_qpos[0], np.zeros(3)], np.array([2.0, -2.5, 0.0]), 3)
     np.testing.assert_allclose(far[:2], [40.0, -5.0])

@@ -348,7 +348,7 @@ class ArmReach(Problem):
         self,
         name: str = "mppi",
         *,
-        bandwidth: float = 30.0,
+        bandwidth: float | None = None,
         damping_ratio: float = 1.0,
         replan_period: float | None = None,
         **options: Any,
@@ -365,7 +365,7 @@ class ArmReach(Problem):
 
         Args:
             name: A registered controller (``"mppi"``, ``"ps"``, ``"cem"``, ...).
-            bandwidth: Servo bandwidth (rad/s).
+            bandwidth: Servo bandwidth (rad/s); default ``0.1 / timestep``.
             damping_ratio: Servo damping ratio.
             replan_period: Seconds between replans.
             **options: The controller's options (e.g. ``num_samples=64``).
