@@ -27,14 +27,15 @@ from __future__ import annotations
 
 import argparse
 import copy
-import json
-import platform
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from json_report import finish  # benchmarks/ is not a package
 
 import mpcbox
 from mpcbox.controllers.ilqr import solver as ilqr_solver
@@ -104,6 +105,7 @@ def main() -> None:
     parser.add_argument("--jump-factor", type=float, default=20.0)
     parser.add_argument("--out", default=None, help="also write the JSON here")
     args = parser.parse_args()
+    started = time.perf_counter()
 
     import panda_reach  # benchmarks/ is not a package
 
@@ -158,13 +160,9 @@ def main() -> None:
         "run": counts,
         "grid": {"points": args.grid, "alpha_max": args.alpha_max, "jump_factor": args.jump_factor},
         "cases": rows,
-        "machine": platform.processor() or platform.machine(),
         "command": "python " + " ".join(sys.argv),
     }
-    text = json.dumps(out, indent=1)
-    print(text)
-    if args.out:
-        Path(args.out).write_text(text + "\n")
+    finish(out, args.out or "", started=started)
 
 
 if __name__ == "__main__":
