@@ -113,3 +113,13 @@ def test_bad_inputs_are_named():
     with pytest.raises(InvalidTypeError, match="law"):
         ServoActions(world, Hold(), (1, 2))  # type: ignore[arg-type]
     assert isinstance(law, ServoLaw)
+    from mpcbox.tasks.reach import ArmReach
+
+    servos = ArmReach(
+        ARM.replace("<motor", "<position kp='50'").replace('gear="2" ', ""),
+        frame="tip",
+        target=np.zeros(3),
+        relative=True,
+    )
+    with pytest.raises(UnsupportedModelError, match="motors"):
+        servos.servo_planner("mppi")
