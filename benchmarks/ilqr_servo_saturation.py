@@ -109,17 +109,7 @@ def main() -> None:
 
     import panda_reach  # benchmarks/ is not a package
 
-    reach_args = argparse.Namespace(
-        model=args.model,
-        frame=None,
-        offset=panda_reach.OFFSET,
-        posture_noise=0.1,
-        target_noise=0.03,
-        parent_contacts="exclude",
-        dry_friction="drop",
-        timestep=None,
-    )
-    problem = panda_reach.build(args.seed, reach_args)
+    problem = panda_reach.build(args.seed, panda_reach.default_args(args.model))
     cases, counts = failed_searches(problem, args.duration, args.cases)
     planner = make_controller("ilqr", problem).problem  # the planned copy (terminal value)
     low, high = problem.ctrl_low, problem.ctrl_high

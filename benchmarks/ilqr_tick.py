@@ -39,17 +39,7 @@ from mpcbox.registry import make_controller
 def _reach(seed: int):
     import panda_reach  # benchmarks/ is not a package
 
-    args = argparse.Namespace(
-        model="menagerie:franka_emika_panda",
-        frame=None,
-        offset=panda_reach.OFFSET,
-        posture_noise=0.1,
-        target_noise=0.03,
-        parent_contacts="exclude",
-        dry_friction="drop",
-        timestep=None,
-    )
-    return panda_reach.build(seed, args), 2.0, None
+    return panda_reach.build(seed, panda_reach.default_args()), 2.0, None
 
 
 def _stand(seed: int):

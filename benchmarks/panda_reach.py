@@ -41,6 +41,20 @@ OFFSET = np.array([0.0, 0.3, -0.2646])
 TOLERANCE = 0.01
 
 
+def default_args(model: str = "menagerie:franka_emika_panda") -> argparse.Namespace:
+    """The command line's defaults for :func:`build`, for other scripts."""
+    return argparse.Namespace(
+        model=model,
+        frame=None,
+        offset=OFFSET,
+        posture_noise=0.1,
+        target_noise=0.03,
+        parent_contacts="exclude",
+        dry_friction="drop",
+        timestep=None,
+    )
+
+
 def build(seed: int, args: argparse.Namespace) -> ArmReach:
     """The seed's reach: perturbed start posture and target."""
     rng = np.random.default_rng(seed)
