@@ -30,6 +30,7 @@ import mujoco
 import numpy as np
 
 from mpcbox.controllers.base import Controller, check_problem
+from mpcbox.core.actuation import motor_actuators
 from mpcbox.core.model import ModelSource, compile_spec, load_spec
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError, UnsupportedModelError
@@ -76,10 +77,10 @@ def motors(model: mujoco.MjModel) -> np.ndarray:
     """Indices of the actuators that are plain motors on a hinge or slide joint (force = gear
     x control): those :func:`servo_spec` replaces."""
     out = []
+    motor = motor_actuators(model)
     for i in range(model.nu):
         if (
-            model.actuator_gaintype[i] == mujoco.mjtGain.mjGAIN_FIXED
-            and model.actuator_biastype[i] == mujoco.mjtBias.mjBIAS_NONE
+            motor[i]
             and model.actuator_dyntype[i] == mujoco.mjtDyn.mjDYN_NONE
             and model.actuator_trntype[i] == mujoco.mjtTrn.mjTRN_JOINT
             and int(model.jnt_type[model.actuator_trnid[i, 0]]) in _SCALAR

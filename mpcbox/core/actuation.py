@@ -107,6 +107,13 @@ def velocity_gain(model: mujoco.MjModel, i: int, x: float = 0.0) -> float:
     return max(gain, 0.0)
 
 
+def motor_actuators(model: mujoco.MjModel) -> np.ndarray:
+    """Which actuators are motors, one flag per actuator: a fixed gain and no bias, so that
+    the force is the gain times the control (or the activation) whatever the state."""
+    fixed = model.actuator_gaintype == mujoco.mjtGain.mjGAIN_FIXED
+    return fixed & (model.actuator_biastype == mujoco.mjtBias.mjBIAS_NONE)
+
+
 def position_servo_actuators(model: mujoco.MjModel) -> np.ndarray:
     """Which actuators are position servos, one flag per actuator: an affine bias that pulls
     the actuator's length toward its control (``biasprm[1] < 0``, e.g. ``<position

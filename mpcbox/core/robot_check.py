@@ -36,7 +36,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from mpcbox.core.actuation import actuator_name, position_servo_actuators
+from mpcbox.core.actuation import actuator_name, motor_actuators, position_servo_actuators
 from mpcbox.core.divergence import diverged, unstable_warning
 from mpcbox.core.equilibrium import Equilibrium, find_equilibrium
 from mpcbox.core.joint_limits import clear_of_limits, describe_moves
@@ -120,7 +120,7 @@ def _load(source: ModelSource | mujoco.MjModel) -> tuple[mujoco.MjModel, list[st
 
 def _actuator_kinds(model: mujoco.MjModel) -> Counter:
     kinds: Counter = Counter()
-    servo = position_servo_actuators(model)
+    servo, motor = position_servo_actuators(model), motor_actuators(model)
     for i in range(len(servo)):
         gain, bias = model.actuator_gaintype[i], model.actuator_biastype[i]
         dyn = model.actuator_dyntype[i]
@@ -130,7 +130,7 @@ def _actuator_kinds(model: mujoco.MjModel) -> Counter:
             kinds["position servo"] += 1
         elif bias == mujoco.mjtBias.mjBIAS_AFFINE and model.actuator_biasprm[i, 2] < 0:
             kinds["velocity servo"] += 1
-        elif bias == mujoco.mjtBias.mjBIAS_NONE and gain == mujoco.mjtGain.mjGAIN_FIXED:
+        elif motor[i]:
             kinds["motor"] += 1
         else:
             kinds["general"] += 1

@@ -16,6 +16,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
+from mpcbox.core.actuation import motor_actuators
 from mpcbox.validation import as_array
 
 _SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
@@ -38,10 +39,11 @@ def _actuator_range(model: mujoco.MjModel, i: int) -> tuple[float, float] | None
     if model.actuator_forcelimited[i]:
         lo, hi = model.actuator_forcerange[i]
         return float(lo), float(hi)
-    motor_like = model.actuator_biastype[i] == mujoco.mjtBias.mjBIAS_NONE and (
-        model.actuator_gaintype[i] == mujoco.mjtGain.mjGAIN_FIXED
-    )
-    if motor_like and model.actuator_ctrllimited[i] and model.actuator_dyntype[i] == 0:
+    if (
+        motor_actuators(model)[i]
+        and model.actuator_ctrllimited[i]
+        and model.actuator_dyntype[i] == 0
+    ):
         gain = float(model.actuator_gainprm[i, 0])
         ends = sorted(gain * float(c) for c in model.actuator_ctrlrange[i])
         return ends[0], ends[1]
