@@ -143,6 +143,9 @@ def servo_spec(
     inertia = np.diag(mass)[dof]
     kp = inertia * bandwidth**2
     kv = 2.0 * damping_ratio * inertia * bandwidth
+    for name, value in (("kp", kp), ("kv", kv)):
+        if not np.all(np.isfinite(value) & (value > 0.0)):
+            raise InvalidArgumentError(f"servo {name} must be positive and finite, got {value}")
     gear = compiled.actuator_gear[ids, 0].copy()
     limited = compiled.actuator_ctrllimited[ids].astype(bool)
     low = np.where(limited, compiled.actuator_ctrlrange[ids, 0], -np.inf)
@@ -154,10 +157,9 @@ def servo_spec(
         act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
         act.biasprm[:3] = [0.0, -kp[j], -kv[j]]
         act.gear[0] = 1.0
-        torques = np.sort(gear[j] * np.array([low[j], high[j]]))
         if limited[j]:
             act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
-            act.forcerange = torques
+            act.forcerange = np.sort(gear[j] * np.array([low[j], high[j]]))
         joint = int(joints[j])
         if compiled.jnt_limited[joint]:
             act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
@@ -174,9 +176,6 @@ def servo_spec(
         ctrl_low=low,
         ctrl_high=high,
     )
-    for name, value in (("kp", kp), ("kv", kv)):
-        if not np.all(np.isfinite(value) & (value > 0.0)):
-            raise InvalidArgumentError(f"servo {name} must be positive and finite, got {value}")
     return spec, law
 
 
