@@ -185,7 +185,9 @@ class ServoActions(Controller):
     Called every simulation step (``period=None``): it asks ``planner`` for its set-points
     (a spline planner built with ``period=None`` and a ``replan_period`` replans when due
     and otherwise returns its plan at the elapsed time) and applies the :class:`ServoLaw`
-    at the measured state.
+    at the measured state. Use it in lock-step runs (:func:`mpcbox.simulate`): the law is
+    feedback at every step, and in :func:`~mpcbox.sim.realtime.simulate_realtime` the world
+    would hold the last published torque while a replan runs.
 
     Args:
         problem: The world's Problem (torque-driven).
