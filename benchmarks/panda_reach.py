@@ -119,7 +119,7 @@ def closed_loop(problem: ArmReach, name: str, duration: float, options: dict | N
 def offline(problem: ArmReach, horizon_s: float, iterations: int) -> dict:
     """Offline iLQR from the start state over ``horizon_s`` seconds."""
     options = config_options(problem.controller_configs["ilqr"])
-    options.update(horizon=round(horizon_s / problem.dt), linearize_every=5)
+    options.update(horizon=round(horizon_s / problem.dt), linearize_every=5, control_steps=1)
     solver = ILQR(problem, **options)
     result = solver.solve(problem.initial_state(), max_iterations=iterations)
     return {

@@ -38,7 +38,9 @@ from mpcbox.tasks.reach_measures import arrival
 def offline_row(problem: ArmReach, horizon_s: float, iterations: int) -> dict[str, str]:
     """Offline iLQR from the start state: final error of the plan and why it stopped."""
     options = config_options(problem.controller_configs["ilqr"])
-    options.update(horizon=max(1, round(horizon_s / problem.dt)), linearize_every=5)
+    options.update(
+        horizon=max(1, round(horizon_s / problem.dt)), linearize_every=5, control_steps=1
+    )
     result = ILQR(problem, **options).solve(problem.initial_state(), max_iterations=iterations)
     return {
         "controller": "iLQR offline",

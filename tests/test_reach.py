@@ -184,7 +184,9 @@ def test_a_servo_arm_starts_from_the_goal_set_points(aloha: ArmReach) -> None:
     goal = np.tile(aloha.clip_ctrl(aloha.ctrl_ref), (solver.horizon, 1))
     np.testing.assert_allclose(solver.default_ctrls(x0), goal)
     hold = aloha.clip_ctrl(mpcbox.find_equilibrium(aloha.model, x0[: aloha.nq]).ctrl)
-    goal_cost, hold_cost = _guess_costs(planned, x0, [goal, np.tile(hold, (solver.horizon, 1))])
+    steps = solver.config.control_steps  # each knot's control is held this many steps
+    guesses = [np.repeat(g, steps, axis=0) for g in (goal, np.tile(hold, (solver.horizon, 1)))]
+    goal_cost, hold_cost = _guess_costs(planned, x0, guesses)
     assert goal_cost < hold_cost
 
 

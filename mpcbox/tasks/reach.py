@@ -10,8 +10,9 @@ Planning step. Menagerie's arms drive their joints with stiff position servos (P
 servo's stiffness explicitly, so a planning model coarser than the simulation mispredicts
 the arm (on the Panda, 0.5 s of the same controls on a 0.01 s planning model put the hand
 10 cm from where the 0.002 s simulation takes it), and iLQR-MPC planned on it wanders. The
-tuned controllers therefore plan at the model's own timestep, with a short horizon (100
-knots, 0.2 s on the Panda) whose end is priced by the LQR value function at the goal
+tuned controllers therefore plan at the model's own timestep, with a short horizon (25
+knots that each hold their control for four steps, 0.2 s on the Panda,
+``control_steps=4``) whose end is priced by the LQR value function at the goal
 (``terminal_value="lqr"``). The initial guess is the control that holds the IK goal
 posture, which on a servo arm already drives the arm toward the goal, or on an arm whose
 goal torques let it fall from the start the control that holds the start
@@ -123,24 +124,26 @@ class ArmReach(Problem):
     name = "arm_reach"
     controller_configs: ClassVar[dict[str, Any]] = {
         "lqr": LQRConfig(),
-        # Planned at the model's own timestep (see the module docstring): 100 knots, the
-        # LQR value at the goal as terminal cost, two iterations per 0.02 s replan (five for
-        # the first), dynamics derivatives at every fourth knot (interpolated between). With
-        # one iteration per replan the KUKA iiwa 14 never came within 1 cm (it wandered 2-6
-        # cm from the target for 2 s); with two, it, the UR5e, the Sawyer and the Panda all
-        # reach (benchmarks/panda_reach.py --model ..., results/arm_reach_*.json). Every
-        # fourth knot rather than every second: the same arrivals on six arms (3/3 each), a
-        # 15-25 % shorter tick (Panda 82-84 against 97-101 ms on 2 cores;
-        # results/arm_reach_ilqr_linearize_every.json). A replan whose line search fails
-        # at every step size raises the regularization once, not up to 20 times: the
-        # servos' force limits make MuJoCo's step jump (ILQRConfig.mpc_max_retries), and on
-        # the Panda about half the line searches failed; the p99 tick fell from 588-885 to
-        # 177-200 ms with the same arrivals on six arms (results/arm_reach_mpc_retries.json).
+        # Planned at the model's own timestep (see the module docstring) over 0.2 s: 25
+        # knots that each hold their control for four model steps (control_steps), the LQR
+        # value at the goal as terminal cost, one iteration per 0.02 s replan (five for the
+        # first), dynamics derivatives at every fourth knot (interpolated between). A replan
+        # whose line search fails at every step size raises the regularization once, not up
+        # to 20 times: the servos' force limits make MuJoCo's step jump
+        # (ILQRConfig.mpc_max_retries; on the Panda the p99 tick fell from 588-885 to
+        # 177-200 ms, results/arm_reach_mpc_retries.json). Before control_steps (100 knots
+        # of one step) a replan needed two iterations: with one the KUKA iiwa 14 never came
+        # within 1 cm (results/arm_reach_iiwa_one_iteration.json). With the held controls
+        # and one iteration, on seven arms (Panda, FR3, iiwa 14, UR5e, Sawyer, Gen3; Z1 at
+        # 1 ms) the same arrivals within 1 cm by 2 s, with median ticks of 6-11 ms against
+        # 24-56 ms and p99 ticks of 7-23 ms against 37-113 ms on 2 cores, about the 20 ms
+        # period (results/arm_reach_control_steps.json).
         "ilqr": ILQRConfig(
-            horizon=100,
+            horizon=25,
+            control_steps=4,
             terminal_value="lqr",
             first_iterations=5,
-            mpc_iterations=2,
+            mpc_iterations=1,
             replan_period=0.02,
             linearize_every=4,
             mpc_max_retries=1,

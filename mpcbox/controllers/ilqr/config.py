@@ -104,6 +104,15 @@ class ILQRConfig:
             its trajectory and counts as a stalled replan (``RETRY_LIMIT``).
         linearize_every: Linearize the dynamics at every ``linearize_every``-th knot (and the
             last) and interpolate ``A``, ``B`` in between.
+        control_steps: Steps of the planning model per knot, each knot's control held for
+            all of them (move blocking, :mod:`~mpcbox.controllers.ilqr.held_controls`): the
+            plan covers ``horizon * control_steps * problem.dt`` seconds, simulated at the
+            model's own timestep, with the backward pass, the cost quadratization and the
+            gains on ``horizon`` knots. The knot Jacobians are composed from one
+            finite-difference step at each knot; the line search sums the cost over every
+            step. Single shooting only (``states_init`` and ``warm_start_states`` are
+            refused with it). Unlike ``planning_timestep``, which coarsens the integration
+            itself, it keeps a stiff servo's step exact.
         fd_centered: Centered finite differences for the dynamics (default: the Problem's).
         ctrl_low: Lower control bounds ``(nu,)`` (default and outer limit: the Problem's).
         ctrl_high: Upper control bounds ``(nu,)``.
@@ -163,6 +172,7 @@ class ILQRConfig:
     max_retries: int = 20
     mpc_max_retries: int | None = None
     linearize_every: int = 1
+    control_steps: int = 1
     fd_centered: bool | None = None
     ctrl_low: np.ndarray | None = None
     ctrl_high: np.ndarray | None = None
@@ -182,6 +192,7 @@ class ILQRConfig:
         for name in ("horizon", "max_iterations", "mpc_iterations", "max_retries"):
             put(name, positive_int(name, getattr(self, name)))
         put("linearize_every", positive_int("linearize_every", self.linearize_every))
+        put("control_steps", positive_int("control_steps", self.control_steps))
         for name in ("first_iterations", "mpc_max_retries"):
             if getattr(self, name) is not None:
                 put(name, positive_int(name, getattr(self, name)))

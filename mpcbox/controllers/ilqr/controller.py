@@ -44,6 +44,12 @@ class ILQR(ILQRSolver, Controller):
     later one to start there and stall too, with gains near zero (on Menagerie's G1 with
     the reference linearization, 107 stalled replans of 192 and a fall within 4 s).
 
+    With ``control_steps > 1`` the feedback law is applied as the plan assumes it: at the
+    start of each knot :math:`u = \bar u_k + K_k (x \ominus \bar x_k)`, held for the knot's
+    ``control_steps`` model steps. The knot's gain is designed for the held block; applied
+    at every model step it acts ``control_steps`` times as often and destabilized Kinova's
+    Gen3, whose stiff servos act within a few milliseconds (1.2 m from the target at 2 s).
+
     Args:
         problem: The Problem; its planning model (timestep ``problem.dt``) is used.
         config: An :class:`~mpcbox.controllers.ilqr.config.ILQRConfig` (default: its
@@ -63,11 +69,11 @@ class ILQR(ILQRSolver, Controller):
     def __init__(self, problem: Problem, config: ILQRConfig | None = None, **options: Any) -> None:
         super().__init__(problem, config, **options)
         self.replan_period = self.config.replan_period
-        plan = self.horizon * self.problem.dt
+        plan = self.horizon * self.knot_dt
         if self.replan_period > plan * (1 + 1e-9):
             warnings.warn(
                 f"replan_period {self.replan_period:g} s is longer than the plan (horizon "
-                f"{self.horizon} x {self.problem.dt:g} s = {plan:g} s): as MPC, the last "
+                f"{self.horizon} x {self.knot_dt:g} s = {plan:g} s): as MPC, the last "
                 "knot's control and gain are held until the next replan",
                 UserWarning,
                 stacklevel=2,
@@ -89,6 +95,7 @@ class ILQR(ILQRSolver, Controller):
         }
         self._last_timing = Timing(0.0, 0.0, 0.0, 0.0)
         self._last_ctrl = np.clip(self.problem.ctrl_ref, self.ctrl_low, self.ctrl_high)
+        self._held_ctrl: tuple[float, int, np.ndarray] | None = None
 
     @property
     def last_result(self) -> ILQRResult | None:
@@ -104,7 +111,7 @@ class ILQR(ILQRSolver, Controller):
         return out
 
     def _shifted_ctrls(self, time: float, state: np.ndarray) -> np.ndarray:
-        plan, dt = self._last_result, self.problem.dt
+        plan, dt = self._last_result, self.knot_dt
         if plan is None:
             return self.default_ctrls(state)
         old_t = self._plan_time + dt * np.arange(self.horizon)
@@ -119,18 +126,22 @@ class ILQR(ILQRSolver, Controller):
         the first is the measured ``state``."""
         plan = self._last_result
         assert plan is not None
-        shift = round((time - self._plan_time) / self.problem.dt)
+        shift = round((time - self._plan_time) / self.knot_dt)
         index = np.minimum(np.arange(self.horizon + 1) + shift, self.horizon)
         out = plan.states[index].copy()
         out[0] = state
         return out
 
     def _feedback(self, state: np.ndarray, time: float) -> np.ndarray:
-        plan, dt, p = self._last_result, self.problem.dt, self.problem
+        plan, dt, p = self._last_result, self.knot_dt, self.problem
         assert plan is not None
         s = max(0.0, (time - self._plan_time) / dt)
-        i = min(int(s), self.horizon - 1)
-        frac = min(s - i, 1.0)
+        i = min(int(s + 1e-6), self.horizon - 1)  # the tolerance: a time just short of a knot
+        frac = min(max(s - i, 0.0), 1.0)
+        if self.steps > 1:
+            held = self._held_ctrl
+            if held is not None and held[:2] == (self._plan_time, i) and frac > 1e-6:
+                return held[2].copy()  # within the knot: its control is held
         nominal = plan.states[i]
         if frac > 0:
             step = np.zeros(p.nx)
@@ -139,9 +150,14 @@ class ILQR(ILQRSolver, Controller):
         dx = np.zeros(p.nx)
         self._rollout.deviation(state, nominal, dx)
         u = plan.ctrls[i] + plan.K[i] @ dx
-        if not np.all(np.isfinite(u)):
-            return plan.ctrls[i].copy()
-        return np.clip(u, self.ctrl_low, self.ctrl_high)
+        u = (
+            np.clip(u, self.ctrl_low, self.ctrl_high)
+            if np.all(np.isfinite(u))
+            else plan.ctrls[i].copy()
+        )
+        if self.steps > 1:
+            self._held_ctrl = (self._plan_time, i, u.copy())
+        return u
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
         """MPC step: replan every ``replan_period``, otherwise apply the feedback law.

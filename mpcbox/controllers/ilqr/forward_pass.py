@@ -19,6 +19,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
+from mpcbox.controllers.ilqr.held_controls import held
 from mpcbox.core.divergence import diverged
 from mpcbox.core.problem import Problem, Rollout
 
@@ -47,12 +48,17 @@ class ClosedLoopRollout:
         problem: The Problem whose planning model is rolled out.
         ctrl_low: Lower control bounds ``(nu,)``.
         ctrl_high: Upper control bounds ``(nu,)``.
+        steps: Model steps per knot, each knot's control held for all of them
+            (:mod:`~mpcbox.controllers.ilqr.held_controls`); the cost sums every step.
     """
 
-    def __init__(self, problem: Problem, ctrl_low: np.ndarray, ctrl_high: np.ndarray) -> None:
+    def __init__(
+        self, problem: Problem, ctrl_low: np.ndarray, ctrl_high: np.ndarray, steps: int = 1
+    ) -> None:
         self.problem = problem
         self.ctrl_low = ctrl_low
         self.ctrl_high = ctrl_high
+        self.steps = steps
         self._model = problem.planning_model
         # Without ball or free joints every position difference is a subtraction.
         self._plain = problem.nq == problem.nv
@@ -92,15 +98,15 @@ class ClosedLoopRollout:
         Returns:
             New states, controls and cost; the cost is ``inf`` if the rollout diverged.
         """
-        p, m = self.problem, self._model
+        p, m, steps = self.problem, self._model, self.steps
         d = p.scratch_data()  # the thread's own MjData, reset below
         nq, nv, horizon = p.nq, p.nv, len(ctrls)
         low, high = self.ctrl_low, self.ctrl_high
         mujoco.mj_resetData(m, d)
-        new_states = np.empty_like(states)
+        fine = np.empty((horizon * steps + 1, states.shape[1]))
         new_ctrls = np.empty_like(ctrls)
-        sens = np.empty((1, horizon + 1, m.nsensordata))
-        new_states[0] = x0
+        sens = np.empty((1, len(fine), m.nsensordata))
+        fine[0] = x0
         dx = np.zeros(p.nx)
         d.qpos[:] = x0[:nq]
         d.qvel[:] = x0[nq : nq + nv]
@@ -108,24 +114,27 @@ class ClosedLoopRollout:
         with np.errstate(all="ignore"):
             feedforward = ctrls + alpha * k
             for t in range(horizon):
-                self.deviation(new_states[t], states[t], dx)
+                self.deviation(fine[t * steps], states[t], dx)
                 u = new_ctrls[t]
                 np.matmul(K[t], dx, out=u)
                 u += feedforward[t]
                 np.minimum(u, high, out=u)
                 np.maximum(u, low, out=u)
                 d.ctrl[:] = u
-                mujoco.mj_step(m, d)
-                sens[0, t] = d.sensordata
-                x = new_states[t + 1]
-                x[:nq] = d.qpos
-                x[nq : nq + nv] = d.qvel
-                x[nq + nv :] = d.act
-            if diverged(d, new_states, new_ctrls):
+                for j in range(t * steps, (t + 1) * steps):
+                    mujoco.mj_step(m, d)
+                    sens[0, j] = d.sensordata
+                    x = fine[j + 1]
+                    x[:nq] = d.qpos
+                    x[nq : nq + nv] = d.qvel
+                    x[nq + nv :] = d.act
+            new_states = fine[::steps]
+            if diverged(d, fine, new_ctrls):
                 return new_states, new_ctrls, np.inf
             mujoco.mj_forward(m, d)
-            sens[0, horizon] = d.sensordata
-            cost = float(p.rollout_cost(Rollout(new_states[None], sens, new_ctrls[None]))[0])
+            sens[0, -1] = d.sensordata
+            played = held(new_ctrls, steps)
+            cost = float(p.rollout_cost(Rollout(fine[None], sens, played[None]))[0])
         return new_states, new_ctrls, cost if np.isfinite(cost) else np.inf
 
 

@@ -26,6 +26,7 @@ from mpcbox.controllers.ilqr.backward_pass import (
 )
 from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.ilqr.forward_pass import Candidate, ClosedLoopRollout, line_search
+from mpcbox.controllers.ilqr.held_controls import compose_held, held, scale_running
 from mpcbox.controllers.ilqr.multiple_shooting import optimize_multiple_shooting
 from mpcbox.controllers.ilqr.regularization import Regularization
 from mpcbox.controllers.ilqr.result import ILQRResult, StopReason, Timing
@@ -94,7 +95,13 @@ class ILQRSolver:
         self.states_init = (
             None if cfg.states_init is None else self._initial_states(cfg.states_init)
         )
-        self._rollout = ClosedLoopRollout(problem, self.ctrl_low, self.ctrl_high)
+        self.steps = cfg.control_steps
+        if self.steps > 1 and (self.states_init is not None or cfg.warm_start_states):
+            raise InvalidArgumentError(
+                f"control_steps={self.steps} works with single shooting only: leave "
+                "states_init=None and warm_start_states=False, or set control_steps=1"
+            )
+        self._rollout = ClosedLoopRollout(problem, self.ctrl_low, self.ctrl_high, self.steps)
         self._knots = np.unique(
             np.r_[np.arange(0, self.horizon, cfg.linearize_every), self.horizon - 1]
         )
@@ -102,6 +109,11 @@ class ILQRSolver:
         self._reference_blocks = (
             None if self._reference_lin is None else dynamics_blocks(self._reference_lin)
         )
+
+    @property
+    def knot_dt(self) -> float:
+        """Seconds between knots: ``control_steps`` steps of the planning model."""
+        return self.steps * self.problem.dt
 
     @property
     def ctrls_init(self) -> np.ndarray:
@@ -124,7 +136,9 @@ class ILQRSolver:
         within the bounds."""
         if self._guess_given:
             return self._ctrls_init.copy()
-        return self._initial_ctrls(self.problem.initial_ctrls(x0, self.horizon))
+        # Asked per model step, read at the knots (a task's guess may vary in time).
+        guess = self.problem.initial_ctrls(x0, self.horizon * self.steps)[:: self.steps]
+        return self._initial_ctrls(guess)
 
     # ------------------------------------------------------------------ helpers
     def _initial_ctrls(self, ctrls: np.ndarray | None, name: str = "ctrls_init") -> np.ndarray:
@@ -159,12 +173,13 @@ class ILQRSolver:
         return self._rollout(x0, states, ctrls, k, K, alpha)
 
     def _initial_rollout(self, x0: np.ndarray, ctrls: np.ndarray) -> tuple[np.ndarray, float]:
-        roll = self.problem.rollout(x0, ctrls)
+        roll = self.problem.rollout(x0, held(ctrls, self.steps))
         with np.errstate(all="ignore"):
             cost = float(self.problem.rollout_cost(roll)[0])
+        states = roll.states[0, :: self.steps]
         if not (np.all(np.isfinite(roll.states)) and np.isfinite(cost)):
-            return roll.states[0], np.inf
-        return roll.states[0], cost
+            return states, np.inf
+        return states, cost
 
     def _at_reference(self) -> Linearization:
         """``A`` ``(T, nx, nx)`` and ``B`` ``(T, nx, nu)``: the planning model's Jacobians at
@@ -172,6 +187,7 @@ class ILQRSolver:
         p = self.problem
         ctrl = np.clip(p.ctrl_ref, self.ctrl_low, self.ctrl_high)
         A, B = p.linearize(p.reference_state(), ctrl, centered=self.config.fd_centered)
+        A, B = compose_held(Linearization(A, B), self.steps)
         return Linearization(
             np.broadcast_to(A, (self.horizon, *A.shape)),
             np.broadcast_to(B, (self.horizon, *B.shape)),
@@ -187,9 +203,10 @@ class ILQRSolver:
             lin = p.linearize_trajectory(
                 states[knots], ctrls[knots], centered=self.config.fd_centered, threads=self.threads
             )
+            lin = compose_held(lin, self.steps)
             lin = interpolate_linearization(lin.A, lin.B, knots, self.horizon)
         quad = p.quadratize_trajectory(states, ctrls, threads=self.threads)
-        return lin, quad
+        return lin, scale_running(quad, self.steps)
 
     def _blocks(self, lin: Linearization) -> DynamicsBlocks:
         """The backward pass's blocks of ``lin``: kept for the solver's life when the dynamics
@@ -249,6 +266,10 @@ class ILQRSolver:
         )
         reg = self.config.regularization if regularization is None else float(regularization)
         states = self.states_init if states_init is None else self._initial_states(states_init)
+        if states is not None and self.steps > 1:
+            raise InvalidArgumentError(
+                f"states_init: control_steps={self.steps} works with single shooting only"
+            )
         # Diverged rollouts are counted (``divergences``); MuJoCo's warnings are not printed.
         with captured_warnings():
             if states is None:
