@@ -123,3 +123,13 @@ def test_control_steps_is_checked():
     ilqr = ILQR(problem, horizon=5, control_steps=2)
     with pytest.raises(InvalidArgumentError, match="states_init"):
         ilqr.solve(X0, states_init=np.zeros((6, 4)))
+
+
+def test_planners_built_on_ilqr_refuse_held_controls():
+    from mpcbox.controllers.ipopt_controller import IpoptConfig
+    from mpcbox.controllers.trajectory.offline_plan import OfflinePlanTracker
+
+    with pytest.raises(InvalidArgumentError, match="control_steps"):
+        IpoptConfig(ilqr_options={"control_steps": 2})
+    with pytest.raises(InvalidArgumentError, match="control_steps"):
+        OfflinePlanTracker(point_mass(), [np.zeros((5, 2))], solver_options={"control_steps": 3})

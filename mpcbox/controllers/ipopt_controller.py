@@ -94,6 +94,11 @@ class IpoptConfig:
                 )
         if self.ilqr_options:
             check_option_names(ILQRConfig, self.ilqr_options, "ilqr_options (ILQRConfig)")
+            if self.ilqr_options.get("control_steps", 1) != 1:
+                raise InvalidArgumentError(
+                    "ilqr_options: control_steps must be 1 (IPOPT's knots are planning "
+                    f"steps), got {self.ilqr_options['control_steps']}"
+                )
 
 
 class IpoptController(Controller):

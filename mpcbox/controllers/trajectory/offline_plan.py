@@ -131,6 +131,11 @@ class OfflinePlanTracker(Controller):
                 f"simulation timestep {problem.model.opt.timestep} s"
             )
         options = {"threads": 1, **dict(solver_options or {}), "horizon": first.shape[0]}
+        if options.get("control_steps", 1) != 1:
+            raise InvalidArgumentError(
+                "solver_options: control_steps must be 1 here (the plan is re-solved and "
+                f"tracked per planning step), got {options['control_steps']}"
+            )
         self.solver = ILQRSolver(problem, **options)
         self.problem = self.solver.problem
         self.substeps = round(ratio)
