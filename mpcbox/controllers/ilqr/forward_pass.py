@@ -19,7 +19,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from mpcbox.controllers.ilqr.held_controls import held
+from mpcbox.controllers.ilqr.held_controls import held_steps
 from mpcbox.core.divergence import diverged
 from mpcbox.core.problem import Problem, Rollout
 
@@ -133,7 +133,7 @@ class ClosedLoopRollout:
                 return new_states, new_ctrls, np.inf
             mujoco.mj_forward(m, d)
             sens[0, -1] = d.sensordata
-            played = held(new_ctrls, steps)
+            played = held_steps(new_ctrls, steps)
             cost = float(p.rollout_cost(Rollout(fine[None], sens, played[None]))[0])
         return new_states, new_ctrls, cost if np.isfinite(cost) else np.inf
 

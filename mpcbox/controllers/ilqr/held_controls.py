@@ -65,9 +65,9 @@ def scale_running(quad: Quadratization, steps: int) -> Quadratization:
     )
 
 
-def held(ctrls: np.ndarray, steps: int) -> np.ndarray:
+def held_steps(ctrls: np.ndarray, steps: int) -> np.ndarray:
     """The model-step controls ``(T s, nu)`` of knot controls ``(T, nu)``."""
     return ctrls if steps == 1 else np.repeat(ctrls, steps, axis=0)
 
 
-__all__ = ["compose_held", "held", "scale_running"]
+__all__ = ["compose_held", "held_steps", "scale_running"]

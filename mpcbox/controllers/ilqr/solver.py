@@ -26,7 +26,7 @@ from mpcbox.controllers.ilqr.backward_pass import (
 )
 from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.ilqr.forward_pass import Candidate, ClosedLoopRollout, line_search
-from mpcbox.controllers.ilqr.held_controls import compose_held, held, scale_running
+from mpcbox.controllers.ilqr.held_controls import compose_held, held_steps, scale_running
 from mpcbox.controllers.ilqr.multiple_shooting import optimize_multiple_shooting
 from mpcbox.controllers.ilqr.regularization import Regularization
 from mpcbox.controllers.ilqr.result import ILQRResult, StopReason, Timing
@@ -173,7 +173,7 @@ class ILQRSolver:
         return self._rollout(x0, states, ctrls, k, K, alpha)
 
     def _initial_rollout(self, x0: np.ndarray, ctrls: np.ndarray) -> tuple[np.ndarray, float]:
-        roll = self.problem.rollout(x0, held(ctrls, self.steps))
+        roll = self.problem.rollout(x0, held_steps(ctrls, self.steps))
         with np.errstate(all="ignore"):
             cost = float(self.problem.rollout_cost(roll)[0])
         states = roll.states[0, :: self.steps]
