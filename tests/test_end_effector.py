@@ -6,7 +6,7 @@ import mujoco
 import pytest
 
 from mpcbox.core.end_effector import end_effector
-from mpcbox.core.posture import environment_contacts, reach_posture
+from mpcbox.core.posture import environment_contacts, reach_posture, self_collisions
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError, SolverError
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.reach import ArmReach
@@ -110,3 +110,24 @@ def test_a_target_below_the_floor_or_out_of_reach_is_refused():
         reach_posture(model, start, frame="hand", position=[2.0, 0.0, 0.2], max_error=0.01)
     with pytest.raises(SolverError, match="hand"):
         ArmReach(arm(), target=[2.0, 0.0, 0.2])
+
+
+def test_pairs_touching_at_the_start_are_reported_not_refused():
+    """A model whose keyframe has its gripper's fingers pressed together (i2rt's YAM in
+    Menagerie) was refused at every target: the closed fingers were read as the posture's
+    self-collision. Pairs that touch at the start are the model's own; new ones still raise."""
+    second = (
+        '<body name="finger2" pos="0.03 0.005 0"><joint name="slide2" type="slide" '
+        'axis="0 1 0" range="-0.01 0"/><geom type="box" size="0.01 0.005 0.01" mass="0.01"/>'
+        "</body>"
+    )
+    xml = arm().replace("</body>\n          </body>", "</body>\n" + second + "</body>", 1)
+    model = mujoco.MjModel.from_xml_string(xml)
+    start = model.key_qpos[0].copy()  # finger at y = 0.01 overlaps finger2 by 5 mm
+    pair = tuple(sorted(self_collisions(model, start)))
+    assert len(pair) == 1
+    reached = reach_posture(
+        model, start, frame="hand", position=[0.45, 0.0, 0.3], avoid_collisions=False
+    )
+    assert reached.position_error < 1e-3
+    assert tuple(sorted(reached.collisions)) == pair

@@ -220,7 +220,9 @@ class ReachPosture(NamedTuple):
         orientation_error: Angle between the frame and the target orientation (rad; 0 when no
             orientation was asked for).
         iterations: IK iterations used.
-        collisions: Names of the geom pairs in contact at the posture (empty when free).
+        collisions: Names of the geom pairs of different moving bodies in contact at the
+            posture (empty when free). From :func:`reach_posture` only pairs that touch at
+            ``qpos_init`` already, such as a gripper's closed fingers; any other is refused.
     """
 
     qpos: np.ndarray
@@ -343,7 +345,8 @@ def reach_posture(
 
     Raises:
         SolverError: If the frame ends farther than ``max_error`` from the target, or the
-            final posture is in self-collision or (``avoid_collisions``) in the environment.
+            final posture is in self-collision (a pair that did not touch at ``qpos_init``)
+            or (``avoid_collisions``) in the environment.
     """
     import mink
 
@@ -419,10 +422,14 @@ def reach_posture(
                 + ", ".join(f"{a} into {b}" for a, b in touching)
                 + "; the target may lie inside or below an obstacle (a floor, a table)"
             )
+    # Pairs that touch at the start already are the model's own (a gripper's closed fingers
+    # in its keyframe): reported, not refused.
     collisions = self_collisions(model, qpos)
-    if collisions:
+    start = set(self_collisions(model, qpos_init))
+    new = [pair for pair in collisions if pair not in start]
+    if new:
         raise SolverError(
             f"reach_posture: the posture for {frame!r} is in self-collision: "
-            + ", ".join(f"{a} with {b}" for a, b in collisions)
+            + ", ".join(f"{a} with {b}" for a, b in new)
         )
     return ReachPosture(qpos, pos_err, rot_err, used, collisions)
