@@ -56,6 +56,22 @@ ARMS = {
     "kinova_gen3": (np.array([0.0, 0.4, 0.0]), None),
     "unitree_z1": (np.array([0.0, 0.2, 0.0]), 0.001),
 }
+#: Ten more Menagerie arms first tried in stop 40 (``--arms new``): the larger two at the
+#: Panda's 40 cm, the others 14 cm down and sideways, the two smallest 7 cm.
+SMALL, TINY = np.array([0.0, 0.1, -0.1]), np.array([0.0, 0.05, -0.05])
+NEW_ARMS = {
+    "ufactory_xarm7": (OFFSET, None),
+    "universal_robots_ur10e": (OFFSET, None),
+    "ufactory_lite6": (SMALL, None),
+    "agilex_piper": (SMALL, None),
+    "arx_l5": (SMALL, None),
+    "trossen_vx300s": (SMALL, None),
+    "trossen_wx250s": (SMALL, None),
+    "i2rt_yam": (SMALL, None),
+    "trs_so_arm100": (TINY, None),
+    "low_cost_robot_arm": (TINY, None),
+}
+ALL_ARMS = ARMS | NEW_ARMS
 
 
 def realtime_loop(problem: ArmReach, duration: float, options: dict) -> dict:
@@ -91,7 +107,11 @@ def _replans(controller) -> int:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--arms", default=",".join(ARMS), help="comma-separated Menagerie names")
+    parser.add_argument(
+        "--arms",
+        default=",".join(ARMS),
+        help="comma-separated Menagerie names, or 'new' for the ten arms of NEW_ARMS",
+    )
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--duration", type=float, default=2.0)
@@ -104,17 +124,17 @@ def main() -> None:
         default=str(Path(__file__).parent / "results/arm_reach_control_steps.json"),
     )
     args = parser.parse_args()
-    arms = args.arms.split(",")
-    unknown = sorted(set(arms) - set(ARMS))
+    arms = list(NEW_ARMS) if args.arms == "new" else args.arms.split(",")
+    unknown = sorted(set(arms) - set(ALL_ARMS))
     if unknown:
-        parser.error(f"--arms: unknown {unknown}; choose from {', '.join(ARMS)}")
+        parser.error(f"--arms: unknown {unknown}; choose from {', '.join(ALL_ARMS)} or new")
     configs = args.configs.split(",")
     if set(configs) - {"task", "former"}:
         parser.error("--configs: choose from task, former")
     rows, skipped = [], []
     started = time.perf_counter()
     for arm in arms:
-        offset, timestep = ARMS[arm]
+        offset, timestep = ALL_ARMS[arm]
         reach = default_args(f"menagerie:{arm}")
         reach.offset, reach.timestep = offset, timestep
         for seed in range(args.first_seed, args.first_seed + args.seeds):

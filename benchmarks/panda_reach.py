@@ -20,6 +20,7 @@ import time
 import warnings
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 import mpcbox
@@ -69,8 +70,11 @@ def build(seed: int, args: argparse.Namespace) -> ArmReach:
             model.option.timestep = args.timestep
         home = ArmReach(model, frame=args.frame, target=nominal, relative=True, **options)
         start = home.start_qpos.copy()
-        arm = min(7, home.nu)  # the arm's joints lead qpos on Menagerie arms
-        start[:arm] += rng.uniform(-args.posture_noise, args.posture_noise, arm)
+        # The arm's joints lead qpos on Menagerie arms; a gripper's slide joints among the
+        # first seven (AgileX Piper, ARX L5) are left closed as the keyframe has them.
+        hinges = home.model.jnt_qposadr[home.model.jnt_type == mujoco.mjtJoint.mjJNT_HINGE]
+        arm = [i for i in range(min(7, home.nu)) if i in set(hinges.tolist())]
+        start[arm] += rng.uniform(-args.posture_noise, args.posture_noise, len(arm))
         offset = nominal + rng.uniform(-args.target_noise, args.target_noise, 3)
         return ArmReach(
             model,

@@ -38,6 +38,7 @@ REQUIRES: dict[str, tuple[str, ...]] = {
     "03_qp_mpc_push.md": ("mpcbox.controllers.qp_mpc.controller",),
     "04_sampling_mpc.md": ("mpcbox.controllers.sampling",),
     "07_your_robot.md": ("dm_control",),
+    "08_arm_reach.md": ("mujoco_warp", "matplotlib"),
 }
 
 

@@ -131,3 +131,31 @@ def test_pairs_touching_at_the_start_are_reported_not_refused():
     )
     assert reached.position_error < 1e-3
     assert tuple(sorted(reached.collisions)) == pair
+
+
+def _two_fingers(finger_range: str, finger2_range: str, key_slide: float) -> mujoco.MjModel:
+    """The test arm with a second finger beside the first on the hand, both on slides."""
+    second = (
+        '<body name="finger2" pos="0.03 0.005 0"><joint name="slide2" type="slide" '
+        f'axis="0 1 0" range="{finger2_range}"/>'
+        '<geom type="box" size="0.01 0.005 0.01" mass="0.01"/></body>'
+    )
+    xml = arm().replace("</body>\n          </body>", "</body>\n" + second + "</body>", 1)
+    xml = xml.replace('range="0 0.02"', f'range="{finger_range}"')
+    xml = xml.replace('qpos="-0.6 1.2 0.01"', f'qpos="-0.6 1.2 {key_slide} 0"')
+    return mujoco.MjModel.from_xml_string(xml)
+
+
+def test_a_start_past_a_joint_limit_with_the_other_jaw_in_the_way_still_gets_an_ik():
+    """MuJoCo's joint limits are soft, so a start can lie past one (the benchmark's
+    perturbed gripper of the low-cost arm did). mink's joint limit then asks the finger back
+    into its range, toward the other jaw, which its collision limit forbids: the first QP had
+    no solution, and mink's own NoSolutionFound escaped."""
+    target = [0.45, 0.0, 0.3]
+    for past in (0.016, 0.02):  # 1 and 5 mm past the finger's range, 1-5 mm from the jaw
+        model = _two_fingers("0 0.015", "0 0.001", past)
+        start = model.key_qpos[0]
+        assert not self_collisions(model, start)
+        reached = reach_posture(model, start, frame="hand", position=target)
+        assert reached.position_error < 1e-3 and reached.collisions == ()
+        assert model.jnt_range[2, 0] <= reached.qpos[2] <= model.jnt_range[2, 1] + 1e-3

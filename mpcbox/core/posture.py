@@ -238,6 +238,34 @@ def _geom_label(model: mujoco.MjModel, geom: int) -> str:
     return name or f"geom {geom} of body {body or model.geom_bodyid[geom]}"
 
 
+def _within_ranges(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
+    """``qpos`` with each limited hinge and slide joint clipped into its range."""
+    out = np.array(qpos, dtype=float)
+    for j in np.flatnonzero(model.jnt_limited):
+        if model.jnt_type[j] in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+            adr = model.jnt_qposadr[j]
+            out[adr] = np.clip(out[adr], *model.jnt_range[j])
+    return out
+
+
+def _watched_pairs(
+    model: mujoco.MjModel, qpos_init: np.ndarray, colliding: list[int]
+) -> list[tuple[list[int], list[int]]]:
+    """The geom pairs mink's collision-avoidance limit keeps apart: every colliding pair,
+    less those between moving bodies that already touch at ``qpos_init`` (a gripper's
+    closed fingers): such a pair cannot be kept 5 mm apart from the first step, and mink's
+    QP then has no solution."""
+    start = {tuple(sorted(p)) for p in _touching_ids(model, qpos_init, 0.0, static=False)}
+    if not start:
+        return [(colliding, colliding)]
+    return [
+        ([a], [b])
+        for i, a in enumerate(colliding)
+        for b in colliding[i + 1 :]
+        if (min(a, b), max(a, b)) not in start
+    ]
+
+
 #: Penetration (m) of the static world that makes a reach posture fail.
 _DEPTH = 1e-3
 
@@ -247,6 +275,16 @@ def _touching(
 ) -> tuple[tuple[str, str], ...]:
     """Geom pairs closer than ``-margin`` at ``qpos``: between moving bodies, or (``static``)
     between a moving body and the world or a body welded to it."""
+    return tuple(
+        (_geom_label(model, g1), _geom_label(model, g2))
+        for g1, g2 in _touching_ids(model, qpos, margin, static)
+    )
+
+
+def _touching_ids(
+    model: mujoco.MjModel, qpos: np.ndarray, margin: float, static: bool
+) -> list[tuple[int, int]]:
+    """:func:`_touching` as geom ids (the moving geom first when ``static``)."""
     model = check_mjmodel(model)
     qpos = finite_array("qpos", qpos, (model.nq,))
     data = mujoco.MjData(model)
@@ -260,10 +298,10 @@ def _touching(
         if (w1 == 0 and w2 == 0) or ((w1 == 0 or w2 == 0) != static) or con.dist > -margin:
             continue
         g1, g2 = (con.geom2, con.geom1) if w1 == 0 else (con.geom1, con.geom2)
-        pair = (_geom_label(model, g1), _geom_label(model, g2))
+        pair = (int(g1), int(g2))
         if pair not in pairs:
             pairs.append(pair)
-    return tuple(pairs)
+    return pairs
 
 
 def self_collisions(
@@ -364,7 +402,9 @@ def reach_posture(
     if max_error is not None:
         positive("max_error", max_error)
     name, kind = _mink_frame(model, frame, "frame")
-    config = mink.Configuration(model, q=qpos_init.copy())
+    # MuJoCo's joint limits are soft, so a measured start can lie just past one; mink's
+    # limits would make the first IK step infeasible. The IK starts inside the ranges.
+    config = mink.Configuration(model, q=_within_ranges(model, qpos_init))
     task = mink.FrameTask(
         name, kind, position_cost=1.0, orientation_cost=0.0 if orientation is None else 0.5
     )
@@ -382,7 +422,9 @@ def reach_posture(
         if colliding:
             limits.append(
                 mink.CollisionAvoidanceLimit(
-                    model, [(colliding, colliding)], collision_detection_distance=0.05
+                    model,
+                    _watched_pairs(model, qpos_init, colliding),
+                    collision_detection_distance=0.05,
                 )
             )
 
@@ -397,7 +439,21 @@ def reach_posture(
     dt = 0.02
     used = iterations
     for it in range(iterations):
-        vel = mink.solve_ik(config, [task, posture], dt, solver, damping=1e-3, limits=limits)
+        try:
+            vel = mink.solve_ik(config, [task, posture], dt, solver, damping=1e-3, limits=limits)
+        except mink.NoSolutionFound:
+            # Two geoms closer than the limit's 5 mm that no joint can part (a gripper's
+            # jaws at its joint limit) make the step's QP infeasible. That step is taken
+            # within the joint limits alone; the final posture is still checked below.
+            try:
+                vel = mink.solve_ik(
+                    config, [task, posture], dt, solver, damping=1e-3, limits=limits[:1]
+                )
+            except mink.NoSolutionFound as exc:
+                raise SolverError(
+                    f"reach_posture: mink's IK step for {frame!r} has no solution within "
+                    f"the joint limits at iteration {it}"
+                ) from exc
         config.integrate_inplace(vel, dt)
         pos_err, rot_err = errors()
         if pos_err < tolerance and rot_err < 10 * tolerance:
