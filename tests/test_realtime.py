@@ -104,6 +104,41 @@ def test_executed_control_is_the_latest_spline_at_the_current_time(problem):
     np.testing.assert_array_equal(planner.control(1.05), before)
 
 
+def test_the_world_runs_ilqrs_feedback_law_of_the_latest_plan(problem):
+    """iLQR-MPC publishes its plan's feedback law; the world evaluates it at its own state
+    and time at every step, so the feedback does not pause while a replan runs."""
+    ctrl = mpcbox.make_controller("ilqr", problem, horizon=20, first_iterations=3)
+    planner = PlannerThread(problem, ctrl, period=ctrl.replan_period, max_ticks=1)
+    state = problem.initial_state()
+    planner.prime(state, 1.0)
+    primed = planner.control(1.01)  # without the world's state: the returned control, held
+    policy = ctrl.policy()
+    assert policy is not None and policy.plan_time == 1.0
+    rng = np.random.default_rng(0)
+    for offset in (0.0, 0.007, 0.013, 0.019):  # before the next replan is due (0.02 s)
+        x = state + 0.05 * rng.standard_normal(state.shape)
+        expected = problem.clip_ctrl(ctrl(x, 1.0 + offset))  # the controller's own law
+        np.testing.assert_allclose(planner.control(1.0 + offset, x), expected, atol=1e-12)
+    assert ctrl.stats["replans"] == 1
+    np.testing.assert_allclose(primed, problem.clip_ctrl(ctrl(state, 1.0)), atol=1e-12)
+
+
+def test_ilqr_in_real_time_ticks_at_its_replan_period(problem):
+    ctrl = mpcbox.make_controller("ilqr", problem, horizon=20, first_iterations=3)
+    res = simulate_realtime(problem, ctrl, 0.4)
+    rt = res.realtime
+    assert rt.period_s == ctrl.replan_period  # not the simulation step: the world's feedback
+    assert abs(rt.ticks - 0.4 / ctrl.replan_period) <= 2
+    assert rt.ticks == pytest.approx(ctrl.stats["replans"] - 1, abs=1)  # the first is primed
+    assert np.all(np.isfinite(res.ctrls))
+    # The executed controls vary between ticks: the law runs on the world's states.
+    per_tick = round(ctrl.replan_period / problem.model.opt.timestep)
+    assert per_tick > 1
+    blocks = res.ctrls[: per_tick * (len(res.ctrls) // per_tick)].reshape(-1, per_tick, problem.nu)
+    assert np.ptp(blocks, axis=1).max() > 0
+    assert not _planner_threads()
+
+
 def test_the_world_applies_a_sampling_controllers_catch_to_its_current_state(problem):
     ctrl = mpcbox.make_controller(
         "ps", problem, num_samples=8, horizon=0.3, num_knots=4, catch="lqr", catch_level=50.0

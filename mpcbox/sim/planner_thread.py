@@ -29,12 +29,16 @@ class Plan(NamedTuple):
         knots: Copy of the controller's spline knots ``(K, nu)``, or ``None`` (hold ``ctrl``).
         spline: The spline that evaluates ``knots`` (the controller's when the plan was
             published: a controller that hands over between planners may change it).
+        policy: The controller's feedback law of this plan, ``policy(state, time) -> ctrl``
+            (iLQR-MPC's :class:`~mpcbox.controllers.ilqr.policy.FeedbackPolicy`), or
+            ``None``.
     """
 
     time: float
     ctrl: np.ndarray
     knots: np.ndarray | None
     spline: Any = None
+    policy: Any = None
 
 
 class PlannerThread:
@@ -43,7 +47,8 @@ class PlannerThread:
     Args:
         problem: The Problem (control clipping and shapes).
         controller: The controller; a spline plan is used when it has ``spline`` and
-            ``knots`` attributes (the sampling controllers), read at every publication.
+            ``knots`` attributes (the sampling controllers), read at every publication, and
+            a feedback law when its ``policy()`` returns one (iLQR-MPC).
         period: Simulated seconds between tick starts.
         max_ticks: Bound on the ticks of one run (the loop is bounded).
 
@@ -93,6 +98,8 @@ class PlannerThread:
                 return caught
         with self._lock:
             plan = self._plan
+        if plan.policy is not None and state is not None:
+            return self.problem.clip_ctrl(plan.policy(state, float(time)))
         if plan.knots is None or plan.spline is None:
             return plan.ctrl
         offset = float(time) - plan.time
@@ -178,7 +185,9 @@ class PlannerThread:
             spline = None
         else:
             knots = np.array(knots, copy=True)
-        plan = Plan(time, ctrl.copy(), knots, spline)
+        policy = getattr(self.controller, "policy", None)
+        policy = policy() if callable(policy) else None
+        plan = Plan(time, ctrl.copy(), knots, spline, policy)
         with self._lock:
             self._plan = plan
         return True

@@ -15,7 +15,10 @@ as on a robot:
 - the **executed control** at world time :math:`t` is the latest plan at :math:`t`: for a
   controller with a spline plan (the sampling controllers: ``spline`` and ``knots``
   attributes) the plan's knots, copied when published, evaluated :math:`t - t_s` seconds
-  into the plan; for any other controller the control it returned, held. A sampling
+  into the plan; for a controller with a feedback law (iLQR-MPC's ``policy()``, see
+  :mod:`mpcbox.controllers.ilqr.policy`) that law at the world's current state and time, so
+  the feedback goes on at every step while the next replan runs, and the planner ticks only
+  every ``replan_period``; for any other controller the control it returned, held. A sampling
   controller's LQR catch (``catch="lqr"``) is applied by the world to its current state at
   every step, as the controller applies it in :func:`simulate`.
 
@@ -177,6 +180,8 @@ def simulate_realtime(
     duration, degraded_limit = run.duration, run.degraded_limit
     stop_on_failure, fallbacks0 = run.stop_on_failure, run.fallbacks0
     period = getattr(controller, "period", None)
+    if period is None and callable(getattr(controller, "policy", None)):
+        period = getattr(controller, "replan_period", None)  # the world runs the feedback
     period = dt if period is None else positive("controller.period", period)
 
     times = np.empty(steps + 1)

@@ -19,6 +19,7 @@ import numpy as np
 from mpcbox.controllers.base import Controller
 from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.ilqr.multiple_shooting import optimize_multiple_shooting
+from mpcbox.controllers.ilqr.policy import FeedbackPolicy
 from mpcbox.controllers.ilqr.result import ILQRResult, Timing
 from mpcbox.controllers.ilqr.solver import ILQRSolver
 from mpcbox.core.mujoco_warnings import captured_warnings
@@ -95,7 +96,7 @@ class ILQR(ILQRSolver, Controller):
         }
         self._last_timing = Timing(0.0, 0.0, 0.0, 0.0)
         self._last_ctrl = np.clip(self.problem.ctrl_ref, self.ctrl_low, self.ctrl_high)
-        self._held_ctrl: tuple[float, int, np.ndarray] | None = None
+        self._policy: FeedbackPolicy | None = None
 
     @property
     def last_result(self) -> ILQRResult | None:
@@ -132,32 +133,11 @@ class ILQR(ILQRSolver, Controller):
         out[0] = state
         return out
 
-    def _feedback(self, state: np.ndarray, time: float) -> np.ndarray:
-        plan, dt, p = self._last_result, self.knot_dt, self.problem
-        assert plan is not None
-        s = max(0.0, (time - self._plan_time) / dt)
-        i = min(int(s + 1e-6), self.horizon - 1)  # the tolerance: a time just short of a knot
-        frac = min(max(s - i, 0.0), 1.0)
-        if self.steps > 1:
-            held = self._held_ctrl
-            if held is not None and held[:2] == (self._plan_time, i) and frac > 1e-6:
-                return held[2].copy()  # within the knot: its control is held
-        nominal = plan.states[i]
-        if frac > 0:
-            step = np.zeros(p.nx)
-            self._rollout.deviation(plan.states[i + 1], nominal, step)
-            nominal = p.state_add(nominal, frac * step)
-        dx = np.zeros(p.nx)
-        self._rollout.deviation(state, nominal, dx)
-        u = plan.ctrls[i] + plan.K[i] @ dx
-        u = (
-            np.clip(u, self.ctrl_low, self.ctrl_high)
-            if np.all(np.isfinite(u))
-            else plan.ctrls[i].copy()
-        )
-        if self.steps > 1:
-            self._held_ctrl = (self._plan_time, i, u.copy())
-        return u
+    def policy(self) -> FeedbackPolicy | None:
+        """The feedback law of the current plan (``None`` before the first), as an object of
+        its own: :func:`mpcbox.simulate_realtime` evaluates it in the world's thread at every
+        step while the next replan runs (:mod:`~mpcbox.controllers.ilqr.policy`)."""
+        return self._policy
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
         """MPC step: replan every ``replan_period``, otherwise apply the feedback law.
@@ -207,6 +187,18 @@ class ILQR(ILQRSolver, Controller):
                     self._counts["fallbacks"] += 1
                 self._last_result = result
                 self._plan_time = float(time)
+                self._policy = FeedbackPolicy(
+                    result.states,
+                    result.ctrls,
+                    result.K,
+                    self._plan_time,
+                    self.knot_dt,
+                    self.steps,
+                    self.ctrl_low,
+                    self.ctrl_high,
+                    self._rollout.deviation,
+                    self.problem.state_add,
+                )
                 # A decrease carries over, an increase does not (see the class docstring).
                 self._regularization = min(result.regularization, cfg.regularization)
                 self._counts["replans"] += 1
@@ -214,10 +206,10 @@ class ILQR(ILQRSolver, Controller):
                 self._counts["divergences"] += result.divergences
                 self._counts["converged"] += int(result.converged)
                 self._last_timing = result.timing
-        if self._last_result is None:
+        if self._policy is None:
             ctrl = self._last_ctrl.copy()
         else:
-            ctrl = self._feedback(state, time)
+            ctrl = self._policy(state, time)
         self._last_ctrl = ctrl
         return ctrl
 
