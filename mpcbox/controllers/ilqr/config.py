@@ -193,6 +193,11 @@ class ILQRConfig:
             put(name, positive_int(name, getattr(self, name)))
         put("linearize_every", positive_int("linearize_every", self.linearize_every))
         put("control_steps", positive_int("control_steps", self.control_steps))
+        if self.control_steps > 1 and (self.states_init is not None or self.warm_start_states):
+            raise InvalidArgumentError(
+                f"control_steps={self.control_steps} works with single shooting only: leave "
+                "states_init=None and warm_start_states=False, or set control_steps=1"
+            )
         for name in ("first_iterations", "mpc_max_retries"):
             if getattr(self, name) is not None:
                 put(name, positive_int(name, getattr(self, name)))

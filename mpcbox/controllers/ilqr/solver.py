@@ -96,11 +96,6 @@ class ILQRSolver:
             None if cfg.states_init is None else self._initial_states(cfg.states_init)
         )
         self.steps = cfg.control_steps
-        if self.steps > 1 and (self.states_init is not None or cfg.warm_start_states):
-            raise InvalidArgumentError(
-                f"control_steps={self.steps} works with single shooting only: leave "
-                "states_init=None and warm_start_states=False, or set control_steps=1"
-            )
         self._rollout = ClosedLoopRollout(problem, self.ctrl_low, self.ctrl_high, self.steps)
         self._knots = np.unique(
             np.r_[np.arange(0, self.horizon, cfg.linearize_every), self.horizon - 1]
