@@ -54,18 +54,20 @@ def point_mass(limited: bool = False, bound: float = 100.0) -> mpcbox.Problem:
     return mpcbox.Problem(xml, cost=cost, threads=1)
 
 
-def riccati(problem: mpcbox.Problem):
-    """Time-varying Riccati recursion written out independently of mpcbox.controllers.ilqr."""
-    A, B = problem.linearize(np.zeros(4), np.zeros(2))
-    Q, R = np.diag(np.r_[WQ, WV]), np.diag(WU)
+def riccati(problem: mpcbox.Problem, A=None, B=None, scale: float = 1.0, knots: int = T):
+    """Time-varying Riccati recursion written out independently of mpcbox.controllers.ilqr:
+    of the model's step, or of the map ``(A, B)`` with the running weights times ``scale``."""
+    if A is None:
+        A, B = problem.linearize(np.zeros(4), np.zeros(2))
+    Q, R = scale * np.diag(np.r_[WQ, WV]), scale * np.diag(WU)
     P = np.diag(np.r_[WQ_T, WV_T])
-    gains = np.zeros((T, 2, 4))
-    for t in range(T - 1, -1, -1):
+    gains = np.zeros((knots, 2, 4))
+    for t in range(knots - 1, -1, -1):
         K = -np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
         P = Q + A.T @ P @ (A + B @ K)
         gains[t] = K
     x, xs, us = X0.copy(), [X0.copy()], []
-    for t in range(T):
+    for t in range(knots):
         u = gains[t] @ x
         x = A @ x + B @ u
         us.append(u)

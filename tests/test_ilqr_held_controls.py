@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_ilqr import WQ, WQ_T, WU, WV, WV_T, X0, point_mass
+from test_ilqr import X0, point_mass, riccati
 
 import mpcbox
 from mpcbox.controllers.ilqr.controller import ILQR
@@ -18,25 +18,12 @@ KNOTS = 12
 
 
 def held_riccati(problem: mpcbox.Problem, steps: int, knots: int):
-    """Riccati recursion of the knot map ``(A^s, sum_j A^j B)`` with the running weights
-    counted ``s`` times, written out independently of the solver."""
+    """The Riccati recursion of the knot map ``(A^s, sum_j A^j B)`` with the running weights
+    counted ``s`` times, composed here independently of the solver."""
     A1, B1 = problem.linearize(np.zeros(4), np.zeros(2))
     A = np.linalg.matrix_power(A1, steps)
     B = sum(np.linalg.matrix_power(A1, j) @ B1 for j in range(steps))
-    Q, R = steps * np.diag(np.r_[WQ, WV]), steps * np.diag(WU)
-    P = np.diag(np.r_[WQ_T, WV_T])
-    gains = np.zeros((knots, 2, 4))
-    for t in range(knots - 1, -1, -1):
-        K = -np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
-        P = Q + A.T @ P @ (A + B @ K)
-        gains[t] = K
-    x, xs, us = X0.copy(), [X0.copy()], []
-    for t in range(knots):
-        u = gains[t] @ x
-        x = A @ x + B @ u
-        us.append(u)
-        xs.append(x)
-    return gains, np.array(xs), np.array(us)
+    return riccati(problem, A, B, scale=steps, knots=knots)
 
 
 def test_compose_held_is_the_jacobian_of_the_held_steps():

@@ -476,7 +476,10 @@ def test_quadruped_forces_go_to_the_points_on_the_ground():
     feet = [f"body:{leg}_calf" for leg in ("FR", "FL", "RR", "RL")]
     keep = QPMPC(problem, contacts=feet, lifted_points="keep")
     touching, _ = keep.dynamics.activity(keep.state_ref)
-    assert keep.points.count == 20 and touching.sum() == 4
+    assert keep.points.count == 20
+    # Every calf stands on a point; on newer Menagerie A1s (foot solimp width 0.02 instead
+    # of 0.031) one calf's capsule end is within the margin too and shares the force.
+    assert all(touching[i : i + 5].any() for i in range(0, 20, 5)) and touching.sum() <= 8
     fbar = keep.linearization.fbar.reshape(-1, 3)
     assert np.all(fbar[~touching] == 0.0)
     assert fbar[touching, 2].sum() == pytest.approx(1.0, rel=0.02)  # in body weights
@@ -485,11 +488,15 @@ def test_quadruped_forces_go_to_the_points_on_the_ground():
     rng = np.random.default_rng(0)
     dx = 1e-5 * rng.standard_normal(problem.nx)
     lin = keep.linearization
-    actual = keep.dynamics.point_forces(problem.state_add(keep.state_ref, dx), keep.ctrl_ref)
+    # Under the nominal contact mode, as the finite differences take it: on newer A1s a
+    # capsule end sits within 1e-5 m of the margin and would flip in or out here.
+    moved = problem.state_add(keep.state_ref, dx)
+    actual = keep.dynamics.point_forces(moved, keep.ctrl_ref, touching)
     change = actual - lin.fbar
     np.testing.assert_allclose(lin.Fx @ dx, change, atol=0.1 * np.abs(change).max())
     ctl = QPMPC(problem, contacts=feet)
-    assert ctl.points.count == 4
+    assert ctl.points.count == touching.sum()  # the lifted points are dropped
+    assert sorted(set(ctl.points.label)) == sorted(f[5:] for f in feet)
     gain = model.actuator_gainprm[:, 0] * model.actuator_gear[:, 0]
     res = simulate(problem, ctl, 1.0, noise=ActuatorNoise(std=1.0 / gain), seed=0)
     assert res.survived and ctl.stats["failed_solves"] == 0 and ctl.stats["fallbacks"] == 0
