@@ -121,6 +121,13 @@ def test_the_world_runs_ilqrs_feedback_law_of_the_latest_plan(problem):
         np.testing.assert_allclose(planner.control(1.0 + offset, x), expected, atol=1e-12)
     assert ctrl.stats["replans"] == 1
     np.testing.assert_allclose(primed, problem.clip_ctrl(ctrl(state, 1.0)), atol=1e-12)
+    # Without feedback the replan's control is held, in the world as in simulate.
+    held = mpcbox.make_controller("ilqr", problem, horizon=20, first_iterations=3, feedback=False)
+    assert held.period == held.replan_period
+    planner = PlannerThread(problem, held, period=held.period, max_ticks=1)
+    planner.prime(state, 1.0)
+    assert held.policy() is None
+    np.testing.assert_array_equal(planner.control(1.01, x), planner.control(1.01))
 
 
 def test_ilqr_in_real_time_ticks_at_its_replan_period(problem):

@@ -134,10 +134,11 @@ class ILQR(ILQRSolver, Controller):
         return out
 
     def policy(self) -> FeedbackPolicy | None:
-        """The feedback law of the current plan (``None`` before the first), as an object of
-        its own: :func:`mpcbox.simulate_realtime` evaluates it in the world's thread at every
-        step while the next replan runs (:mod:`~mpcbox.controllers.ilqr.policy`)."""
-        return self._policy
+        """The feedback law of the current plan, as an object of its own:
+        :func:`mpcbox.simulate_realtime` evaluates it in the world's thread at every step
+        while the next replan runs (:mod:`~mpcbox.controllers.ilqr.policy`). ``None`` before
+        the first plan and with ``feedback=False`` (the replan's control is then held)."""
+        return self._policy if self.config.feedback else None
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
         """MPC step: replan every ``replan_period``, otherwise apply the feedback law.
