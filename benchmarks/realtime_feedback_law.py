@@ -1,0 +1,118 @@
+"""iLQR-MPC in the real-time loop: the world holding its returned control, or running its law.
+
+Before stop 40 the real-time loop (:func:`mpcbox.simulate_realtime`) held iLQR-MPC's last
+returned control between the planner's calls, so the feedback law paused while a replan
+ran; now the world evaluates the latest plan's law (:meth:`mpcbox.ILQR.policy`) at every
+step. This script runs a task's tuned iLQR-MPC both ways on the same seeds under the task's
+noise recipe (the first by hiding ``policy`` from the loop) and prints JSON: outcome, tilt
+and latency per run, successes per loop::
+
+    python benchmarks/realtime_feedback_law.py [--task humanoid_balance] [--seeds 0-2,100-109]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import mpcbox
+from mpcbox.registry import make_controller, task_class
+from mpcbox.sim.trajectory import jsonable
+
+
+class HeldControl:
+    """A controller seen without its ``policy``: the real-time world holds what it returns."""
+
+    def __init__(self, inner: Any) -> None:
+        self.inner = inner
+        self.period = inner.period
+
+    def reset(self) -> None:
+        self.inner.reset()
+
+    def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
+        return self.inner(state, time)
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "policy":
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+
+def seed_list(text: str) -> list[int]:
+    """``"0-2,100-109"`` -> ``[0, 1, 2, 100, ..., 109]``."""
+    out: list[int] = []
+    for part in text.split(","):
+        low, _, high = part.partition("-")
+        out.extend(range(int(low), int(high or low) + 1))
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="humanoid_balance")
+    parser.add_argument("--seeds", default="0-2,100-109")
+    parser.add_argument("--duration", type=float, default=5.0)
+    parser.add_argument(
+        "--out", default=str(Path(__file__).parent / "results/realtime_feedback_law.json")
+    )
+    args = parser.parse_args()
+    problem = task_class(args.task)()
+    rows = []
+    started = time.perf_counter()
+    for seed in seed_list(args.seeds):
+        for loop in ("held control", "feedback law"):
+            controller = make_controller("ilqr", problem)
+            run = mpcbox.simulate_realtime(
+                problem,
+                HeldControl(controller) if loop == "held control" else controller,
+                args.duration,
+                noise=problem.noise(),
+                seed=seed,
+            )
+            rt = run.realtime
+            assert rt is not None
+            row = {
+                "seed": seed,
+                "loop": loop,
+                "outcome": run.metrics.outcome,
+                "time_to_fall_s": run.metrics.time_to_fall,
+                "tilt_rms_deg": run.metrics.measures.get("tilt_rms_deg"),
+                "latency_p50_ms": rt.latency_p50_ms,
+                "latency_p99_ms": rt.latency_p99_ms,
+                "planner_period_s": rt.period_s,
+                "ticks": rt.ticks,
+            }
+            rows.append(row)
+            print(json.dumps(jsonable(row)), file=sys.stderr)
+    summary = {}
+    for loop in ("held control", "feedback law"):
+        runs = [r for r in rows if r["loop"] == loop]
+        summary[loop] = {
+            "successes": f"{sum(r['outcome'] == 'success' for r in runs)}/{len(runs)}",
+            "tilt_rms_deg": [round(r["tilt_rms_deg"], 2) for r in runs],
+            "latency_p99_ms": [round(r["latency_p99_ms"], 1) for r in runs],
+        }
+    out = {
+        "task": args.task,
+        "machine": "2-core sandbox CPU",
+        "python": platform.python_version(),
+        "command": "python benchmarks/realtime_feedback_law.py " + " ".join(sys.argv[1:]),
+        "wall_s": round(time.perf_counter() - started, 1),
+        "summary": summary,
+        "runs": rows,
+    }
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(json.dumps(jsonable(out), indent=2) + "\n")
+    print(json.dumps(jsonable(summary), indent=1))
+
+
+if __name__ == "__main__":
+    main()
