@@ -35,6 +35,7 @@ from panda_reach import (  # benchmarks/ is not a package
 )
 
 import mpcbox
+from mpcbox.cli.compare import parse_sets
 from mpcbox.errors import MpcboxError
 from mpcbox.registry import make_controller
 from mpcbox.sim.trajectory import jsonable
@@ -120,6 +121,14 @@ def main() -> None:
     )
     parser.add_argument("--loop", default="lockstep", choices=["lockstep", "realtime"])
     parser.add_argument(
+        "--ilqr-set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override an option of the task's config (VALUE a Python literal); "
+        "the former config is left as it is",
+    )
+    parser.add_argument(
         "--out",
         default=str(Path(__file__).parent / "results/arm_reach_control_steps.json"),
     )
@@ -129,6 +138,7 @@ def main() -> None:
     if unknown:
         parser.error(f"--arms: unknown {unknown}; choose from {', '.join(ALL_ARMS)} or new")
     configs = args.configs.split(",")
+    task_options = parse_sets([f"ilqr.{item}" for item in args.ilqr_set]).get("ilqr", {})
     if set(configs) - {"task", "former"}:
         parser.error("--configs: choose from task, former")
     rows, skipped = [], []
@@ -146,7 +156,7 @@ def main() -> None:
                 continue
             row = {"arm": arm, "seed": seed}
             for name in configs:
-                options = FORMER if name == "former" else {}
+                options = FORMER if name == "former" else task_options
                 if args.loop == "realtime":
                     row[name] = realtime_loop(problem, args.duration, dict(options))
                 else:
@@ -172,6 +182,7 @@ def main() -> None:
         "python": platform.python_version(),
         "command": "python benchmarks/arm_reach_control_steps.py " + " ".join(sys.argv[1:]),
         "former_config": FORMER,
+        "task_config_changes": task_options,
         "wall_s": round(time.perf_counter() - started, 1),
         "summary": summary,
         "skipped": skipped,
