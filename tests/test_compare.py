@@ -228,7 +228,7 @@ def test_cli_unknown_names(capsys):
     assert "'compare'" in capsys.readouterr().err
     assert main(["list"]) == 0
     listing = capsys.readouterr().out
-    assert "humanoid_balance: lqr" in listing and "humanoid_two_feet: lqr, qp" in listing
+    assert "humanoid_balance: lqr" in listing and "humanoid_two_feet: lqr, ilqr, qp" in listing
 
 
 def test_cli_end_to_end(tmp_path, capsys):

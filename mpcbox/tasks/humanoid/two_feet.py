@@ -11,6 +11,7 @@ from mpcbox.controllers.lqr import LQRConfig
 from mpcbox.controllers.qp_mpc.config import QPMPCConfig
 from mpcbox.core.model import ModelSource
 from mpcbox.tasks import scene_path
+from mpcbox.tasks.humanoid.balance import HumanoidBalance
 from mpcbox.tasks.humanoid.base import HumanoidProblem, balance_dofs, joint_weights
 from mpcbox.tasks.legged.balance import FEET_CENTER, QP_OSQP_SETTINGS
 from mpcbox.validation import finite, non_negative
@@ -59,6 +60,13 @@ class HumanoidTwoFeet(HumanoidProblem):
             # (results/qp_tick_humanoid.json, results/qp_two_feet_legged_osqp.json).
             osqp_settings=QP_OSQP_SETTINGS,
         ),
+        # iLQR-MPC: the one-leg task's config (0.35 s on a 0.015 s planning model, one
+        # iteration per 50 Hz replan). With the controller's defaults (50 knots at 5 ms) a
+        # replan took 130-150 ms and the humanoid fell in the real-time loop (0/5 seeds);
+        # with this one it stood 3/3 there, ticks 25-28 ms median, and 3/3 with 25 knots of
+        # three 5 ms steps instead (control_steps=3, 29-42 ms; results/
+        # realtime_feedback_law_two_feet.json, realtime_feedback_law_two_feet_tuned.json).
+        "ilqr": HumanoidBalance.controller_configs["ilqr"],
     }
     #: Contact bodies for contact-aware controllers.
     contacts: ClassVar[tuple[str, ...]] = ("body:foot_left", "body:foot_right")
