@@ -25,7 +25,6 @@ from __future__ import annotations
 import argparse
 import sys
 import warnings
-from typing import Any
 
 import numpy as np
 
@@ -76,22 +75,14 @@ def closed_loop_row(
     errors = np.array([problem.reach_error(s) for s in sim.states])
     hit = arrival(errors, sim.time, problem.tolerance)
     missed = problem.goal_failure(sim.time, sim.states)
-    tick = _replan_ms(sim, controller) if realtime else sim.metrics.compute_p50_ms
     return {
         "controller": label,
         "final (cm)": f"{100 * errors[-1]:.2f}",
         "to 1 cm (s)": "never" if np.isnan(hit.time) else f"{hit.time:.2f}",
         # Calls that planned; the feedback or spline between replans is not a tick.
-        "median tick (ms)": f"{tick:.3g}",
+        "median tick (ms)": f"{sim.metrics.compute_p50_ms:.3g}",
         "outcome": missed or "reached",
     }
-
-
-def _replan_ms(sim: Any, controller: Any) -> float:
-    """Median latency (ms) of the real-time run's replans (its slowest calls)."""
-    assert sim.realtime is not None
-    replans = max(1, int(controller.stats.get("replans", 1)))
-    return float(np.median(np.sort(sim.realtime.latency_ms)[-replans:]))
 
 
 def main(argv: list[str] | None = None) -> int:
