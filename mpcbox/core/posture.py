@@ -249,13 +249,13 @@ def _within_ranges(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
 
 
 def _watched_pairs(
-    model: mujoco.MjModel, qpos_init: np.ndarray, colliding: list[int]
+    colliding: list[int], touching: list[tuple[int, int]]
 ) -> list[tuple[list[int], list[int]]]:
     """The geom pairs mink's collision-avoidance limit keeps apart: every colliding pair,
-    less those between moving bodies that already touch at ``qpos_init`` (a gripper's
-    closed fingers): such a pair cannot be kept 5 mm apart from the first step, and mink's
-    QP then has no solution."""
-    start = {tuple(sorted(p)) for p in _touching_ids(model, qpos_init, 0.0, static=False)}
+    less the ``touching`` ones, between moving bodies that already touch at the start (a
+    gripper's closed fingers): such a pair cannot be kept 5 mm apart from the first step,
+    and mink's QP then has no solution."""
+    start = {tuple(sorted(p)) for p in touching}
     if not start:
         return [(colliding, colliding)]
     return [
@@ -417,13 +417,16 @@ def reach_posture(
     posture = mink.PostureTask(model, cost=1e-3)
     posture.set_target(qpos_init)
     limits: list = [mink.ConfigurationLimit(model)]
+    # Pairs that touch at the start are the model's own (a gripper's closed fingers in its
+    # keyframe): not watched by the IK, and reported, not refused, at the end.
+    start_pairs = _touching_ids(model, qpos_init, 0.0, static=False)
     if avoid_collisions:
         colliding = np.flatnonzero(collision_geoms(model)).tolist()
         if colliding:
             limits.append(
                 mink.CollisionAvoidanceLimit(
                     model,
-                    _watched_pairs(model, qpos_init, colliding),
+                    _watched_pairs(colliding, start_pairs),
                     collision_detection_distance=0.05,
                 )
             )
@@ -478,10 +481,8 @@ def reach_posture(
                 + ", ".join(f"{a} into {b}" for a, b in touching)
                 + "; the target may lie inside or below an obstacle (a floor, a table)"
             )
-    # Pairs that touch at the start already are the model's own (a gripper's closed fingers
-    # in its keyframe): reported, not refused.
     collisions = self_collisions(model, qpos)
-    start = set(self_collisions(model, qpos_init))
+    start = {(_geom_label(model, a), _geom_label(model, b)) for a, b in start_pairs}
     new = [pair for pair in collisions if pair not in start]
     if new:
         raise SolverError(
