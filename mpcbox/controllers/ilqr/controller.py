@@ -22,6 +22,7 @@ from mpcbox.controllers.ilqr.multiple_shooting import optimize_multiple_shooting
 from mpcbox.controllers.ilqr.policy import FeedbackPolicy
 from mpcbox.controllers.ilqr.result import ILQRResult, Timing
 from mpcbox.controllers.ilqr.solver import ILQRSolver
+from mpcbox.core.blas_threads import single_blas_thread
 from mpcbox.core.mujoco_warnings import captured_warnings
 from mpcbox.core.problem import Problem
 from mpcbox.errors import MpcboxError
@@ -169,8 +170,8 @@ class ILQR(ILQRSolver, Controller):
                 guess = self._shifted_states(time, state) if cfg.warm_start_states else None
             try:
                 # MuJoCo's warnings of diverged rollouts are counted (result.divergences),
-                # not printed.
-                with captured_warnings():
+                # not printed; BLAS keeps to one thread (mpcbox.core.blas_threads).
+                with captured_warnings(), single_blas_thread():
                     if guess is None:
                         result = self._optimize(
                             state, warm, iters, self._regularization, None, retries

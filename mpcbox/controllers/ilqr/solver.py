@@ -31,6 +31,7 @@ from mpcbox.controllers.ilqr.multiple_shooting import optimize_multiple_shooting
 from mpcbox.controllers.ilqr.regularization import Regularization
 from mpcbox.controllers.ilqr.result import ILQRResult, StopReason, Timing
 from mpcbox.controllers.lqr import with_lqr_terminal_value
+from mpcbox.core.blas_threads import single_blas_thread
 from mpcbox.core.divergence import check_planning_step
 from mpcbox.core.mujoco_warnings import captured_warnings
 from mpcbox.core.problem import Linearization, Problem, Quadratization
@@ -266,7 +267,8 @@ class ILQRSolver:
                 f"states_init: control_steps={self.steps} works with single shooting only"
             )
         # Diverged rollouts are counted (``divergences``); MuJoCo's warnings are not printed.
-        with captured_warnings():
+        # One BLAS thread: the small products compete with the derivative threads otherwise.
+        with captured_warnings(), single_blas_thread():
             if states is None:
                 return self._optimize(x0, ctrls, iters, reg, None)
             return optimize_multiple_shooting(self, x0, states, ctrls, iters, reg)
