@@ -292,3 +292,67 @@ def test_rows_stream_as_runs_finish_and_a_rerun_loads_the_finished_ones(tmp_path
         assert x.metrics.compute_mean_ms == y.metrics.compute_mean_ms  # loaded, not re-run
     with pytest.raises(TypeError, match="on_done"):
         compare("pendulum_swingup", ["lqr"], seeds=1, on_done=3, **kwargs)
+
+
+def _children(pid: int) -> set[int]:
+    from pathlib import Path
+
+    out: set[int] = set()
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        out |= {int(c) for c in (task / "children").read_text().split()}
+    return out
+
+
+@pytest.mark.skipif(not __import__("pathlib").Path("/proc/self/task").exists(), reason="Linux")
+def test_worker_processes_do_not_outlive_a_killed_comparison():
+    """Killed by a signal, the parent left its workers running their jobs for minutes."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    script = (
+        "from mpcbox.comparison.runner import compare\n"
+        "from mpcbox.comparison.scenario import Scenario\n"
+        "compare('humanoid_balance', ['lqr'], [Scenario(duration=600.0, noise_scale=1.0)],"
+        " seeds=[0, 1], workers=2, progress=False)\n"
+    )
+    parent = subprocess.Popen([sys.executable, "-c", script])
+    try:
+        deadline = time.monotonic() + 60.0
+        workers: set[int] = set()
+        while time.monotonic() < deadline and len(workers) < 2:
+            time.sleep(0.2)
+            # The pool's workers (the spawn context also starts a resource tracker).
+            workers = {c for c in _children(parent.pid) if b"spawn_main" in _cmdline(c)}
+        assert len(workers) == 2, "the workers did not start"
+        time.sleep(2.0)  # into their 600 s jobs
+        parent.send_signal(signal.SIGKILL)
+        parent.wait(10.0)
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline and any(_alive(w) for w in workers):
+            time.sleep(0.2)
+        left = [w for w in workers if _alive(w)]
+        for w in left:
+            os.kill(w, signal.SIGKILL)
+        assert not left, f"workers {left} outlived their comparison"
+    finally:
+        if parent.poll() is None:
+            parent.kill()
+
+
+def _cmdline(pid: int) -> bytes:
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            return f.read()
+    except OSError:
+        return b""
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        return False

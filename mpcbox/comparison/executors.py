@@ -6,7 +6,9 @@ gives the same runs for the same setup, seeds and scenarios: only the timing col
 
 - :class:`SerialExecutor`: one worker in this process (needed for Problem instances and
   controllers that do not pickle).
-- :class:`ProcessExecutor`: a local pool of spawned processes.
+- :class:`ProcessExecutor`: a local pool of spawned processes. The workers end with the
+  comparison: when it raises or is interrupted they are terminated, and a worker whose
+  parent died (killed by a signal) exits within a second instead of running its job on.
 - :class:`RayExecutor`: Ray actors on a local or remote cluster (``pip install
   "mpcbox[ray]"``), each asking Ray for ``cpus_per_run`` CPUs and ``gpus_per_run`` GPUs, so
   a multi-GPU host runs one warp-backend closed loop per GPU at a time. A worker lost
@@ -17,6 +19,8 @@ from __future__ import annotations
 
 import abc
 import os
+import threading
+import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
@@ -68,8 +72,21 @@ class SerialExecutor(Executor):
 _WORKER: Worker | None = None
 
 
-def _init_worker(setup: Setup) -> None:
+#: Seconds between a worker's checks that the process that spawned it is alive.
+PARENT_CHECK_S = 1.0
+
+
+def _exit_with_parent(parent: int) -> None:
+    """Exit this worker once ``parent`` is gone (the process is then re-parented)."""
+    while True:
+        time.sleep(PARENT_CHECK_S)
+        if os.getppid() != parent:
+            os._exit(1)
+
+
+def _init_worker(setup: Setup, parent: int) -> None:
     global _WORKER
+    threading.Thread(target=_exit_with_parent, args=(parent,), daemon=True).start()
     _WORKER = Worker(setup)
 
 
@@ -100,12 +117,23 @@ class ProcessExecutor(Executor):
         count = (os.cpu_count() or 1) if self.workers is None else self.workers
         count = min(positive_int("workers", count), max(len(jobs), 1))
         context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(
-            max_workers=count, mp_context=context, initializer=_init_worker, initargs=(setup,)
-        ) as pool:
+        pool = ProcessPoolExecutor(
+            max_workers=count,
+            mp_context=context,
+            initializer=_init_worker,
+            initargs=(setup, os.getpid()),
+        )
+        try:
             futures = [pool.submit(_run_in_worker, job) for job in jobs]
             for future in as_completed(futures):
                 yield future.result()
+        except BaseException:  # an error, Ctrl-C, or the consumer closing this generator
+            # shutdown() alone would let every running job finish first (minutes each).
+            for process in list(getattr(pool, "_processes", {}).values()):
+                process.terminate()
+            raise
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
 
 
 class _RayWorker:
