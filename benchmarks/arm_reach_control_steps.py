@@ -47,7 +47,7 @@ FORMER = {"horizon": 100, "control_steps": 1, "mpc_iterations": 2}
 
 #: Arm, target offset (m) and timestep override. The UR5e of the mirror used in stop 40
 #: cannot reach 40 cm sideways (the IK stops 3 cm short), so it takes the Panda's offset;
-#: the Z1 needs 1 ms (its wrist servo rings at 2 ms, README "Stop 35").
+#: the Z1 needs 1 ms (its wrist servo rings at 2 ms, docs/results/stops.md, "Stop 35").
 ARMS = {
     "franka_emika_panda": (OFFSET, None),
     "franka_fr3": (OFFSET, None),

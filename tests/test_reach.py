@@ -232,3 +232,17 @@ def test_a_mixed_arm_gets_set_points_for_its_servos_and_holding_torques_for_its_
     np.testing.assert_allclose(guess[:, 0], problem.ctrl_ref[0])  # the goal's set-point
     np.testing.assert_allclose(guess[:, 1], hold[1])  # the elbow motor holds the start
     assert not np.isclose(hold[1], problem.ctrl_ref[1])
+
+
+@pytest.mark.parametrize("timestep, steps, knots", [(0.002, 4, 25), (0.001, 8, 25), (0.005, 2, 20)])
+def test_ilqr_knots_last_8ms_over_a_02s_plan_on_any_timestep(timestep, steps, knots) -> None:
+    """The Z1 runs at 1 ms: with the 2 ms arms' four steps a knot, its plan covered 0.1 s."""
+    problem = ArmReach(
+        TORQUE_ARM, frame="tip", target=[-0.1, 0.0, 0.2], relative=True, planning_timestep=timestep
+    )
+    config = problem.controller_configs["ilqr"]
+    assert (config.control_steps, config.horizon) == (steps, knots)
+    solver = make_controller("ilqr", problem)
+    assert solver.knot_dt == pytest.approx(steps * timestep)
+    assert solver.horizon * solver.knot_dt == pytest.approx(0.2, abs=0.5 * solver.knot_dt)
+    assert ArmReach.controller_configs["ilqr"].control_steps == 4  # the class's is untouched

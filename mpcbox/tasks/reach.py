@@ -12,11 +12,11 @@ the arm (on the Panda, 0.5 s of the same controls on a 0.01 s planning model put
 10 cm from where the 0.002 s simulation takes it), and iLQR-MPC planned on it wanders. The
 tuned controllers therefore plan at the model's own timestep, with a short horizon (25
 knots that each hold their control for four steps, 0.2 s on the Panda,
-``control_steps=4``) whose end is priced by the LQR value function at the goal
-(``terminal_value="lqr"``). The initial guess is the control that holds the IK goal
-posture, which on a servo arm already drives the arm toward the goal, or on an arm whose
-goal torques let it fall from the start the control that holds the start
-(:meth:`ArmReach.initial_ctrls`). Offline iLQR over a
+``control_steps=4``; 8 ms knots over 0.2 s on any timestep, :attr:`ArmReach.knot_seconds`)
+whose end is priced by the LQR value function at the goal (``terminal_value="lqr"``).
+The initial guess is the control that holds the IK goal posture, which on a servo arm
+already drives the arm toward the goal, or on an arm whose goal torques let it fall from the
+start the control that holds the start (:meth:`ArmReach.initial_ctrls`). Offline iLQR over a
 long horizon meets the servos' torque limits (their derivatives vanish once saturated) and
 typically stalls (short steps, then the regularization limit); its ``stop_reason`` says so.
 
@@ -32,6 +32,7 @@ limits). The replans therefore give up after one regularization increase
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from collections.abc import Sequence
 from typing import Any, ClassVar
@@ -122,10 +123,19 @@ class ArmReach(Problem):
     """
 
     name = "arm_reach"
+    #: Seconds each iLQR knot holds its control, and seconds the plan covers. The iLQR
+    #: config's ``control_steps`` becomes ``round(knot_seconds / dt)`` of the planning
+    #: model's timestep and its ``horizon`` ``round(plan_seconds / (control_steps * dt))``
+    #: knots: 25 knots of 4 steps at Menagerie's 2 ms, 25 of 8 on Unitree's Z1 at 1 ms
+    #: (with 4 steps its plan covered 0.1 s, and in the real-time loop 2 of 3 seeds missed
+    #: the 1 cm goal), 20 of 2 at 5 ms. ``knot_seconds=None`` keeps the config as written.
+    knot_seconds: ClassVar[float | None] = 0.008
+    plan_seconds: ClassVar[float] = 0.2
     controller_configs: ClassVar[dict[str, Any]] = {
         "lqr": LQRConfig(),
         # Planned at the model's own timestep (see the module docstring) over 0.2 s: 25
-        # knots that each hold their control for four model steps (control_steps), the LQR
+        # knots that each hold their control for four model steps (control_steps; on other
+        # timesteps knot_seconds and plan_seconds set both), the LQR
         # value at the goal as terminal cost, one iteration per 0.02 s replan (five for the
         # first), dynamics derivatives at every fourth knot (interpolated between). A replan
         # whose line search fails at every step size raises the regularization once, not up
@@ -223,6 +233,15 @@ class ArmReach(Problem):
         kwargs.setdefault("dry_friction", "drop")
         self._source, self._options = model, dict(kwargs)  # for servo_planner's twin
         super().__init__(model, **kwargs)
+        ilqr = type(self).controller_configs.get("ilqr")
+        if self.knot_seconds is not None and isinstance(ilqr, ILQRConfig):
+            steps = max(1, round(self.knot_seconds / self.dt))
+            knots = max(2, round(self.plan_seconds / (steps * self.dt)))
+            if (steps, knots) != (ilqr.control_steps, ilqr.horizon):
+                self.controller_configs = {
+                    **type(self).controller_configs,
+                    "ilqr": dataclasses.replace(ilqr, control_steps=steps, horizon=knots),
+                }
 
     def _without_free_objects(self, source: ModelSource, mode: str) -> ModelSource:
         """``source`` with its free objects welded (``"weld"``), or an error naming them."""

@@ -164,6 +164,7 @@ class ArmTrack(ArmReach):
     #: track :func:`~mpcbox.tasks.arm.moves.step_move` for a stiffer one. Neither MPC config
     #: reaches the goal on this cost (0/8 moves of ``benchmarks/arm_trajectories.py``); with
     #: ArmReach's held knots the final error grew from 7.5 to 26.8 cm (mean), so this one stays.
+    knot_seconds: ClassVar[float | None] = None  # one model step per knot on any timestep
     controller_configs: ClassVar[dict[str, Any]] = {
         "ilqr": dataclasses.replace(
             ArmReach.controller_configs["ilqr"], horizon=100, control_steps=1, mpc_iterations=2
