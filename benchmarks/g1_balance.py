@@ -12,8 +12,10 @@ before the seeded runs.
 Measured:
 
 * two feet, LQR: success over ``--seeds`` seeds of ``--duration`` s under the recipe;
-* the largest forward push on the pelvis (0.1 s at 1 s, no noise, 2 s to recover) by
-  bisection to ``--push-tolerance`` N, for LQR and each MPC (``--mpc``);
+* the largest forward push on the pelvis (0.1 s at 1 s, no noise, ``--push-settle`` s to
+  recover, 2 by default; with ``--push-rest-speed`` the pelvis must also end slower than
+  that, so that a robot still hopping does not count) by bisection to ``--push-tolerance``
+  N, for LQR and each MPC (``--mpc``);
 * each MPC under the recipe over ``--mpc-seeds`` seeds: success, QP fallbacks over all
   solves, and the median and 99th percentile tick time (one thread, one process per run,
   on a shared 2-core machine: other jobs inflate the percentiles);
@@ -89,6 +91,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--first-seed", type=int, default=0, help="seeds run from this one")
     parser.add_argument("--duration", type=float, default=10.0, help="seconds per run")
     parser.add_argument("--push-tolerance", type=float, default=5.0, help="bisection (N)")
+    parser.add_argument("--push-settle", type=float, default=2.0, help="time after the push (s)")
+    parser.add_argument(
+        "--push-rest-speed",
+        type=float,
+        default=None,
+        help="a survived push must also end with the pelvis slower than this (m/s)",
+    )
     parser.add_argument("--workers", type=int, default=2, help="worker processes")
     parser.add_argument("--tick-seconds", type=float, default=5.0, help="QP tick run (s)")
     parser.add_argument("--json", default="", help="also write the JSON here")
@@ -114,7 +123,13 @@ def main(argv: list[str] | None = None) -> int:
         "first_seed": args.first_seed,
         "duration_s": args.duration,
         "dry_friction": args.dry_friction,
-        "push": {"start_s": 1.0, "duration_s": 0.1, "settle_s": 2.0, "noise": 0},
+        "push": {
+            "start_s": 1.0,
+            "duration_s": 0.1,
+            "settle_s": args.push_settle,
+            "rest_speed_m_s": args.push_rest_speed,
+            "noise": 0,
+        },
     }
     for stance in ("two", "left"):
         options = {"model": MODEL, "stance": stance, "threads": 1}
@@ -123,7 +138,8 @@ def main(argv: list[str] | None = None) -> int:
         weight = float(probe.model.body_subtreemass[probe.root_id]) * 9.81
         test = PushTest(
             body=probe.root,
-            settle=2.0,
+            settle=args.push_settle,
+            rest_speed=args.push_rest_speed,
             tolerance=args.push_tolerance,
             max_force=5 * weight,
             name="forward",

@@ -151,3 +151,44 @@ def test_sweeps_raise_when_a_run_could_not_start():
     with pytest.raises(RunError, match=r"largest push.*error in push search.*'bogus'") as info:
         largest_push("humanoid_two_feet", "lqr", test, **bad)
     assert isinstance(info.value, RuntimeError)
+
+
+def test_a_trial_still_moving_at_its_end_is_not_recovered_with_rest_speed(two_feet):
+    """With ``rest_speed`` a push trial counts only when the pushed body has come to rest:
+    LQR on two feet still sways 0.05 s after a 40 N push, and is at rest 3 s after it."""
+    import mujoco
+
+    from mpcbox.comparison.robustness import end_speed, recovered
+    from mpcbox.sim.simulation import simulate
+
+    lqr = LQR(two_feet)
+    short = PushTest(settle=0.05, rest_speed=0.01)
+    result = simulate(two_feet, lqr, short.total_time, pushes=[short.push(40.0)])
+    assert result.metrics.success
+    # The body's speed at the end is its centre of mass's last step (MuJoCo integrates the
+    # positions with the new velocities).
+    model, data = two_feet.model, mujoco.MjData(two_feet.model)
+    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, short.body)
+    positions = []
+    for state in result.states[-2:]:
+        two_feet.set_state(data, state)
+        mujoco.mj_kinematics(model, data)
+        positions.append(data.xipos[body].copy())
+    speed = end_speed(two_feet, result, short.body)
+    step = result.time[-1] - result.time[-2]
+    assert speed == pytest.approx(np.linalg.norm(positions[1] - positions[0]) / step, rel=1e-3)
+    assert speed > short.rest_speed
+    assert not recovered(two_feet, short, result)
+    assert recovered(two_feet, PushTest(settle=0.05), result)  # staying up was enough
+    settled = PushTest(settle=3.0, rest_speed=0.01)
+    result = simulate(two_feet, lqr, settled.total_time, pushes=[settled.push(40.0)])
+    assert recovered(two_feet, settled, result)
+    # The bisection asks for rest too: no force passes a 0.05 s settle at rest.
+    assert (
+        largest_push(two_feet, lqr, PushTest(settle=0.05, rest_speed=1e-4, tolerance=50.0)).force
+        == 0.0
+    )
+    with pytest.raises(InvalidArgumentError, match="rest_speed"):
+        PushTest(rest_speed=-1.0)
+    with pytest.raises(InvalidArgumentError, match="rest_speed needs"):
+        push_grid("humanoid_two_feet", "lqr", [10.0], PushTest(rest_speed=0.1))

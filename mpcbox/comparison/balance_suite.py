@@ -37,6 +37,7 @@ def balance_suite(
     push_duration: float = 0.1,
     settle: float = 2.0,
     tolerance: float = 5.0,
+    rest_speed: float | None = None,
 ) -> BalanceSuite:
     """Noise alone, noise with a forward push on the root body, and the largest such push.
 
@@ -56,6 +57,9 @@ def balance_suite(
         push_duration: How long the push acts (s).
         settle: Seconds that must be survived after a test push.
         tolerance: Bisection bracket (N).
+        rest_speed: A test push counts as survived only when the root's centre of mass
+            ends slower than this (m/s; :class:`~mpcbox.comparison.scenario.PushTest`);
+            ``None``: staying up is enough.
 
     Raises:
         InvalidArgumentError: If ``problem`` has no root body or an option is out of range.
@@ -87,6 +91,7 @@ def balance_suite(
                 settle=settle,
                 tolerance=tolerance,
                 max_force=positive("max_force_weights", max_force_weights) * weight,
+                rest_speed=rest_speed,
             )
         )
     return BalanceSuite(scenarios, tests, float(force))

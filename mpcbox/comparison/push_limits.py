@@ -246,6 +246,12 @@ def push_grid(
     if _local(problem, controller, executor) and not (problem_options or controller_options):
         return _here.push_grid(problem, controller, forces, test, seed=seed, progress=progress)
     instance("test", test, PushTest, "an mpcbox.comparison.scenario.PushTest")
+    if test.rest_speed is not None:
+        raise InvalidArgumentError(
+            "test.rest_speed needs each trial's last state, which runs on an executor do not "
+            "keep: give a built Problem and controller without executor, problem_options or "
+            "controller_options, or use largest_push"
+        )
     seed = check_seed("seed", seed)
     grid = _grid(forces)
     scenarios = [

@@ -6,7 +6,8 @@ runs over an executor (worker processes, a Ray cluster).
 The pushes are described by :class:`~mpcbox.comparison.scenario.PushTest`, the same object
 that :func:`mpcbox.compare` takes. A run "survives" here when its outcome is ``"success"``
 (:data:`mpcbox.sim.simulation.OUTCOMES`): a run that diverged, or whose controller fell back
-on most calls, does not count, whatever the state at the end.
+on most calls, does not count, whatever the state at the end. A push trial with
+``PushTest.rest_speed`` must also end with the pushed body slower than that.
 """
 
 from __future__ import annotations
@@ -14,10 +15,12 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
+import mujoco
 import numpy as np
 
 from mpcbox.comparison.scenario import PushTest, task_noise
 from mpcbox.controllers.base import Controller
+from mpcbox.core.model import object_id
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError
 from mpcbox.sim.disturbances import MAX_FORCE, ActuatorNoise, ModelMismatch, Push
@@ -169,6 +172,27 @@ def _push_trial(
     return trial
 
 
+def end_speed(problem: Problem, result: SimulationResult, body: str) -> float:
+    """Linear speed (m/s) of ``body``'s centre of mass at the last state of ``result``."""
+    model = problem.model
+    data = mujoco.MjData(model)
+    problem.set_state(data, result.states[-1])
+    mujoco.mj_forward(model, data)
+    velocity = np.zeros(6)  # angular, then linear
+    mujoco.mj_objectVelocity(
+        model, data, mujoco.mjtObj.mjOBJ_BODY, object_id(model, "body", body, "body"), velocity, 0
+    )
+    return float(np.linalg.norm(velocity[3:]))
+
+
+def recovered(problem: Problem, test: PushTest, result: SimulationResult) -> bool:
+    """Whether a push trial counts as survived: outcome ``"success"`` and, with
+    ``test.rest_speed``, the pushed body at most that fast at the end."""
+    if not result.metrics.success:
+        return False
+    return test.rest_speed is None or end_speed(problem, result, test.body) <= test.rest_speed
+
+
 @checked_keywords
 def push_grid(
     problem: Problem,
@@ -208,7 +232,7 @@ def push_grid(
 
         iterator = tqdm(grid, desc=f"{getattr(controller, 'name', 'controller')} push grid")
     results = [trial(float(f)) for f in iterator]
-    survived = np.array([r.metrics.success for r in results], dtype=bool)
+    survived = np.array([recovered(problem, test, r) for r in results], dtype=bool)
     times = np.array([r.metrics.time_to_fall for r in results])
     return summarize_push_grid(grid, survived, times)
 
@@ -267,7 +291,7 @@ def largest_push(
     def survives(force: float) -> bool:
         nonlocal count
         count += 1
-        return trial(force).metrics.success
+        return recovered(problem, test, trial(force))
 
     if not survives(0.0):
         return PushLimit(0.0, 0.0, 0.0, count)

@@ -192,6 +192,11 @@ class PushTest:
         tolerance: Bracket width at which the bisection stops (N).
         noise_scale: Scale of the task's noise model during the trials (0: none).
         name: Column label (default: from the direction, e.g. ``"+x"``).
+        rest_speed: Largest speed (m/s) of ``body``'s centre of mass at the end of a trial to
+            count as recovered; ``None``: staying up is enough. A robot that is still hopping
+            or drifting when ``settle`` ends has not recovered yet, and may fall later (a
+            Unitree G1 under iLQR-MPC hopped on after 300-400 N pushes and fell 2.2-2.7 s
+            after them).
     """
 
     direction: tuple[float, float, float] = (1.0, 0.0, 0.0)
@@ -203,6 +208,7 @@ class PushTest:
     tolerance: float = 1.0
     noise_scale: float = 0.0
     name: str = ""
+    rest_speed: float | None = None
 
     def __post_init__(self) -> None:
         direction = tuple(float(d) for d in finite_array("direction", self.direction, (3,)))
@@ -219,6 +225,8 @@ class PushTest:
         string("body", self.body)
         string("name", self.name)
         _check_noise_scale(self.noise_scale)
+        if self.rest_speed is not None:
+            positive("rest_speed", self.rest_speed)
 
     @property
     def label(self) -> str:

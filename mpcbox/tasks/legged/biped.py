@@ -89,7 +89,12 @@ class BipedStand(LeggedBalance):
     #: follow stick-slip modes that do not last (results/g1_ilqr_linearization.json). With the
     #: reference's Jacobians it stands 5 of 5 seeds of 10 s (tilt 0.49 deg RMS, 0.6 % of
     #: replans stalled, 23 ms median tick) and a 162.9 N forward push, 0.94 of LQR's
-    #: (results/g1_balance_ilqr.json). The QP-MPC's largest
+    #: (results/g1_balance_ilqr.json). With the iLQR of stop 41 (the code of stop 31 fell
+    #: after 200 and 250 N pushes on the same G1) it recovers from larger pushes by hopping
+    #: forward on both feet: 255.5 N, 1.48 of
+    #: LQR's, with the pelvis back at rest 4 s after the push; a 2 s window had counted a
+    #: G1 still hopping as recovered (485.5 N; results/g1_balance_ilqr_settled_push.json,
+    #: results/g1_push_recovery_ilqr.json). The QP-MPC's largest
     #: forward push on two feet (169 N) and LQR's (172.5 N) are both within 4 % of the
     #: capture-point bound of the ankle strategy (175.6 N: the G1's center of mass is 0.117 m
     #: behind its toes), and no single change of the QP options (period, step, horizon,
