@@ -3,7 +3,10 @@
 Measures offline iterations per second with the time split by phase, and the MPC tick
 (replan) time and real-time factor at 50 Hz replanning in closed loop.
 
-    python benchmarks/ilqr.py [--duration 2.0] [--linearize-every 2]
+    python benchmarks/ilqr.py [--duration 2.0] [--linearize-every 2] [--control-steps 1]
+
+``--control-steps s`` holds each knot's control for ``s`` planning steps
+(``ILQRConfig.control_steps``), with ``horizon-seconds / (s * planning-timestep)`` knots.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ def main() -> None:
     parser.add_argument("--horizon-seconds", type=float, default=0.35)
     parser.add_argument("--planning-timestep", type=float, default=0.015)
     parser.add_argument("--linearize-every", type=int, default=None)
+    parser.add_argument("--control-steps", type=int, default=None)
     parser.add_argument("--iterations", type=int, default=10)
     parser.add_argument("--duration", type=float, default=2.0)
     args = parser.parse_args()
@@ -34,7 +38,10 @@ def main() -> None:
     problem = HumanoidBalance()
     options = config_options(HumanoidBalance.controller_configs["ilqr"])
     options["planning_timestep"] = args.planning_timestep
-    options["horizon"] = round(args.horizon_seconds / args.planning_timestep)
+    if args.control_steps is not None:
+        options["control_steps"] = args.control_steps
+    knot = args.planning_timestep * options.get("control_steps", 1)
+    options["horizon"] = round(args.horizon_seconds / knot)
     if args.linearize_every is not None:
         options["linearize_every"] = args.linearize_every
     ilqr = ILQR(problem, **options)

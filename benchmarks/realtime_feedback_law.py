@@ -8,6 +8,11 @@ noise recipe (the first by hiding ``policy`` from the loop) and prints JSON: out
 and latency per run, successes per loop::
 
     python benchmarks/realtime_feedback_law.py [--task humanoid_balance] [--seeds 0-2,100-109]
+        [--loops held,law] [--set control_steps=2 --set horizon=12] [--push -115]
+
+``--set KEY=VALUE`` (repeatable, VALUE a Python literal) overrides an option of the task's
+iLQR config in both loops. ``--push F`` adds a push of ``F`` newtons along x (negative:
+backward) on the task's root body at 2 s for 0.1 s.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ from typing import Any
 import numpy as np
 
 import mpcbox
+from mpcbox.cli.compare import parse_sets
 from mpcbox.registry import make_controller, task_class
 from mpcbox.sim.trajectory import jsonable
 
@@ -60,21 +66,42 @@ def main() -> None:
     parser.add_argument("--task", default="humanoid_balance")
     parser.add_argument("--seeds", default="0-2,100-109")
     parser.add_argument("--duration", type=float, default=5.0)
+    parser.add_argument("--loops", default="held,law", help="comma-separated from held, law")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    parser.add_argument("--push", type=float, default=0.0, help="x force (N) at 2 s for 0.1 s")
     parser.add_argument(
         "--out", default=str(Path(__file__).parent / "results/realtime_feedback_law.json")
     )
     args = parser.parse_args()
+    names = {"held": "held control", "law": "feedback law"}
+    if set(args.loops.split(",")) - set(names):
+        parser.error("--loops: choose from held, law")
+    loops = [names[name] for name in args.loops.split(",")]
+    options = parse_sets([f"ilqr.{item}" for item in args.set]).get("ilqr", {})
     problem = task_class(args.task)()
+    pushes = (
+        [
+            mpcbox.Push(
+                force=(args.push, 0.0, 0.0),
+                start=2.0,
+                duration=0.1,
+                body=getattr(problem, "root", None) or "torso",
+            )
+        ]
+        if args.push
+        else []
+    )
     rows = []
     started = time.perf_counter()
     for seed in seed_list(args.seeds):
-        for loop in ("held control", "feedback law"):
-            controller = make_controller("ilqr", problem)
+        for loop in loops:
+            controller = make_controller("ilqr", problem, **options)
             run = mpcbox.simulate_realtime(
                 problem,
                 HeldControl(controller) if loop == "held control" else controller,
                 args.duration,
                 noise=problem.noise(),
+                pushes=pushes,
                 seed=seed,
             )
             rt = run.realtime
@@ -88,23 +115,27 @@ def main() -> None:
                 "latency_p50_ms": rt.latency_p50_ms,
                 "latency_p99_ms": rt.latency_p99_ms,
                 "planner_period_s": rt.period_s,
+                "kept_up": rt.kept_up,
                 "ticks": rt.ticks,
             }
             rows.append(row)
             print(json.dumps(jsonable(row)), file=sys.stderr)
     summary = {}
-    for loop in ("held control", "feedback law"):
+    for loop in loops:
         runs = [r for r in rows if r["loop"] == loop]
         summary[loop] = {
             "successes": f"{sum(r['outcome'] == 'success' for r in runs)}/{len(runs)}",
             "tilt_rms_deg": [round(r["tilt_rms_deg"], 2) for r in runs],
+            "latency_p50_ms": [round(r["latency_p50_ms"], 1) for r in runs],
             "latency_p99_ms": [round(r["latency_p99_ms"], 1) for r in runs],
+            "kept_up": f"{sum(bool(r['kept_up']) for r in runs)}/{len(runs)}",
         }
     out = {
         "task": args.task,
         "machine": "2-core sandbox CPU",
         "python": platform.python_version(),
         "command": "python benchmarks/realtime_feedback_law.py " + " ".join(sys.argv[1:]),
+        "ilqr_options": options,
         "wall_s": round(time.perf_counter() - started, 1),
         "summary": summary,
         "runs": rows,
