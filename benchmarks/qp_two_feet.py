@@ -1,11 +1,11 @@
 """Two-feet push recovery: LQR against QP-MPC variants on a grid of forces; prints JSON.
 
-Each trial is the README's push scenario on :class:`~mpcbox.tasks.HumanoidTwoFeet`: a 0.1 s
-push on the torso at t = 1 s, the robot must stay up 3 s after it (no noise, seed 0). Every
-(controller, direction, force) runs once, in parallel worker processes; each grid is then
-summarized by :func:`mpcbox.comparison.push_limits.summarize_push_grid` (largest force below
-the first failure, and whether survival is monotone in the force) and the QP-MPC fallbacks are
-counted.
+Each trial is the push scenario of ``docs/results/legged.md`` on
+:class:`~mpcbox.tasks.HumanoidTwoFeet`: a 0.1 s push on the torso at t = 1 s, the robot must
+stay up 3 s after it (no noise, seed 0). Every (controller, direction, force) runs once, in
+parallel worker processes; each grid is then summarized by
+:func:`mpcbox.comparison.push_limits.summarize_push_grid` (largest force below the first
+failure, and whether survival is monotone in the force) and the QP-MPC fallbacks are counted.
 
 The QP-MPC variants: the task's tuning (soft stance, 10 x 0.02 s, solved at 50 Hz), a 0.6 s
 horizon (15 x 0.04 s), relinearization every tick, the rigid stance with OSQP and with

@@ -1,8 +1,9 @@
 """A robot's model checked before any controller runs on it: what mpcbox will do, and why.
 
-Each problem that robots nobody here wrote have shown (see the README's robot sections) has
-a check of its own in :mod:`mpcbox.core`; :func:`check_robot` runs them all on one model at
-one posture and says, per topic, what it found and what mpcbox or the user can do about it:
+Each problem that robots nobody here wrote have shown (see ``docs/results/legged.md`` and
+``docs/results/stops.md``) has a check of its own in :mod:`mpcbox.core`; :func:`check_robot`
+runs them all on one model at one posture and says, per topic, what it found and what
+mpcbox or the user can do about it:
 
 * ``model``: bodies, joints, actuators by kind, keyframes, a floating root;
 * ``integrator``: RK4, which linearization cannot differentiate (a planning copy is used);

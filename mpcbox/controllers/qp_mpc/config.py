@@ -169,7 +169,7 @@ class QPMPCConfig:
             accepted plan open loop while it lasts, then LQR. On two feet after a forward
             push, ``"plan"`` fell at 97.5 N and 100 N yet survived 105 N, because the
             open-loop replay runs just when the state leaves the plan. ``"lqr"`` survived
-            every push up to 100 N (``README.md``).
+            every push up to 100 N (``docs/results/humanoid.md``).
         time_limit: Wall-clock budget of one OSQP solve (s; OSQP's ``time_limit``), so that
             a tick ends within the control period on a real robot: a solve that reaches it
             returns its last (warm-started) iterate, which is used as the plan while its
