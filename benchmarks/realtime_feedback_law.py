@@ -10,9 +10,12 @@ and latency per run, successes per loop::
     python benchmarks/realtime_feedback_law.py [--task humanoid_balance] [--seeds 0-2,100-109]
         [--loops held,law] [--set control_steps=2 --set horizon=12] [--push -115]
 
-``--set KEY=VALUE`` (repeatable, VALUE a Python literal) overrides an option of the task's
-iLQR config in both loops. ``--push F`` adds a push of ``F`` newtons along x (negative:
-backward) on the task's root body at 2 s for 0.1 s.
+``--loops lockstep`` adds the lock-step loop of :func:`mpcbox.simulate` (the world waits for
+every replan; its "latencies" are the replan ticks). ``--set KEY=VALUE`` (repeatable, VALUE a
+Python literal) overrides an option of the task's iLQR config in every loop. ``--push F`` adds
+a push of ``F`` newtons along x (negative: backward) on the task's root body at 2 s for 0.1 s;
+each run reports that body's speed at its end (``root_speed_end_m_s``), to tell a robot at
+rest from one still moving.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ import numpy as np
 
 import mpcbox
 from mpcbox.cli.compare import parse_sets
+from mpcbox.comparison.robustness import end_speed
 from mpcbox.registry import make_controller, task_class
 from mpcbox.sim.trajectory import jsonable
 
@@ -66,28 +70,24 @@ def main() -> None:
     parser.add_argument("--task", default="humanoid_balance")
     parser.add_argument("--seeds", default="0-2,100-109")
     parser.add_argument("--duration", type=float, default=5.0)
-    parser.add_argument("--loops", default="held,law", help="comma-separated from held, law")
+    parser.add_argument(
+        "--loops", default="held,law", help="comma-separated from held, law, lockstep"
+    )
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     parser.add_argument("--push", type=float, default=0.0, help="x force (N) at 2 s for 0.1 s")
     parser.add_argument(
         "--out", default=str(Path(__file__).parent / "results/realtime_feedback_law.json")
     )
     args = parser.parse_args()
-    names = {"held": "held control", "law": "feedback law"}
+    names = {"held": "held control", "law": "feedback law", "lockstep": "lock-step"}
     if set(args.loops.split(",")) - set(names):
-        parser.error("--loops: choose from held, law")
+        parser.error("--loops: choose from held, law, lockstep")
     loops = [names[name] for name in args.loops.split(",")]
     options = parse_sets([f"ilqr.{item}" for item in args.set]).get("ilqr", {})
     problem = task_class(args.task)()
+    push_body = getattr(problem, "root", None) or "torso"
     pushes = (
-        [
-            mpcbox.Push(
-                force=(args.push, 0.0, 0.0),
-                start=2.0,
-                duration=0.1,
-                body=getattr(problem, "root", None) or "torso",
-            )
-        ]
+        [mpcbox.Push(force=(args.push, 0.0, 0.0), start=2.0, duration=0.1, body=push_body)]
         if args.push
         else []
     )
@@ -96,27 +96,25 @@ def main() -> None:
     for seed in seed_list(args.seeds):
         for loop in loops:
             controller = make_controller("ilqr", problem, **options)
-            run = mpcbox.simulate_realtime(
-                problem,
-                HeldControl(controller) if loop == "held control" else controller,
-                args.duration,
-                noise=problem.noise(),
-                pushes=pushes,
-                seed=seed,
-            )
-            rt = run.realtime
-            assert rt is not None
+            common = dict(noise=problem.noise(), pushes=pushes, seed=seed)
+            if loop == "lock-step":  # the world waits for every replan
+                run = mpcbox.simulate(problem, controller, args.duration, **common)
+            else:
+                inner = HeldControl(controller) if loop == "held control" else controller
+                run = mpcbox.simulate_realtime(problem, inner, args.duration, **common)
+            rt = run.realtime if loop != "lock-step" else None
             row = {
                 "seed": seed,
                 "loop": loop,
                 "outcome": run.metrics.outcome,
                 "time_to_fall_s": run.metrics.time_to_fall,
                 "tilt_rms_deg": run.metrics.measures.get("tilt_rms_deg"),
-                "latency_p50_ms": rt.latency_p50_ms,
-                "latency_p99_ms": rt.latency_p99_ms,
-                "planner_period_s": rt.period_s,
-                "kept_up": rt.kept_up,
-                "ticks": rt.ticks,
+                "latency_p50_ms": rt.latency_p50_ms if rt else run.metrics.compute_p50_ms,
+                "latency_p99_ms": rt.latency_p99_ms if rt else run.metrics.compute_p99_ms,
+                "planner_period_s": rt.period_s if rt else controller.replan_period,
+                "kept_up": rt.kept_up if rt else None,
+                "ticks": rt.ticks if rt else int(controller.stats["replans"]),
+                "root_speed_end_m_s": end_speed(problem, run, push_body),
             }
             rows.append(row)
             print(json.dumps(jsonable(row)), file=sys.stderr)
@@ -128,7 +126,9 @@ def main() -> None:
             "tilt_rms_deg": [round(r["tilt_rms_deg"], 2) for r in runs],
             "latency_p50_ms": [round(r["latency_p50_ms"], 1) for r in runs],
             "latency_p99_ms": [round(r["latency_p99_ms"], 1) for r in runs],
-            "kept_up": f"{sum(bool(r['kept_up']) for r in runs)}/{len(runs)}",
+            "kept_up": f"{sum(bool(r['kept_up']) for r in runs)}/{len(runs)}"
+            if loop != "lock-step"
+            else None,
         }
     out = {
         "task": args.task,

@@ -94,7 +94,9 @@ class BipedStand(LeggedBalance):
     #: forward on both feet: 255.5 N, 1.48 of
     #: LQR's, with the pelvis back at rest 4 s after the push; a 2 s window had counted a
     #: G1 still hopping as recovered (485.5 N; results/g1_balance_ilqr_settled_push.json,
-    #: results/g1_push_recovery_ilqr.json). The QP-MPC's largest
+    #: results/g1_push_recovery_ilqr.json). That is in lock-step: in the real-time loop on
+    #: 2 cores its replans take 32-47 ms and a 250 N push under noise fails 0/3
+    #: (results/realtime_g1_ilqr_push250.json). The QP-MPC's largest
     #: forward push on two feet (169 N) and LQR's (172.5 N) are both within 4 % of the
     #: capture-point bound of the ankle strategy (175.6 N: the G1's center of mass is 0.117 m
     #: behind its toes), and no single change of the QP options (period, step, horizon,
