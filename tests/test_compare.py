@@ -356,3 +356,21 @@ def _alive(pid: int) -> bool:
             return f.read().split(")")[-1].split()[0] != "Z"
     except OSError:
         return False
+
+
+def test_cli_largest_push_can_ask_for_rest(tmp_path, capsys):
+    """``--push-rest-speed``: a push counts only when the body ends slower than that; no
+    balancing humanoid is still to 1e-12 m/s 3 s after a push, so the limit drops to 0."""
+    out = tmp_path / "res"
+    argv = ["compare", "humanoid_balance", "--controllers", "lqr", "--seeds", "1"]
+    argv += ["--duration", "0.2", "--largest-push", "--push-tolerance", "20"]
+    argv += ["--workers", "1", "--no-progress", "--no-plots", "--out", str(out)]
+    rows = {}
+    for extra in ([], ["--push-rest-speed", "1e-12"]):
+        assert main([*argv, *extra]) == 0
+        capsys.readouterr()
+        with open(out / "results.csv") as f:
+            rows[bool(extra)] = next(csv.DictReader(f))
+    key = next(k for k in rows[False] if "push" in k and "forward" in k)
+    assert float(rows[False][key]) > 0.0
+    assert float(rows[True][key]) == 0.0

@@ -48,6 +48,7 @@ DEFAULTS: dict[str, Any] = {
     "friction_scale": 1.0,
     "largest_push": False,
     "push_tolerance": 2.0,
+    "push_rest_speed": None,
     "set": (),
     "workers": 0,
     "executor": "",
@@ -159,6 +160,12 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
         type=float,
         default=d["push_tolerance"],
         help="bisection tolerance of --largest-push (N)",
+    )
+    add(
+        "--push-rest-speed",
+        type=float,
+        default=d["push_rest_speed"],
+        help="--largest-push: a push counts only if the pushed body ends slower (m/s)",
     )
     add(
         "--set",
@@ -346,6 +353,7 @@ def run_comparison(
             tolerance=args.push_tolerance,
             start=1.0,
             settle=3.0,
+            rest_speed=args.push_rest_speed,
         )
         push_tests = (
             PushTest(direction=(1.0, 0.0, 0.0), name="forward", **common),
