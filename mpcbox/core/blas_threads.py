@@ -12,11 +12,11 @@ in a two-process comparison 49 and 186 ms against 21 and 25 ms
 
 :func:`single_blas_thread` limits every loaded BLAS library to one thread for the length of
 a ``with`` block, through threadpoolctl (about 10 us per block), and restores the previous
-limits afterwards; iLQR enters it once per solve or replan (QP-MPC's sparse OSQP solves and
-the sampling planners measured no difference). Outside the block the user's settings apply
-(``OPENBLAS_NUM_THREADS``, ``threadpoolctl``). The environment variable
-``MPCBOX_PLANNER_BLAS_THREADS`` sets another limit; ``0`` leaves BLAS alone (for a model
-whose matrices are large enough to gain from threads).
+limits afterwards; iLQR enters it once per solve or replan (QP-MPC's tick, whose OSQP solve
+is sparse, measured no difference; the sampling planners were not measured). Outside the
+block the user's settings apply (``OPENBLAS_NUM_THREADS``, ``threadpoolctl``). The
+environment variable ``MPCBOX_PLANNER_BLAS_THREADS`` sets another limit; ``0`` leaves BLAS
+alone (for a model whose matrices are large enough to gain from threads).
 """
 
 from __future__ import annotations
