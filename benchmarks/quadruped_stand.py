@@ -86,7 +86,8 @@ def evaluate(robot: str, args: argparse.Namespace) -> dict:
         body=probe.root,
         start=1.0,
         duration=0.1,
-        settle=2.0,
+        settle=args.push_settle,
+        rest_speed=args.push_rest_speed,
         tolerance=args.push_tolerance,
         max_force=20 * float(probe.model.body_subtreemass[probe.root_id]) * 9.81,
         name="forward",
@@ -138,6 +139,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--first-seed", type=int, default=0, help="seeds run from this one")
     parser.add_argument("--duration", type=float, default=10.0, help="seconds per run")
     parser.add_argument("--push-tolerance", type=float, default=5.0, help="bisection (N)")
+    parser.add_argument("--push-settle", type=float, default=2.0, help="time after the push (s)")
+    parser.add_argument(
+        "--push-rest-speed",
+        type=float,
+        default=None,
+        help="a survived push must also end with the root slower than this (m/s)",
+    )
     parser.add_argument("--no-push", dest="push", action="store_false", help="skip pushes")
     parser.add_argument("--workers", type=int, default=2, help="worker processes")
     parser.add_argument(
@@ -154,7 +162,13 @@ def main(argv: list[str] | None = None) -> int:
         "task": "quadruped_stand (LeggedBalance defaults; noise recipe: 5 % of each range)",
         "seeds": args.seeds,
         "duration_s": args.duration,
-        "push": {"start_s": 1.0, "duration_s": 0.1, "settle_s": 2.0, "noise": 0},
+        "push": {
+            "start_s": 1.0,
+            "duration_s": 0.1,
+            "settle_s": args.push_settle,
+            "rest_speed_m_s": args.push_rest_speed,
+            "noise": 0,
+        },
         "controller_options": json.loads(args.controller_options),
         "robots": {robot: evaluate(robot, args) for robot in args.robots.split(",")},
     }
