@@ -44,7 +44,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from json_report import finish  # benchmarks/ is not a package
-from quadruped_stand import controller_summary  # benchmarks/ is not a package
+from quadruped_stand import (  # benchmarks/ is not a package
+    add_push_options,
+    controller_summary,
+    push_record,
+)
 
 from mpcbox.comparison.runner import compare
 from mpcbox.comparison.scenario import PushTest, Scenario
@@ -91,13 +95,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--first-seed", type=int, default=0, help="seeds run from this one")
     parser.add_argument("--duration", type=float, default=10.0, help="seconds per run")
     parser.add_argument("--push-tolerance", type=float, default=5.0, help="bisection (N)")
-    parser.add_argument("--push-settle", type=float, default=2.0, help="time after the push (s)")
-    parser.add_argument(
-        "--push-rest-speed",
-        type=float,
-        default=None,
-        help="a survived push must also end with the pelvis slower than this (m/s)",
-    )
+    add_push_options(parser)
     parser.add_argument("--workers", type=int, default=2, help="worker processes")
     parser.add_argument("--tick-seconds", type=float, default=5.0, help="QP tick run (s)")
     parser.add_argument("--json", default="", help="also write the JSON here")
@@ -123,13 +121,7 @@ def main(argv: list[str] | None = None) -> int:
         "first_seed": args.first_seed,
         "duration_s": args.duration,
         "dry_friction": args.dry_friction,
-        "push": {
-            "start_s": 1.0,
-            "duration_s": 0.1,
-            "settle_s": args.push_settle,
-            "rest_speed_m_s": args.push_rest_speed,
-            "noise": 0,
-        },
+        "push": push_record(args),
     }
     for stance in ("two", "left"):
         options = {"model": MODEL, "stance": stance, "threads": 1}

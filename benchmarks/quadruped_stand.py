@@ -78,6 +78,28 @@ def controller_summary(result: Comparison, name: str) -> dict:
     return out
 
 
+def add_push_options(parser: argparse.ArgumentParser) -> None:
+    """``--push-settle`` and ``--push-rest-speed`` of the largest-push test."""
+    parser.add_argument("--push-settle", type=float, default=2.0, help="time after the push (s)")
+    parser.add_argument(
+        "--push-rest-speed",
+        type=float,
+        default=None,
+        help="a survived push must also end with the root slower than this (m/s)",
+    )
+
+
+def push_record(args: argparse.Namespace) -> dict:
+    """The push test's settings, for the JSON: 0.1 s at 1 s, no noise."""
+    return {
+        "start_s": 1.0,
+        "duration_s": 0.1,
+        "settle_s": args.push_settle,
+        "rest_speed_m_s": args.push_rest_speed,
+        "noise": 0,
+    }
+
+
 def evaluate(robot: str, args: argparse.Namespace) -> dict:
     """One robot's results, JSON-ready."""
     model = f"menagerie:{robot}"
@@ -139,13 +161,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--first-seed", type=int, default=0, help="seeds run from this one")
     parser.add_argument("--duration", type=float, default=10.0, help="seconds per run")
     parser.add_argument("--push-tolerance", type=float, default=5.0, help="bisection (N)")
-    parser.add_argument("--push-settle", type=float, default=2.0, help="time after the push (s)")
-    parser.add_argument(
-        "--push-rest-speed",
-        type=float,
-        default=None,
-        help="a survived push must also end with the root slower than this (m/s)",
-    )
+    add_push_options(parser)
     parser.add_argument("--no-push", dest="push", action="store_false", help="skip pushes")
     parser.add_argument("--workers", type=int, default=2, help="worker processes")
     parser.add_argument(
@@ -162,13 +178,7 @@ def main(argv: list[str] | None = None) -> int:
         "task": "quadruped_stand (LeggedBalance defaults; noise recipe: 5 % of each range)",
         "seeds": args.seeds,
         "duration_s": args.duration,
-        "push": {
-            "start_s": 1.0,
-            "duration_s": 0.1,
-            "settle_s": args.push_settle,
-            "rest_speed_m_s": args.push_rest_speed,
-            "noise": 0,
-        },
+        "push": push_record(args),
         "controller_options": json.loads(args.controller_options),
         "robots": {robot: evaluate(robot, args) for robot in args.robots.split(",")},
     }
