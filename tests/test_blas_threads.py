@@ -59,3 +59,9 @@ def test_ilqr_solves_and_replans_under_the_limit(two_blas_threads, monkeypatch):
     assert len(seen) >= 3 and all(s == {1} for s in seen)
     assert set(blas_threads()) == {2}  # the user's setting is back
     assert np.all(np.isfinite(controller.last_result.ctrls))
+    # A bad setting is the user's error, not a replan that failed and fell back.
+    monkeypatch.setenv("MPCBOX_PLANNER_BLAS_THREADS", "many")
+    fallbacks = controller.stats["fallbacks"]
+    with pytest.raises(InvalidArgumentError, match="MPCBOX_PLANNER_BLAS_THREADS"):
+        controller(x0, 10 * controller.replan_period)
+    assert controller.stats["fallbacks"] == fallbacks

@@ -168,20 +168,24 @@ class ILQR(ILQRSolver, Controller):
                 guess = self.states_init
             else:
                 guess = self._shifted_states(time, state) if cfg.warm_start_states else None
-            try:
-                # MuJoCo's warnings of diverged rollouts are counted (result.divergences),
-                # not printed; BLAS keeps to one thread (mpcbox.core.blas_threads).
-                with captured_warnings(), single_blas_thread():
-                    if guess is None:
-                        result = self._optimize(
-                            state, warm, iters, self._regularization, None, retries
-                        )
-                    else:
-                        result = optimize_multiple_shooting(
-                            self, state, guess, warm, iters, self._regularization, retries
-                        )
-            except MpcboxError:
-                result = None
+            # BLAS keeps to one thread (mpcbox.core.blas_threads), entered outside the
+            # try: a bad MPCBOX_PLANNER_BLAS_THREADS is the user's error to see, not a
+            # failed replan to count as a fallback.
+            with single_blas_thread():
+                try:
+                    # MuJoCo's warnings of diverged rollouts are counted
+                    # (result.divergences), not printed.
+                    with captured_warnings():
+                        if guess is None:
+                            result = self._optimize(
+                                state, warm, iters, self._regularization, None, retries
+                            )
+                        else:
+                            result = optimize_multiple_shooting(
+                                self, state, guess, warm, iters, self._regularization, retries
+                            )
+                except MpcboxError:
+                    result = None
             if result is None:
                 self._counts["fallbacks"] += 1
             else:
