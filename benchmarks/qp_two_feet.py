@@ -1,6 +1,6 @@
 """Two-feet push recovery: LQR against QP-MPC variants on a grid of forces; prints JSON.
 
-Each trial is the push scenario of ``docs/results/legged.md`` on
+Each trial is the push scenario of ``docs/results/humanoid.md`` on
 :class:`~mpcbox.tasks.HumanoidTwoFeet`: a 0.1 s push on the torso at t = 1 s, the robot must
 stay up 3 s after it (no noise, seed 0). Every (controller, direction, force) runs once, in
 parallel worker processes; each grid is then summarized by

@@ -91,9 +91,9 @@ class BipedStand(LeggedBalance):
     #: replans stalled, 23 ms median tick) and a 162.9 N forward push, 0.94 of LQR's
     #: (results/g1_balance_ilqr.json). With the iLQR of stop 41 (the code of stop 31 fell
     #: after 200 and 250 N pushes on the same G1) it recovers from larger pushes by hopping
-    #: forward on both feet: 255.5 N, 1.48 of
-    #: LQR's, with the pelvis back at rest 4 s after the push; a 2 s window had counted a
-    #: G1 still hopping as recovered (485.5 N; results/g1_balance_ilqr_settled_push.json,
+    #: forward on both feet: 255.5 N, 1.48 of LQR's, with the pelvis back at rest 4 s after
+    #: the push; a 2 s window had counted a G1 still hopping as recovered (485.5 N;
+    #: results/g1_balance_ilqr_settled_push.json,
     #: results/g1_push_recovery_ilqr.json). That is in lock-step: in the real-time loop on
     #: 2 cores its replans take 32-47 ms and a 250 N push under noise fails 0/3
     #: (results/realtime_g1_ilqr_push250.json). The QP-MPC's largest
