@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 import mpcbox
-from mpcbox.cli.compare import parse_sets
+from mpcbox.cli.compare import default_push_body, parse_sets
 from mpcbox.comparison.robustness import end_speed
 from mpcbox.registry import make_controller, task_class
 from mpcbox.sim.trajectory import jsonable
@@ -85,7 +85,9 @@ def main() -> None:
     loops = [names[name] for name in args.loops.split(",")]
     options = parse_sets([f"ilqr.{item}" for item in args.set]).get("ilqr", {})
     problem = task_class(args.task)()
-    push_body = getattr(problem, "root", None) or "torso"
+    where = argparse.Namespace(push_body=None)
+    default_push_body(where, problem)  # the root body, as `mpcbox compare --push` pushes
+    push_body = where.push_body
     pushes = (
         [mpcbox.Push(force=(args.push, 0.0, 0.0), start=2.0, duration=0.1, body=push_body)]
         if args.push
