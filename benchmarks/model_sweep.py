@@ -51,8 +51,9 @@ OPTIONS = {
 }
 
 
-def models() -> dict[str, str]:
-    """Model name -> MJCF path (or ``menagerie:`` name)."""
+def models(all_menagerie: bool = False) -> dict[str, str]:
+    """Model name -> MJCF path (or ``menagerie:`` name); ``all_menagerie`` adds every robot
+    folder of ``MENAGERIE_ROOT`` to the nine tuned-for or long-swept ones."""
     import dm_control.suite
     import mujoco_warp
 
@@ -78,6 +79,11 @@ def models() -> dict[str, str]:
             "anybotics_anymal_c unitree_go2 unitree_g1 robotiq_2f85"
         ).split():
             out[f"menagerie:{name}"] = f"menagerie:{name}"
+        if all_menagerie:
+            root = Path(os.environ["MENAGERIE_ROOT"])
+            for folder in sorted(root.iterdir()):
+                if folder.is_dir() and f"menagerie:{folder.name}" not in out:
+                    out[f"menagerie:{folder.name}"] = f"menagerie:{folder.name}"
     return out
 
 
@@ -305,6 +311,11 @@ def main(argv=None) -> int:
     parser.add_argument("--label", default="run")
     parser.add_argument("--models", default="", help="comma-separated substrings")
     parser.add_argument("--skip-models", action="store_true")
+    parser.add_argument(
+        "--all-menagerie",
+        action="store_true",
+        help="also every other robot folder of MENAGERIE_ROOT (generic Problem and controllers)",
+    )
     parser.add_argument("--skip-bad-inputs", action="store_true")
     parser.add_argument("--timeout", type=float, default=300.0)
     parser.add_argument("--groups", default="", help="bad-input groups (default: all)")
@@ -327,7 +338,7 @@ def main(argv=None) -> int:
     results: dict = {}
     if not args.skip_models:
         wanted = [s for s in args.models.split(",") if s]
-        for name, path in {**models(), **task_entries()}.items():
+        for name, path in {**models(args.all_menagerie), **task_entries()}.items():
             if wanted and not any(w in name for w in wanted):
                 continue
             start = time.perf_counter()
