@@ -27,6 +27,7 @@ import numpy as np
 from scipy.linalg import get_lapack_funcs
 
 from mpcbox.controllers.ilqr.boxqp import solve_box_qp
+from mpcbox.controllers.ilqr.riccati_cache import RiccatiCache, RiccatiChain
 from mpcbox.core.problem import Linearization, Quadratization
 from mpcbox.errors import SolverError
 
@@ -223,6 +224,7 @@ def backward_pass(
     k_init: np.ndarray | None = None,
     gaps: np.ndarray | None = None,
     blocks: DynamicsBlocks | None = None,
+    cache: RiccatiCache | None = None,
 ) -> BackwardPass:
     r"""Riccati recursion with box-constrained feed-forward (see the module docstring).
 
@@ -240,6 +242,10 @@ def backward_pass(
             ``t`` is :math:`V_x + V_{xx} f_t` (FDDP, Mastalli et al. 2020). ``None``: no
             defects (single shooting).
         blocks: :func:`dynamics_blocks` of ``lin``, when the caller keeps them.
+        cache: Matrices of earlier passes over the same ``blocks`` (by identity) and cost
+            Hessians (:mod:`~mpcbox.controllers.ilqr.riccati_cache`): the knots it holds cost
+            matrix-vector products only, and the knots computed in full extend it. The result
+            is the same as without it, to rounding.
 
     Returns:
         A :class:`BackwardPass`.
@@ -250,23 +256,112 @@ def backward_pass(
     """
     horizon, nx, nu = lin.B.shape
     limited = bool(np.any(np.isfinite(ctrl_low)) or np.any(np.isfinite(ctrl_high)))
-    FA, FT = dynamics_blocks(lin) if blocks is None else blocks
-    LQ = _cost_blocks(quad, horizon, nx, nu)
+    if blocks is None:
+        blocks = dynamics_blocks(lin)
     low, high = ctrl_low - ctrls, ctrl_high - ctrls
     k = np.zeros((horizon, nu))
     K = np.zeros((horizon, nu, nx))
     free = np.ones((horizon, nu), dtype=bool)
+    chain = None if cache is None else cache.chain(blocks, quad, regularization, nu)
+    vx = quad.lx[horizon].copy()
+    t, dv1, dv2 = horizon - 1, 0.0, 0.0
+    if chain is not None:
+        t, vx, dv1, dv2 = _chained_knots(chain, blocks.FT, quad, gaps, low, high, limited, k, K)
+    if t >= 0:
+        record = chain is not None and t == chain.lowest - 1  # ran out, not clamped
+        vxx = quad.lxx[horizon] if chain is None else chain.vxx[t + 1]
+        dv = _full_knots(
+            t,
+            vx,
+            vxx,
+            blocks,
+            quad,
+            gaps,
+            low,
+            high,
+            limited,
+            regularization,
+            k_init,
+            k,
+            K,
+            free,
+            chain if record else None,
+        )
+        dv1, dv2 = dv1 + dv[0], dv2 + dv[1]
+    elif not (np.all(np.isfinite(vx)) and math.isfinite(dv1 + dv2)):
+        raise SolverError("non-finite value function at knot 0")
+    return BackwardPass(k, K, (dv1, dv2), free)
+
+
+def _chained_knots(
+    chain: RiccatiChain,
+    FT: np.ndarray,
+    quad: Quadratization,
+    gaps: np.ndarray | None,
+    low: np.ndarray,
+    high: np.ndarray,
+    limited: bool,
+    k: np.ndarray,
+    K: np.ndarray,
+) -> tuple[int, np.ndarray, float, float]:
+    """The knots the chain holds, from the last down, by matrix-vector products; stops at
+    the chain's end or at a knot whose step leaves the box. Returns the next knot to compute
+    in full (``-1``: none), :math:`V_x` after the last one done, and ``(dV1, dV2)``."""
+    nx = quad.lx.shape[1]
+    t = len(k) - 1
+    vx = quad.lx[t + 1].copy()
+    dv1 = dv2 = 0.0
+    while t >= chain.lowest:
+        v = vx if gaps is None else vx + chain.vxx[t + 1] @ gaps[t]
+        q = FT[t] @ v
+        qu = q[nx:] + quad.lu[t]
+        kt = chain.neg_inv[t] @ qu
+        if limited and ((kt < low[t]).any() or (kt > high[t]).any()):
+            break
+        w = chain.quu[t] @ kt
+        dv1 += float(kt @ qu)
+        dv2 += 0.5 * float(kt @ w)
+        Kt = chain.K[t]
+        vx = q[:nx] + quad.lx[t] + Kt.T @ (w + qu) + chain.qux[t].T @ kt
+        k[t], K[t] = kt, Kt
+        t -= 1
+    return t, vx, dv1, dv2
+
+
+def _full_knots(
+    start: int,
+    vx: np.ndarray,
+    vxx: np.ndarray,
+    blocks: DynamicsBlocks,
+    quad: Quadratization,
+    gaps: np.ndarray | None,
+    low: np.ndarray,
+    high: np.ndarray,
+    limited: bool,
+    regularization: float,
+    k_init: np.ndarray | None,
+    k: np.ndarray,
+    K: np.ndarray,
+    free: np.ndarray,
+    chain: RiccatiChain | None,
+) -> tuple[float, float]:
+    """Knots ``start`` down to 0 by the full recursion from ``[V_x | V_xx]`` at
+    ``start + 1``; while no control is clamped, each knot's matrices go into ``chain``.
+    Returns ``(dV1, dV2)`` of these knots."""
+    _, nu, nx = K.shape
+    FA, FT = blocks
+    LQ = _cost_blocks(quad, start + 1, nx, nu)
     reg = regularization * np.eye(nu)
     # Work arrays reused at every knot: the value [V_x | V_xx] (nx, 1 + nx), [V_x | V_xx F_t]
     # (nx, 1 + n), the Q-function [q | Q] (n, 1 + n) and the gains [k_t | K_t] (nu, 1 + nx).
     value = np.empty((nx, 1 + nx))
-    value[:, 0] = quad.lx[horizon]
-    value[:, 1:] = quad.lxx[horizon]
+    value[:, 0] = vx
+    value[:, 1:] = vxx
     vq = np.empty((nx, 1 + nx + nu))
     qq = np.empty((nx + nu, 1 + nx + nu))
     gain = np.empty((nu, 1 + nx))
     dv1 = dv2 = 0.0
-    for t in range(horizon - 1, -1, -1):
+    for t in range(start, -1, -1):
         if gaps is not None:
             value[:, 0] += value[:, 1:] @ gaps[t]
         np.matmul(value, FA[t], out=vq)
@@ -283,7 +378,13 @@ def backward_pass(
         np.negative(sol, out=gain)
         kt, Kt = gain[:, 0], gain[:, 1:]
         if limited and ((kt < low[t]).any() or (kt > high[t]).any()):
+            chain = None  # the clamped set changes K here and V_xx before
             free[t] = _clamped_gain(gain, quu_reg, qu_qux, low[t], high[t], k_init, t)
+        elif chain is not None:
+            chain.neg_inv[t] = -_POTRS(factor, np.eye(nu), lower=1)[0]
+            chain.quu[t] = quu
+            chain.qux[t] = qu_qux[:, 1:]
+            chain.K[t] = Kt
         k[t], K[t] = kt, Kt
         w = quu @ gain  # [Q_uu k | Q_uu K]
         dv1 += float(kt @ qu_qux[:, 0])
@@ -293,11 +394,14 @@ def backward_pass(
         np.matmul(Kt.T, w, out=value)
         value += qq[:nx, : 1 + nx]
         value += qu_qux[:, 1:].T @ gain
-        vxx = value[:, 1:]
-        vxx[...] = 0.5 * (vxx + vxx.T)
+        vxx_t = value[:, 1:]
+        vxx_t[...] = 0.5 * (vxx_t + vxx_t.T)
         if not math.isfinite(float(value.sum())):
             raise SolverError(f"non-finite value function at knot {t}")
-    return BackwardPass(k, K, (dv1, dv2), free)
+        if chain is not None:
+            chain.vxx[t] = vxx_t
+            chain.lowest = t
+    return dv1, dv2
 
 
 __all__ = [

@@ -29,12 +29,15 @@ from mpcbox.validation import (
 LineSearch = Literal["backtracking", "parallel"]
 TerminalValue = Literal["lqr"]
 DynamicsLinearization = Literal["trajectory", "reference"]
+CostHessian = Literal["trajectory", "reference"]
 #: Valid values of :attr:`ILQRConfig.line_search`.
 LINE_SEARCHES: tuple[str, ...] = ("backtracking", "parallel")
 #: Valid values of :attr:`ILQRConfig.terminal_value` besides ``None``.
 TERMINAL_VALUES: tuple[str, ...] = ("lqr",)
 #: Valid values of :attr:`ILQRConfig.linearization`.
 LINEARIZATIONS: tuple[str, ...] = ("trajectory", "reference")
+#: Valid values of :attr:`ILQRConfig.cost_hessian`.
+COST_HESSIANS: tuple[str, ...] = ("trajectory", "reference")
 
 
 @checked_options
@@ -149,6 +152,17 @@ class ILQRConfig:
             drift from the standing reference (under 1.2 % with the friction removed), and
             iLQR-MPC linearized along its trajectories fell where the reference
             linearization stood (:class:`~mpcbox.tasks.legged.biped.BipedStand`).
+        cost_hessian: Where the cost's Gauss-Newton Hessians
+            :math:`\ell_{xx}, \ell_{uu}, \ell_{ux}` come from: ``"trajectory"`` (each knot's
+            residual Jacobians) or ``"reference"`` (once, at the reference state and
+            ``ctrl_ref`` at every knot; the gradients stay each knot's). Terms with constant
+            Jacobians (state and control costs) give the same Hessians either way. With
+            ``linearization="reference"`` too, every backward pass of a given :math:`\mu`
+            has the same matrices, which the solver keeps
+            (:mod:`~mpcbox.controllers.ilqr.riccati_cache`): a pass then costs matrix-vector
+            products at every knot where no control is clamped. The solver keeps them
+            whenever the dynamics are linearized at the reference and the Hessians repeat,
+            whichever this option is.
 
     Raises:
         InvalidArgumentError: Naming the field, if a value is out of range.
@@ -184,6 +198,7 @@ class ILQRConfig:
     planning_timestep: float | None = None
     terminal_value: TerminalValue | None = None
     linearization: DynamicsLinearization = "trajectory"
+    cost_hessian: CostHessian = "trajectory"
 
     def __post_init__(self) -> None:
         def put(name: str, value: object) -> None:
@@ -234,6 +249,7 @@ class ILQRConfig:
         if self.terminal_value is not None:
             one_of("terminal_value", self.terminal_value, TERMINAL_VALUES)
         one_of("linearization", self.linearization, LINEARIZATIONS)
+        one_of("cost_hessian", self.cost_hessian, COST_HESSIANS)
         for name in ("ctrl_low", "ctrl_high", "ctrls_init"):  # shapes: by the controller
             value = getattr(self, name)
             if value is not None:  # infinite bounds mean none; an initial guess is finite
@@ -265,9 +281,11 @@ class ILQRConfig:
 
 
 __all__ = [
+    "COST_HESSIANS",
     "LINEARIZATIONS",
     "LINE_SEARCHES",
     "TERMINAL_VALUES",
+    "CostHessian",
     "DynamicsLinearization",
     "ILQRConfig",
     "LineSearch",

@@ -251,7 +251,16 @@ def optimize_multiple_shooting(
             t0 = _time.perf_counter()
             try:
                 bp = backward_pass(
-                    lin, quad, ctrls, solver.ctrl_low, solver.ctrl_high, mu.value, k, gaps, blocks
+                    lin,
+                    quad,
+                    ctrls,
+                    solver.ctrl_low,
+                    solver.ctrl_high,
+                    mu.value,
+                    k,
+                    gaps,
+                    blocks,
+                    solver.riccati_cache,
                 )
             except SolverError:
                 bp = None

@@ -19,17 +19,25 @@ import numpy as np
 from mpcbox.config import resolve_config
 from mpcbox.controllers.base import check_problem
 from mpcbox.controllers.ilqr.backward_pass import (
+    BackwardPass,
     DynamicsBlocks,
     backward_pass,
     dynamics_blocks,
     interpolate_linearization,
 )
+from mpcbox.controllers.ilqr.bounds import control_bounds
 from mpcbox.controllers.ilqr.config import ILQRConfig
 from mpcbox.controllers.ilqr.forward_pass import Candidate, ClosedLoopRollout, line_search
 from mpcbox.controllers.ilqr.held_controls import compose_held, held_steps, scale_running
 from mpcbox.controllers.ilqr.multiple_shooting import optimize_multiple_shooting
+from mpcbox.controllers.ilqr.reference_model import (
+    constant_hessians,
+    hessians_at_reference,
+    linearization_at_reference,
+)
 from mpcbox.controllers.ilqr.regularization import Regularization
 from mpcbox.controllers.ilqr.result import ILQRResult, StopReason, Timing
+from mpcbox.controllers.ilqr.riccati_cache import RiccatiCache
 from mpcbox.controllers.lqr import with_lqr_terminal_value
 from mpcbox.core.blas_threads import single_blas_thread
 from mpcbox.core.divergence import check_planning_step
@@ -90,7 +98,7 @@ class ILQRSolver:
         self.config = cfg
         self.horizon = cfg.horizon
         self.threads = problem.threads if cfg.threads is None else cfg.threads
-        self.ctrl_low, self.ctrl_high = _control_bounds(problem, cfg)
+        self.ctrl_low, self.ctrl_high = control_bounds(problem, cfg)
         self._ctrls_init = self._initial_ctrls(cfg.ctrls_init)
         self._guess_given = cfg.ctrls_init is not None
         self.states_init = (
@@ -101,10 +109,25 @@ class ILQRSolver:
         self._knots = np.unique(
             np.r_[np.arange(0, self.horizon, cfg.linearize_every), self.horizon - 1]
         )
-        self._reference_lin = None if cfg.linearization == "trajectory" else self._at_reference()
+        ctrl_ref = np.clip(problem.ctrl_ref, self.ctrl_low, self.ctrl_high)
+        self._reference_lin = (
+            None
+            if cfg.linearization == "trajectory"
+            else linearization_at_reference(
+                problem, ctrl_ref, self.horizon, self.steps, cfg.fd_centered
+            )
+        )
         self._reference_blocks = (
             None if self._reference_lin is None else dynamics_blocks(self._reference_lin)
         )
+        self._reference_hessians = (
+            hessians_at_reference(problem, ctrl_ref, self.horizon, self.steps)
+            if cfg.cost_hessian == "reference"
+            else None
+        )
+        #: The backward pass's matrices, kept when the dynamics and cost Hessians repeat.
+        repeat = self._reference_hessians is not None or constant_hessians(problem)
+        self.riccati_cache = RiccatiCache() if self._reference_lin is not None and repeat else None
 
     @property
     def knot_dt(self) -> float:
@@ -177,18 +200,6 @@ class ILQRSolver:
             return states, np.inf
         return states, cost
 
-    def _at_reference(self) -> Linearization:
-        """``A`` ``(T, nx, nx)`` and ``B`` ``(T, nx, nu)``: the planning model's Jacobians at
-        the reference state and ``ctrl_ref`` (within the bounds) at every knot."""
-        p = self.problem
-        ctrl = np.clip(p.ctrl_ref, self.ctrl_low, self.ctrl_high)
-        A, B = p.linearize(p.reference_state(), ctrl, centered=self.config.fd_centered)
-        A, B = compose_held(Linearization(A, B), self.steps)
-        return Linearization(
-            np.broadcast_to(A, (self.horizon, *A.shape)),
-            np.broadcast_to(B, (self.horizon, *B.shape)),
-        )
-
     def _derivatives(
         self, states: np.ndarray, ctrls: np.ndarray
     ) -> tuple[Linearization, Quadratization]:
@@ -201,8 +212,13 @@ class ILQRSolver:
             )
             lin = compose_held(lin, self.steps)
             lin = interpolate_linearization(lin.A, lin.B, knots, self.horizon)
-        quad = p.quadratize_trajectory(states, ctrls, threads=self.threads)
-        return lin, scale_running(quad, self.steps)
+        quad = scale_running(
+            p.quadratize_trajectory(states, ctrls, threads=self.threads), self.steps
+        )
+        if self._reference_hessians is not None:
+            lxx, luu, lux = self._reference_hessians
+            quad = quad._replace(lxx=lxx, luu=luu, lux=lux)
+        return lin, quad
 
     def _blocks(self, lin: Linearization) -> DynamicsBlocks:
         """The backward pass's blocks of ``lin``: kept for the solver's life when the dynamics
@@ -210,6 +226,19 @@ class ILQRSolver:
         if self._reference_blocks is not None and lin is self._reference_lin:
             return self._reference_blocks
         return dynamics_blocks(lin)
+
+    def _backward(
+        self,
+        lin: Linearization,
+        quad: Quadratization,
+        ctrls: np.ndarray,
+        mu: float,
+        k: np.ndarray,
+        blocks: DynamicsBlocks | None,
+    ) -> BackwardPass:
+        """:func:`backward_pass` within the solver's bounds, with its Riccati cache."""
+        low, high, cache = self.ctrl_low, self.ctrl_high, self.riccati_cache
+        return backward_pass(lin, quad, ctrls, low, high, mu, k, blocks=blocks, cache=cache)
 
     def _schedule(self, value: float) -> Regularization:
         """The regularization of one solve, starting at ``value``, on the config's schedule."""
@@ -325,9 +354,7 @@ class ILQRSolver:
                 iteration += 1
             t0 = _time.perf_counter()
             try:
-                bp = backward_pass(
-                    lin, quad, ctrls, self.ctrl_low, self.ctrl_high, mu.value, k, blocks=blocks
-                )
+                bp = self._backward(lin, quad, ctrls, mu.value, k, blocks)
             except SolverError:
                 t_back += _time.perf_counter() - t0
                 mu.increase()
@@ -428,9 +455,7 @@ class ILQRSolver:
         replan. The feedback law is the Riccati gain of the model, not a step-size device.
         """
         try:
-            bp = backward_pass(
-                lin, quad, ctrls, self.ctrl_low, self.ctrl_high, regularization, k, blocks=blocks
-            )
+            bp = self._backward(lin, quad, ctrls, regularization, k, blocks)
         except SolverError:
             return K
         return bp.K
@@ -470,30 +495,6 @@ class ILQRSolver:
         if regularization > self.config.regularization_max:
             return StopReason.REGULARIZATION_LIMIT
         return StopReason.RETRY_LIMIT
-
-
-def _control_bounds(problem: Problem, cfg: ILQRConfig) -> tuple[np.ndarray, np.ndarray]:
-    """The config's control bounds, checked and intersected with the Problem's."""
-    nu = problem.nu
-    low = problem.ctrl_low if cfg.ctrl_low is None else as_array("ctrl_low", cfg.ctrl_low, (nu,))
-    high = problem.ctrl_high
-    if cfg.ctrl_high is not None:
-        high = as_array("ctrl_high", cfg.ctrl_high, (nu,))
-    if np.any(np.isnan(low)) or np.any(np.isnan(high)):
-        raise InvalidArgumentError("ctrl_low and ctrl_high must not hold NaN")
-    if np.any(low > high):
-        bad = np.flatnonzero(low > high)
-        raise InvalidArgumentError(
-            f"ctrl_low must be <= ctrl_high; inverted at actuators {bad.tolist()}: "
-            f"ctrl_low={low[bad]}, ctrl_high={high[bad]}"
-        )
-    low, high = np.maximum(low, problem.ctrl_low), np.minimum(high, problem.ctrl_high)
-    if np.any(low > high):
-        raise InvalidArgumentError(
-            "ctrl_low/ctrl_high do not overlap the model's ctrlrange "
-            f"[{problem.ctrl_low}, {problem.ctrl_high}]"
-        )
-    return low, high
 
 
 __all__ = ["ILQRSolver"]
