@@ -29,7 +29,7 @@ from mpcbox.core.cost.rows import (
     VelocityRow,
 )
 from mpcbox.core.tangent import quat_difference
-from mpcbox.errors import UnsupportedCostTermError
+from mpcbox.errors import CostDefinitionError, UnsupportedCostTermError
 from mpcbox.tasks import scene_path
 
 
@@ -179,3 +179,45 @@ def test_com_velocity_is_the_subtree_momentum_over_its_mass():
     want = momentum[:2] / model.body_mass[1:].sum()
     assert np.linalg.norm(want) > 0.1
     np.testing.assert_allclose(r, want, rtol=1e-9, atol=1e-9)
+
+
+def test_quadratization_on_each_terms_stage_equals_full_forward(monkeypatch):
+    """Each term runs only the part of mj_forward its stage names; the quadratization (value,
+    gradients, Hessians) is the one with the whole of mj_forward, term by term and together,
+    at states away from the reference, for analytic and finite-difference Jacobians."""
+    from mpcbox.core import derivatives
+
+    humanoid = scene_path("humanoid.xml")
+    ref = mpcbox.Problem(humanoid, keyframe="stand")
+    terms = [
+        StateCost(ref.qpos_ref, weight_qpos=2.0, weight_qvel=0.5),
+        ControlCost(np.full(ref.nu, 0.1), weight=np.linspace(0.5, 1.5, ref.nu)),
+        ComOverSupport("foot_left", weight=[3.0, 4.0], root="torso"),
+        FramePosition("hand_right", np.array([0.2, -0.3, 1.0]), weight=[1.0, 0.0, 2.0]),
+        HeightAbove("torso", "foot_left", 1.2, weight=3.0),
+        Upright("torso", weight=[2.0, 3.0]),
+        ComVelocity(weight=[2.0, 5.0], root="torso"),
+    ]
+    assert [t.stage for t in terms] == ["none", "none", "pos", "pos", "pos", "pos", "vel"]
+    rng = np.random.default_rng(5)
+    x0 = ref.reference_state()
+    states = np.array([ref.state_add(x0, 0.2 * rng.standard_normal(ref.nx)) for _ in range(4)])
+    ctrls = ref.clip_ctrl(ref.ctrl_ref + rng.standard_normal((3, ref.nu)))
+    for chosen in [[t] for t in terms] + [terms]:
+        problem = mpcbox.Problem(humanoid, keyframe="stand", cost=Cost(chosen), threads=1)
+        fast = problem.quadratize_trajectory(states, ctrls)
+        with monkeypatch.context() as patch:
+            patch.setattr(derivatives, "forward_stage", lambda terms: "acc")
+            full = problem.quadratize_trajectory(states, ctrls)
+        for name, a, b in zip(fast._fields, fast, full, strict=True):
+            np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-10, err_msg=name)
+
+
+def test_a_term_with_an_unknown_stage_is_named():
+    from mpcbox.core.cost import forward_stage
+
+    class Odd(ControlCost):
+        stage = "position"
+
+    with pytest.raises(CostDefinitionError, match=r"stage 'position'.*'none', 'pos'"):
+        forward_stage([Odd(np.zeros(2), weight=1.0, name="odd")])

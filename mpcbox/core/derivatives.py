@@ -21,7 +21,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from mpcbox.core.cost import Cost, CostTerm, Features
+from mpcbox.core.cost import Cost, CostTerm, Features, forward_stage
 from mpcbox.core.dynamics import Dynamics, Rollout, mujoco_errors, write_state
 from mpcbox.core.tangent import TangentSpace
 
@@ -56,10 +56,30 @@ def read_features(data: mujoco.MjData) -> Features:
     )
 
 
-def _forward(dynamics: Dynamics, data: mujoco.MjData, state: np.ndarray, ctrl: np.ndarray):
+def _forward(
+    dynamics: Dynamics,
+    data: mujoco.MjData,
+    state: np.ndarray,
+    ctrl: np.ndarray,
+    stage: str = "acc",
+) -> None:
+    """Write ``(state, ctrl)`` into ``data`` and run as much of ``mj_forward`` as ``stage``
+    (:data:`~mpcbox.core.cost.STAGES`) needs. Below ``"acc"`` the sensors of later stages
+    keep stale values; the terms that asked for that stage do not read them."""
     write_state(data, state)
     data.ctrl[:] = ctrl
-    mujoco.mj_forward(dynamics.model, data)
+    model = dynamics.model
+    if stage == "acc":
+        mujoco.mj_forward(model, data)
+    elif stage == "vel":
+        mujoco.mj_fwdPosition(model, data)
+        mujoco.mj_sensorPos(model, data)
+        mujoco.mj_fwdVelocity(model, data)
+        mujoco.mj_sensorVel(model, data)
+    elif stage == "pos":
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        mujoco.mj_sensorPos(model, data)
 
 
 def evaluate_features(dynamics: Dynamics, state: np.ndarray, ctrl: np.ndarray) -> Features:
@@ -133,19 +153,20 @@ def quadratize_knots(
     if not terms:
         return Quadratization(value, lx, lu, lxx, luu, lux)
     data = dynamics.scratch_data()
+    stage = forward_stage(terms)
     varying = [t for t in terms if not t.constant_jacobian]
     sens = np.empty((nb, dynamics.model.nsensordata))
     jacs: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {id(t): [] for t in varying}
     with mujoco_errors("quadratize"):
         for b in range(nb):
-            _forward(dynamics, data, states[b], ctrls[b])
+            _forward(dynamics, data, states[b], ctrls[b], stage)
             sens[b] = data.sensordata
             for term in varying:
                 jacs[id(term)].append(
-                    residual_jacobian(dynamics, tangent, term, states[b], ctrls[b], eps)
+                    residual_jacobian(dynamics, tangent, term, states[b], ctrls[b], eps, stage)
                 )
         constant = {
-            id(t): residual_jacobian(dynamics, tangent, t, states[-1], ctrls[-1], eps)
+            id(t): residual_jacobian(dynamics, tangent, t, states[-1], ctrls[-1], eps, stage)
             for t in terms
             if t.constant_jacobian
         }
@@ -230,18 +251,20 @@ def residual_jacobian(
     state: np.ndarray,
     ctrl: np.ndarray,
     eps: float,
+    stage: str = "acc",
 ) -> tuple[np.ndarray, np.ndarray]:
     """``dr/dx`` ``(k, nx)`` and ``dr/du`` ``(k, nu)`` of one term at ``(state, ctrl)``.
 
-    The scratch data of the calling thread must hold ``(state, ctrl)`` after ``mj_forward``;
-    it still does on return.
+    The scratch data of the calling thread must hold ``(state, ctrl)`` after ``mj_forward``
+    up to ``stage`` (at least the term's :attr:`~mpcbox.core.cost.CostTerm.stage`); it still
+    does on return.
     """
     data = dynamics.scratch_data()
     jac = term.jacobian(dynamics.model, data)
     if jac is None:
         r0 = term.residual(read_features(data))[0]
-        jx, ju = residual_fd(dynamics, tangent, term, state, ctrl, r0, eps)
-        _forward(dynamics, data, state, ctrl)
+        jx, ju = residual_fd(dynamics, tangent, term, state, ctrl, r0, eps, stage)
+        _forward(dynamics, data, state, ctrl, stage)
         return jx, ju
     nv = dynamics.nv
     jx = np.zeros((jac.dq.shape[0], dynamics.nx))
@@ -258,6 +281,7 @@ def residual_fd(
     ctrl: np.ndarray,
     r0: np.ndarray,
     eps: float,
+    stage: str = "acc",
 ) -> tuple[np.ndarray, np.ndarray]:
     """Forward differences ``(dr/dx (k, nx), dr/du (k, nu))`` of one term's residual.
 
@@ -271,6 +295,8 @@ def residual_fd(
         ctrl: Control ``(nu,)``.
         r0: The residual ``(k,)`` at ``(state, ctrl)``.
         eps: Finite-difference step.
+        stage: How much of ``mj_forward`` to run at each perturbation (at least the term's
+            :attr:`~mpcbox.core.cost.CostTerm.stage`).
     """
     data = dynamics.scratch_data()
     nx, nu = dynamics.nx, dynamics.nu
@@ -278,7 +304,7 @@ def residual_fd(
     ju = np.zeros((len(r0), nu))
 
     def residual_at(x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        _forward(dynamics, data, x, u)
+        _forward(dynamics, data, x, u, stage)
         return term.residual(read_features(data))[0]
 
     for i in range(nx):

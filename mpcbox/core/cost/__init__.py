@@ -11,7 +11,15 @@ total energy).
 
 from mpcbox.core.cost.actuator_force import ActuatorForce
 from mpcbox.core.cost.angle import WrappedAngle
-from mpcbox.core.cost.base import Cost, CostTerm, Features, Jacobian, SensorRequest
+from mpcbox.core.cost.base import (
+    STAGES,
+    Cost,
+    CostTerm,
+    Features,
+    Jacobian,
+    SensorRequest,
+    forward_stage,
+)
 from mpcbox.core.cost.clearance import SphereClearance
 from mpcbox.core.cost.com import ComOverSupport, ComVelocity
 from mpcbox.core.cost.control import ControlCost
@@ -21,6 +29,7 @@ from mpcbox.core.cost.state import StateCost
 from mpcbox.core.cost.value import QuadraticValue
 
 __all__ = [
+    "STAGES",
     "ActuatorForce",
     "ComOverSupport",
     "ComVelocity",
@@ -39,5 +48,6 @@ __all__ = [
     "StateCost",
     "Upright",
     "WrappedAngle",
+    "forward_stage",
     "rest_energy",
 ]

@@ -30,6 +30,8 @@ class WrappedAngle(CostTerm):
         name: Short label used in reports.
     """
 
+    stage = "none"
+
     @checked_options
     def __init__(self, joint: str, target: float, *, weight: float, name: str = "") -> None:
         super().__init__(weight, name or f"angle_{joint}")

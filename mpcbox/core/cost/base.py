@@ -101,6 +101,12 @@ class CostTerm(abc.ABC):
 
     #: Whether :meth:`jacobian` is the same at every state (computed once per batch).
     constant_jacobian: bool = False
+    #: How much of ``mj_forward`` :meth:`residual` and :meth:`jacobian` need when the cost is
+    #: quadratized (:data:`STAGES`): ``"none"`` (``qpos``, ``qvel``, ``ctrl`` only),
+    #: ``"pos"`` (kinematics, centers of mass and position sensors), ``"vel"`` (velocities
+    #: and velocity sensors too) or ``"acc"`` (all of ``mj_forward``: contact forces,
+    #: accelerations, actuator forces). A term that does not say gets ``"acc"``.
+    stage: str = "acc"
 
     def __init__(self, weight: float | Sequence[float] | np.ndarray, name: str) -> None:
         self._weight_arg = weight
@@ -190,6 +196,27 @@ class CostTerm(abc.ABC):
     def sensor_address(self, sensor_name: str) -> slice:
         """Where one requested sensor sits in ``sensordata``."""
         return self._sensor_adr[sensor_name]
+
+
+#: Valid values of :attr:`CostTerm.stage`, from the least of ``mj_forward`` to all of it.
+STAGES: tuple[str, ...] = ("none", "pos", "vel", "acc")
+
+
+def forward_stage(terms: Sequence[CostTerm]) -> str:
+    """The largest :attr:`~CostTerm.stage` of ``terms`` (``"none"`` for no terms).
+
+    Raises:
+        CostDefinitionError: If a term's ``stage`` is not one of :data:`STAGES`.
+    """
+    level = 0
+    for term in terms:
+        if term.stage not in STAGES:
+            raise CostDefinitionError(
+                f"cost term {term.name!r} of type {type(term).__name__} has stage "
+                f"{term.stage!r}; expected one of {', '.join(map(repr, STAGES))}"
+            )
+        level = max(level, STAGES.index(term.stage))
+    return STAGES[level]
 
 
 class Cost:

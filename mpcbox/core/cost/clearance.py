@@ -38,6 +38,8 @@ class SphereClearance(CostTerm):
         name: Short label used in sensor names and reports.
     """
 
+    stage = "pos"
+
     @checked_options
     def __init__(
         self,

@@ -53,6 +53,8 @@ class ComOverSupport(_SubtreeTerm):
         name: Short label used in sensor names and reports.
     """
 
+    stage = "pos"
+
     @checked_options
     def __init__(
         self,
@@ -106,6 +108,8 @@ class ComVelocity(_SubtreeTerm):
         root: Body whose subtree's center of mass is used (default: body 1, the first body).
         name: Short label used in sensor names and reports.
     """
+
+    stage = "vel"
 
     @checked_options
     def __init__(

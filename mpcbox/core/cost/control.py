@@ -22,6 +22,7 @@ class ControlCost(CostTerm):
     """
 
     constant_jacobian = True
+    stage = "none"
 
     @checked_options
     def __init__(

@@ -43,6 +43,8 @@ class FramePosition(CostTerm):
         name: Short label used in sensor names and reports.
     """
 
+    stage = "pos"
+
     @checked_options
     def __init__(
         self, frame: str, target: np.ndarray, *, weight: float | np.ndarray, name: str = ""
@@ -87,6 +89,8 @@ class FrameHeight(CostTerm):
         weight: Scalar weight.
         name: Short label used in sensor names and reports.
     """
+
+    stage = "pos"
 
     @checked_options
     def __init__(self, frame: str, target: float, *, weight: float, name: str = "") -> None:
@@ -172,6 +176,8 @@ class Upright(CostTerm):
         weight: Scalar or ``(2,)`` weights.
         name: Short label used in sensor names and reports.
     """
+
+    stage = "pos"
 
     @checked_options
     def __init__(self, body: str, *, weight: float | np.ndarray, name: str = "") -> None:

@@ -26,6 +26,7 @@ class StateCost(CostTerm):
     """
 
     constant_jacobian = True
+    stage = "none"
 
     @checked_options
     def __init__(

@@ -28,6 +28,7 @@ class QuadraticValue(CostTerm):
     """
 
     constant_jacobian = True
+    stage = "none"
 
     @checked_options
     def __init__(
