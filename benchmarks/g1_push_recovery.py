@@ -8,7 +8,8 @@ speed at the end, and whether the feet were still moving in the last second. Pri
 needs ``MENAGERIE_ROOT`` (an offline Menagerie copy)::
 
     MENAGERIE_ROOT=/work/menagerie python benchmarks/g1_push_recovery.py \
-        [--controller ilqr] [--forces 150,200,250,300,350,400] [--duration 6]
+        [--controller ilqr] [--forces 150,200,250,300,350,400] [--duration 6] \
+        [--set cost_hessian=reference]
 
 To see what an older version of mpcbox did on the same robot, run this file with that
 checkout first on the path (``git worktree add /tmp/old COMMIT``, then
@@ -48,13 +49,32 @@ def pelvis_speed(problem, state: np.ndarray) -> float:
     return float(np.linalg.norm(velocity[3:]))
 
 
+def _option(item: str) -> tuple[str, object]:
+    """``OPTION=VALUE`` of ``--set``, the value read as JSON where it parses."""
+    name, sep, text = item.partition("=")
+    if not sep or not name:
+        raise SystemExit(f"--set: expected OPTION=VALUE, got {item!r}")
+    try:
+        return name, json.loads(text)
+    except json.JSONDecodeError:
+        return name, text
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--controller", default="ilqr")
     parser.add_argument("--forces", default="150,200,250,300,350,400")
     parser.add_argument("--duration", type=float, default=6.0)
     parser.add_argument("--out", default=None, help="also write the JSON here")
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="OPTION=VALUE",
+        help="controller option (VALUE read as JSON, else as text; repeatable)",
+    )
     args = parser.parse_args()
+    options = dict(_option(item) for item in args.set)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MissingMeshWarning)
         problem = task_class("biped_stand")("menagerie:unitree_g1")
@@ -63,7 +83,7 @@ def main() -> None:
     rows = []
     started = time.perf_counter()
     for force in [float(f) for f in args.forces.split(",")]:
-        controller = make_controller(args.controller, problem)
+        controller = make_controller(args.controller, problem, **options)
         push = mpcbox.Push(force=(force, 0.0, 0.0), start=1.0, duration=0.1, body=problem.root)
         sim = mpcbox.simulate(problem, controller, args.duration, pushes=[push], seed=0)
         height, along = [], []
@@ -85,12 +105,15 @@ def main() -> None:
             "pelvis_speed_end_m_s": round(pelvis_speed(problem, sim.states[-1]), 4),
             "stalled_replans": controller.stats.get("fallbacks"),
             "replans": controller.stats.get("replans"),
+            "tick_median_ms": round(float(sim.metrics.compute_p50_ms), 2),
+            "tick_p99_ms": round(float(sim.metrics.compute_p99_ms), 2),
         }
         rows.append(row)
         print(json.dumps(row), file=sys.stderr)
     out = {
         "robot": "menagerie:unitree_g1 (biped_stand, two feet)",
         "controller": args.controller,
+        "options": options,
         "push": "forward on the pelvis at 1 s for 0.1 s, no noise, seed 0",
         "machine": f"{os.cpu_count()}-core CPU ({platform.machine()})",
         "python": platform.python_version(),

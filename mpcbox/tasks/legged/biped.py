@@ -94,9 +94,19 @@ class BipedStand(LeggedBalance):
     #: forward on both feet: 255.5 N, 1.48 of LQR's, with the pelvis back at rest 4 s after
     #: the push; a 2 s window had counted a G1 still hopping as recovered (485.5 N;
     #: results/g1_balance_ilqr_settled_push.json,
-    #: results/g1_push_recovery_ilqr.json). That is in lock-step: in the real-time loop on
-    #: 2 cores its replans take 32-47 ms and a 250 N push under noise fails 0/3
-    #: (results/realtime_g1_ilqr_push250.json). The QP-MPC's largest
+    #: results/g1_push_recovery_ilqr.json). Stop 42 plans it with the cost's Hessians at the
+    #: reference too (``cost_hessian="reference"``; the push grid recovers and falls at the
+    #: same forces, results/g1_push_recovery_ilqr_reference_hessians.json), so that every
+    #: backward pass repeats the last one's matrices (the solver's Riccati cache: 7.4 ->
+    #: 1.3 ms a pass), and caps a replan's regularization retries at one
+    #: (``mpc_max_retries=1``): ticks 13-14 ms median with the cost stages (were 22-24 ms;
+    #: results/ilqr_tick_g1_stop42.json), 252.3 N (1.46x LQR's), 5/5 under noise
+    #: (results/g1_balance_ilqr_riccati_cache.json). In the real-time loop on 2 cores a
+    #: 250 N push under noise, seeds 100-109: 8/10, 5/10 and 5/10 in three runs, against
+    #: 0/10 with stop 41's config; lock-step 8/10 with either
+    #: (results/realtime_g1_ilqr_push250_{riccati_cache,stop42,seeds100}.json). The cache
+    #: without the retry cap fell 0/3 in real time, the cap without the cache 3/10
+    #: (..._reference_hessians.json, ..._retries1_seeds100.json). The QP-MPC's largest
     #: forward push on two feet (169 N) and LQR's (172.5 N) are both within 4 % of the
     #: capture-point bound of the ankle strategy (175.6 N: the G1's center of mass is 0.117 m
     #: behind its toes), and no single change of the QP options (period, step, horizon,
@@ -119,6 +129,8 @@ class BipedStand(LeggedBalance):
             regularization=1e-3,
             terminal_value="lqr",
             linearization="reference",
+            cost_hessian="reference",
+            mpc_max_retries=1,
         ),
     }
     posture: StancePosture | None = None
