@@ -374,6 +374,10 @@ def test_g1_ilqr_mpc_feedback_is_the_lqr_gain_despite_joint_friction(g1_two_feet
     x0[7:36] += 0.01 * np.random.default_rng(0).standard_normal(29)
     ilqr(x0, 0.0)
     K = ilqr.last_result.K
+    # Reference dynamics and cost Hessians: the backward passes repeat, and later replans
+    # reuse the first one's matrices (the Riccati cache).
+    ilqr(x0, ilqr.config.replan_period)
+    assert ilqr.riccati_cache is not None and ilqr.riccati_cache.hits >= 1
     sliding = uncontrollable_marginal_projector(lqr.A, lqr.B)
     assert np.linalg.matrix_rank(sliding, 1e-6) == 3
     np.testing.assert_allclose(lqr.K @ sliding, 0.0, atol=1e-9 * np.abs(lqr.K).max())
