@@ -24,6 +24,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from quadruped_stand import add_push_options  # benchmarks/ is not a package
 from quadruped_walk import parse_set  # benchmarks/ is not a package
 
 OUT = Path(__file__).parent / "results" / "menagerie_robots.json"
@@ -89,6 +90,8 @@ def run_robot(
     noise_scale: float = 1.0,
     first_seed: int = 0,
     push: bool = False,
+    push_settle: float = 3.0,
+    push_rest_speed: float | None = None,
 ) -> dict:
     import mpcbox
     from mpcbox.tasks.legged.biped import BipedStand
@@ -146,17 +149,21 @@ def run_robot(
                 break
         out[name] = {"successes": sum(r["success"] for r in runs), "runs": runs}
         if push:
-            out[name]["largest_push_n"] = _largest_push(problem, name)
+            out[name]["largest_push_n"] = _largest_push(problem, name, push_settle, push_rest_speed)
     problem.close()
     return out
 
 
-def _largest_push(problem, name: str) -> float | str:
-    """The largest forward push of 0.1 s on the root that ``name`` survives (no noise, 5 N)."""
+def _largest_push(
+    problem, name: str, settle: float = 3.0, rest_speed: float | None = None
+) -> float | str:
+    """The largest forward push of 0.1 s on the root that ``name`` survives (no noise, 5 N):
+    standing ``settle`` s after it and, with ``rest_speed``, the root slower than that."""
     from mpcbox.comparison.push_limits import largest_push
     from mpcbox.comparison.scenario import PushTest
 
-    test = PushTest(body=problem.root, tolerance=5.0, max_force=1500.0)
+    options = {} if rest_speed is None else {"rest_speed": rest_speed}
+    test = PushTest(body=problem.root, tolerance=5.0, max_force=1500.0, settle=settle, **options)
     try:
         return round(float(largest_push(problem, name, test).force), 1)
     except Exception as exc:
@@ -211,6 +218,7 @@ def main() -> int:
         action="store_true",
         help="also bisect each controller's largest forward push (0.1 s on the root, no noise)",
     )
+    add_push_options(parser, settle=3.0)  # PushTest's default, as the tables before
     parser.add_argument("--label", default="after")
     parser.add_argument("--out", default=str(OUT))
     args = parser.parse_args()
@@ -229,6 +237,8 @@ def main() -> int:
             args.noise_scale,
             args.first_seed,
             args.largest_push,
+            args.push_settle,
+            args.push_rest_speed,
         )
         for r in robots
     ]
@@ -245,7 +255,13 @@ def main() -> int:
         f"--dry-friction {args.dry_friction}"
         + (f" --task-set '{args.task_set}'" if args.task_set else "")
         + f" --noise-scale {args.noise_scale} --first-seed {args.first_seed}"
-        + (" --largest-push" if args.largest_push else ""),
+        + (" --largest-push" if args.largest_push else "")
+        + (
+            f" --push-settle {args.push_settle}"
+            + (f" --push-rest-speed {args.push_rest_speed}" if args.push_rest_speed else "")
+            if args.largest_push
+            else ""
+        ),
         "task_options": task_options,
         "seeds": args.seeds,
         "duration_s": args.duration,

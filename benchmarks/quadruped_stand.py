@@ -78,9 +78,10 @@ def controller_summary(result: Comparison, name: str) -> dict:
     return out
 
 
-def add_push_options(parser: argparse.ArgumentParser) -> None:
-    """``--push-settle`` and ``--push-rest-speed`` of the largest-push test."""
-    parser.add_argument("--push-settle", type=float, default=2.0, help="time after the push (s)")
+def add_push_options(parser: argparse.ArgumentParser, settle: float = 2.0) -> None:
+    """``--push-settle`` (default ``settle``) and ``--push-rest-speed`` of the largest-push
+    test."""
+    parser.add_argument("--push-settle", type=float, default=settle, help="time after the push (s)")
     parser.add_argument(
         "--push-rest-speed",
         type=float,
