@@ -74,11 +74,9 @@ def check_rows(problem: mpcbox.Problem, seed: int) -> None:
         assert got == pytest.approx(want, rel=1e-12, abs=1e-12), term.name
 
 
-def test_humanoid_rows_sum_to_the_residual_cost():
-    """Quaternion, position, velocity, control and sensor rows (free joint weighted too)."""
-    humanoid = scene_path("humanoid.xml")
-    ref = mpcbox.Problem(humanoid, keyframe="stand")
-    terms = [
+def humanoid_terms(ref: mpcbox.Problem) -> list:
+    """One term of each kind on the project's humanoid standing (``ref``)."""
+    return [
         StateCost(ref.qpos_ref, weight_qpos=2.0, weight_qvel=0.5),
         ControlCost(np.full(ref.nu, 0.1), weight=np.linspace(0.5, 1.5, ref.nu)),
         ComOverSupport("foot_left", weight=[3.0, 4.0], root="torso"),
@@ -88,6 +86,13 @@ def test_humanoid_rows_sum_to_the_residual_cost():
         Upright("torso", weight=[2.0, 3.0]),
         ComVelocity(weight=[2.0, 5.0], root="torso"),
     ]
+
+
+def test_humanoid_rows_sum_to_the_residual_cost():
+    """Quaternion, position, velocity, control and sensor rows (free joint weighted too)."""
+    humanoid = scene_path("humanoid.xml")
+    ref = mpcbox.Problem(humanoid, keyframe="stand")
+    terms = humanoid_terms(ref)
     problem = mpcbox.Problem(humanoid, keyframe="stand", cost=Cost(terms))
     assert any(isinstance(row, QuaternionRow) for row in problem.cost.running[0].rows())
     check_rows(problem, 0)
@@ -189,16 +194,8 @@ def test_quadratization_on_each_terms_stage_equals_full_forward(monkeypatch):
 
     humanoid = scene_path("humanoid.xml")
     ref = mpcbox.Problem(humanoid, keyframe="stand")
-    terms = [
-        StateCost(ref.qpos_ref, weight_qpos=2.0, weight_qvel=0.5),
-        ControlCost(np.full(ref.nu, 0.1), weight=np.linspace(0.5, 1.5, ref.nu)),
-        ComOverSupport("foot_left", weight=[3.0, 4.0], root="torso"),
-        FramePosition("hand_right", np.array([0.2, -0.3, 1.0]), weight=[1.0, 0.0, 2.0]),
-        HeightAbove("torso", "foot_left", 1.2, weight=3.0),
-        Upright("torso", weight=[2.0, 3.0]),
-        ComVelocity(weight=[2.0, 5.0], root="torso"),
-    ]
-    assert [t.stage for t in terms] == ["none", "none", "pos", "pos", "pos", "pos", "vel"]
+    terms = humanoid_terms(ref)
+    assert [t.stage for t in terms] == ["none", "none", "pos", "pos", "pos", "pos", "pos", "vel"]
     rng = np.random.default_rng(5)
     x0 = ref.reference_state()
     states = np.array([ref.state_add(x0, 0.2 * rng.standard_normal(ref.nx)) for _ in range(4)])
