@@ -74,6 +74,7 @@ def controller_summary(result: Comparison, name: str) -> dict:
             "force_N": round(limit.force, 1),
             "smallest_failed_N": round(limit.smallest_failed, 1),
             "simulations": limit.simulations,
+            "travel_m": round(limit.travel, 3),
         }
     return out
 

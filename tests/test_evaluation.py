@@ -84,6 +84,7 @@ def test_bisection_below_float_resolution_ends(monkeypatch) -> None:
         return trial
 
     monkeypatch.setattr(robustness, "_push_trial", fake_trial)
+    monkeypatch.setattr(robustness, "travel", lambda *args: 0.0)  # the fake has no states
     result = robustness.largest_push(None, None, PushTest(max_force=400.0, tolerance=1e-300))
     assert result.force <= limit < result.smallest_failed
     assert result.smallest_failed - result.force <= 2 * np.spacing(limit)
@@ -192,3 +193,36 @@ def test_a_trial_still_moving_at_its_end_is_not_recovered_with_rest_speed(two_fe
         PushTest(rest_speed=-1.0)
     with pytest.raises(InvalidArgumentError, match="rest_speed needs"):
         push_grid("humanoid_two_feet", "lqr", [10.0], PushTest(rest_speed=0.1))
+
+
+PUCK = """
+<mujoco>
+  <option timestep="0.001" gravity="0 0 0"/>
+  <worldbody>
+    <body name="puck" pos="0 0 1">
+      <joint name="x" type="slide" axis="1 0 0"/>
+      <joint name="y" type="slide" axis="0 1 0"/>
+      <geom type="box" size=".1 .1 .1" mass="2" contype="0" conaffinity="0"/>
+    </body>
+  </worldbody>
+  <actuator><motor joint="y" ctrlrange="-1 1"/></actuator>
+</mujoco>
+"""
+
+
+def test_a_push_limit_reports_how_far_the_body_travelled():
+    """A free 2 kg puck without gravity or friction, pushed along x with F for d seconds,
+    travels F d^2 / (2 m) + (F d / m) * settle from the push's start to the trial's end."""
+    import mpcbox
+
+    class Zero(mpcbox.Controller):
+        def __call__(self, state, time):
+            return np.zeros(1)
+
+    problem = mpcbox.Problem(PUCK)
+    test = PushTest(body="puck", start=0.2, duration=0.1, settle=0.5, max_force=10.0)
+    limit = largest_push(problem, Zero(), test)
+    assert limit.force == 10.0 and limit.smallest_failed == np.inf
+    a = 10.0 / 2.0
+    want = 0.5 * a * 0.1**2 + a * 0.1 * 0.5
+    assert limit.travel == pytest.approx(want, rel=0.03)

@@ -348,6 +348,10 @@ def write_records(
             name: {label: limit.force for label, limit in limits.items()}
             for name, limits in comparison.push_limits.items()
         },
+        "push_travel_m": {
+            name: {label: limit.travel for label, limit in limits.items()}
+            for name, limits in comparison.push_limits.items()
+        },
         "command": command,
         "wall_time_s": comparison.wall_time,
         "placement": dict(comparison.placement),

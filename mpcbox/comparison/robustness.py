@@ -88,6 +88,10 @@ class PushLimit(NamedTuple):
         simulations: Number of simulations run.
         failure: Why the search raised (the error's type and text; the numbers are then
             NaN), or ``None``.
+        travel: How far (m) the pushed body's centre of mass moved horizontally from the
+            push's start to the end of the trial at ``force`` (:func:`travel`): a recovery
+            by steps, hops or sliding on the feet shows here. NaN when no push was
+            survived.
     """
 
     force: float
@@ -95,6 +99,7 @@ class PushLimit(NamedTuple):
     smallest_failed: float
     simulations: int
     failure: str | None = None
+    travel: float = float("nan")
 
 
 @checked_keywords
@@ -183,6 +188,21 @@ def end_speed(problem: Problem, result: SimulationResult, body: str) -> float:
         model, data, mujoco.mjtObj.mjOBJ_BODY, object_id(model, "body", body, "body"), velocity, 0
     )
     return float(np.linalg.norm(velocity[3:]))
+
+
+def travel(problem: Problem, result: SimulationResult, body: str, start: float) -> float:
+    """Horizontal distance (m) between ``body``'s centre of mass at time ``start`` (the last
+    recorded state before it) and at the last state of ``result``."""
+    model = problem.model
+    data = mujoco.MjData(model)
+    bid = object_id(model, "body", body, "body")
+    index = max(int(np.searchsorted(result.time, start, side="right")) - 1, 0)
+    points = []
+    for state in (result.states[index], result.states[-1]):
+        problem.set_state(data, state)
+        mujoco.mj_kinematics(model, data)
+        points.append(data.xipos[bid, :2].copy())
+    return float(np.linalg.norm(points[1] - points[0]))
 
 
 def recovered(problem: Problem, test: PushTest, result: SimulationResult) -> bool:
@@ -287,16 +307,25 @@ def largest_push(
     """
     trial = _push_trial(problem, controller, test, seed)
     max_force, count = test.max_force, 0
+    last: list[SimulationResult] = []  # the last survived trial: the largest force so far
 
     def survives(force: float) -> bool:
         nonlocal count
         count += 1
-        return recovered(problem, test, trial(force))
+        result = trial(force)
+        if not recovered(problem, test, result):
+            return False
+        last[:] = [result]
+        return True
+
+    def moved() -> float:
+        return travel(problem, last[0], test.body, test.start)
 
     if not survives(0.0):
         return PushLimit(0.0, 0.0, 0.0, count)
     if survives(max_force):
-        return PushLimit(max_force, max_force * test.duration, float("inf"), count)
+        limit = PushLimit(max_force, max_force * test.duration, float("inf"), count)
+        return limit._replace(travel=moved())
     lo, hi = 0.0, max_force
     while hi - lo > test.tolerance:
         mid = 0.5 * (lo + hi)
@@ -306,4 +335,4 @@ def largest_push(
             lo = mid
         else:
             hi = mid
-    return PushLimit(lo, lo * test.duration, hi, count)
+    return PushLimit(lo, lo * test.duration, hi, count, travel=moved())
