@@ -153,10 +153,16 @@ def test_replans_after_the_first_stop_at_mpc_max_retries():
     assert ctrl.last_result.stop_reason.stalled
     assert Failing.rollouts == steps * (2 + 1)
     assert ctrl.stats["fallbacks"] == 2
+    # With 0 a replan stops at its first failed line search.
+    ctrl = Failing(point_mass(), horizon=10, replan_period=0.1, max_retries=6, mpc_max_retries=0)
+    ctrl(np.array([1.0, -0.5, 0.0, 0.0]), 0.0)
+    Failing.rollouts = 0
+    ctrl(np.array([0.9, -0.4, -0.5, 0.5]), 0.1)
+    assert ctrl.last_result.stop_reason.stalled and Failing.rollouts == steps
     # Without mpc_max_retries the replans keep max_retries.
     assert ILQR(point_mass(), horizon=10, max_retries=6).config.effective_mpc_max_retries == 6
 
 
 def test_mpc_max_retries_is_checked():
     with pytest.raises(InvalidArgumentError, match="mpc_max_retries"):
-        ILQR(point_mass(), horizon=5, mpc_max_retries=0)
+        ILQR(point_mass(), horizon=5, mpc_max_retries=-1)

@@ -19,6 +19,7 @@ from mpcbox.validation import (
     checked_options,
     finite_array,
     in_range,
+    integer,
     non_negative,
     number,
     one_of,
@@ -104,7 +105,8 @@ class ILQRConfig:
             servo's damping is integrated implicitly only while unsaturated, so the velocity
             after one step jumps there): the cost along a search direction is then jagged,
             and a replan can sit at a low point of it. A replan that stops at this cap keeps
-            its trajectory and counts as a stalled replan (``RETRY_LIMIT``).
+            its trajectory and counts as a stalled replan (``RETRY_LIMIT``); with ``0`` it
+            stops at its first failed line search.
         linearize_every: Linearize the dynamics at every ``linearize_every``-th knot (and the
             last) and interpolate ``A``, ``B`` in between.
         control_steps: Steps of the planning model per knot, each knot's control held for
@@ -213,9 +215,10 @@ class ILQRConfig:
                 f"control_steps={self.control_steps} works with single shooting only: leave "
                 "states_init=None and warm_start_states=False, or set control_steps=1"
             )
-        for name in ("first_iterations", "mpc_max_retries"):
-            if getattr(self, name) is not None:
-                put(name, positive_int(name, getattr(self, name)))
+        if self.first_iterations is not None:
+            put("first_iterations", positive_int("first_iterations", self.first_iterations))
+        if self.mpc_max_retries is not None:  # 0: a replan stops at its first failed search
+            put("mpc_max_retries", integer("mpc_max_retries", self.mpc_max_retries, minimum=0))
         if self.threads is not None:
             put("threads", positive_int("threads", self.threads))
         for name in ("tolerance", "replan_period", "regularization_min", "regularization_max"):
