@@ -185,14 +185,16 @@ def quadratize_knots(
             luu += ju.T @ (ju * w[:, None])
             lux += ju.T @ wjx
         else:
-            jx = np.stack([j[0] for j in jacs[id(term)]])
-            ju = np.stack([j[1] for j in jacs[id(term)]])
-            lx += np.einsum("bk,bkn->bn", wr, jx)
-            lu += np.einsum("bk,bkn->bn", wr, ju)
+            jx = np.stack([j[0] for j in jacs[id(term)]])  # (B, k, nx)
+            ju = np.stack([j[1] for j in jacs[id(term)]])  # (B, k, nu)
+            # Batched matrix products (several times faster than the equivalent einsums).
+            lx += np.matmul(wr[:, None, :], jx)[:, 0]
+            lu += np.matmul(wr[:, None, :], ju)[:, 0]
             wjx = jx * w[None, :, None]
-            lxx += np.einsum("bki,bkj->bij", jx, wjx)
-            luu += np.einsum("bki,bkj->bij", ju, ju * w[None, :, None])
-            lux += np.einsum("bki,bkj->bij", ju, wjx)
+            jut = ju.transpose(0, 2, 1)
+            lxx += np.matmul(jx.transpose(0, 2, 1), wjx)
+            luu += np.matmul(jut, ju * w[None, :, None])
+            lux += np.matmul(jut, wjx)
     lxx = 0.5 * (lxx + lxx.transpose(0, 2, 1))
     luu = 0.5 * (luu + luu.transpose(0, 2, 1))
     return Quadratization(value, lx, lu, lxx, luu, lux)
