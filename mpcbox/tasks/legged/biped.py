@@ -102,7 +102,7 @@ class BipedStand(LeggedBalance):
     #: (``mpc_max_retries=1``): ticks 12-13 ms median with the cost stages (were 22-24 ms;
     #: results/ilqr_tick_g1_stop42.json), 252.3 N (1.46x LQR's), 5/5 under noise
     #: (results/g1_balance_ilqr_riccati_cache.json). In the real-time loop on 2 cores a
-    #: 250 N push under noise, seeds 100-109: 8/10, 5/10, 5/10 and 8/10 in four runs, against
+    #: 250 N push under noise, seeds 100-109: 8, 5, 5, 8 and 8 of 10 in five runs, against
     #: 0/10 with stop 41's config; lock-step 8/10 with either
     #: (results/realtime_g1_ilqr_push250_{riccati_cache,stop42,seeds100}.json). The cache
     #: without the retry cap fell 0/3 in real time, the cap without the cache 3/10
