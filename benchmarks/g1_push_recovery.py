@@ -30,6 +30,7 @@ import mujoco
 import numpy as np
 
 import mpcbox
+from mpcbox.cli.compare import parse_sets
 from mpcbox.core.menagerie import MissingMeshWarning
 from mpcbox.registry import make_controller, task_class
 
@@ -49,17 +50,6 @@ def pelvis_speed(problem, state: np.ndarray) -> float:
     return float(np.linalg.norm(velocity[3:]))
 
 
-def _option(item: str) -> tuple[str, object]:
-    """``OPTION=VALUE`` of ``--set``, the value read as JSON where it parses."""
-    name, sep, text = item.partition("=")
-    if not sep or not name:
-        raise SystemExit(f"--set: expected OPTION=VALUE, got {item!r}")
-    try:
-        return name, json.loads(text)
-    except json.JSONDecodeError:
-        return name, text
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--controller", default="ilqr")
@@ -71,10 +61,11 @@ def main() -> None:
         action="append",
         default=[],
         metavar="OPTION=VALUE",
-        help="controller option (VALUE read as JSON, else as text; repeatable)",
+        help="controller option, read as `mpcbox compare --set` reads it (repeatable)",
     )
     args = parser.parse_args()
-    options = dict(_option(item) for item in args.set)
+    sets = [f"{args.controller}.{item}" for item in args.set]
+    options = parse_sets(sets).get(args.controller, {})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MissingMeshWarning)
         problem = task_class("biped_stand")("menagerie:unitree_g1")
