@@ -208,6 +208,11 @@ def test_quadratization_on_each_terms_stage_equals_full_forward(monkeypatch):
             full = problem.quadratize_trajectory(states, ctrls)
         for name, a, b in zip(fast._fields, fast, full, strict=True):
             np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-10, err_msg=name)
+    # Without the Hessian blocks: the same values and gradients, the blocks left zero.
+    bare = problem.quadratize_trajectory(states, ctrls, hessians=False)
+    for name in ("value", "lx", "lu"):
+        np.testing.assert_array_equal(getattr(bare, name), getattr(fast, name), err_msg=name)
+    assert not (bare.lxx.any() or bare.luu.any() or bare.lux.any()) and fast.lxx.any()
 
 
 def test_a_term_with_an_unknown_stage_is_named():

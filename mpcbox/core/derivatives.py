@@ -128,6 +128,7 @@ def quadratize_knots(
     states: np.ndarray,
     ctrls: np.ndarray,
     eps: float,
+    hessians: bool = True,
 ) -> Quadratization:
     """Gauss-Newton quadratization of ``terms`` at ``B`` knots, one term type at a time.
 
@@ -141,6 +142,8 @@ def quadratize_knots(
         states: States ``(B, nstate)``.
         ctrls: Controls ``(B, nu)``.
         eps: Finite-difference step for terms without an analytic Jacobian.
+        hessians: Accumulate the Hessian blocks; ``False`` leaves them zero, for a caller
+            that brings its own (iLQR's ``cost_hessian="reference"``).
 
     Returns:
         A :class:`Quadratization` with leading size ``B``.
@@ -180,23 +183,26 @@ def quadratize_knots(
             jx, ju = constant[id(term)]
             lx += wr @ jx
             lu += wr @ ju
-            wjx = jx * w[:, None]
-            lxx += jx.T @ wjx
-            luu += ju.T @ (ju * w[:, None])
-            lux += ju.T @ wjx
+            if hessians:
+                wjx = jx * w[:, None]
+                lxx += jx.T @ wjx
+                luu += ju.T @ (ju * w[:, None])
+                lux += ju.T @ wjx
         else:
             jx = np.stack([j[0] for j in jacs[id(term)]])  # (B, k, nx)
             ju = np.stack([j[1] for j in jacs[id(term)]])  # (B, k, nu)
             # Batched matrix products (several times faster than the equivalent einsums).
             lx += np.matmul(wr[:, None, :], jx)[:, 0]
             lu += np.matmul(wr[:, None, :], ju)[:, 0]
-            wjx = jx * w[None, :, None]
-            jut = ju.transpose(0, 2, 1)
-            lxx += np.matmul(jx.transpose(0, 2, 1), wjx)
-            luu += np.matmul(jut, ju * w[None, :, None])
-            lux += np.matmul(jut, wjx)
-    lxx = 0.5 * (lxx + lxx.transpose(0, 2, 1))
-    luu = 0.5 * (luu + luu.transpose(0, 2, 1))
+            if hessians:
+                wjx = jx * w[None, :, None]
+                jut = ju.transpose(0, 2, 1)
+                lxx += np.matmul(jx.transpose(0, 2, 1), wjx)
+                luu += np.matmul(jut, ju * w[None, :, None])
+                lux += np.matmul(jut, wjx)
+    if hessians:
+        lxx = 0.5 * (lxx + lxx.transpose(0, 2, 1))
+        luu = 0.5 * (luu + luu.transpose(0, 2, 1))
     return Quadratization(value, lx, lu, lxx, luu, lux)
 
 
@@ -208,6 +214,7 @@ def quadratize_trajectory(
     ctrls: np.ndarray,
     eps: float,
     threads: int | None = None,
+    hessians: bool = True,
 ) -> Quadratization:
     """Running cost at ``T`` knots and terminal cost at the last state, in parallel chunks.
 
@@ -219,6 +226,8 @@ def quadratize_trajectory(
         ctrls: ``(T, nu)``.
         eps: Finite-difference step.
         threads: Worker threads (default: the pool's).
+        hessians: Accumulate the Hessian blocks (``False``: left zero; see
+            :func:`quadratize_knots`).
 
     Returns:
         Stacked arrays with leading size ``T + 1`` (the last row is the terminal cost; its
@@ -236,11 +245,14 @@ def quadratize_trajectory(
             states[bounds[j] : bounds[j + 1]],
             ctrls[bounds[j] : bounds[j + 1]],
             eps,
+            hessians,
         ),
         len(bounds) - 1,
         threads,
     )
-    last = quadratize_knots(dynamics, tangent, cost.terminal, states[-1:], ctrls[-1:], eps)
+    last = quadratize_knots(
+        dynamics, tangent, cost.terminal, states[-1:], ctrls[-1:], eps, hessians
+    )
     return Quadratization(
         *(np.concatenate([getattr(q, f) for q in [*parts, last]]) for f in Quadratization._fields)
     )

@@ -66,12 +66,18 @@ class ProblemCosts:
         return Quadratization(*(value[0] for value in out))
 
     def quadratize_trajectory(
-        self, states: np.ndarray, ctrls: np.ndarray, *, threads: int | None = None
+        self,
+        states: np.ndarray,
+        ctrls: np.ndarray,
+        *,
+        threads: int | None = None,
+        hessians: bool = True,
     ) -> Quadratization:
         """Running cost at ``T`` knots and terminal cost at the last of ``T + 1`` states.
 
         ``states`` ``(T + 1, nstate)`` and ``ctrls`` ``(T, nu)`` give arrays with leading size
-        ``T + 1`` (see :func:`~mpcbox.core.derivatives.quadratize_trajectory`).
+        ``T + 1`` (see :func:`~mpcbox.core.derivatives.quadratize_trajectory`); with
+        ``hessians=False`` the Hessian blocks are left zero (for a caller with its own).
 
         Raises:
             ShapeError: For other shapes.
@@ -83,6 +89,7 @@ class ProblemCosts:
             raise DivergenceError("states holds non-finite values (NaN or inf)")
         ctrls = inputs.check_ctrl("ctrls", ctrls, (states.shape[0] - 1, self.nu))
         threads = None if threads is None else positive_int("threads", threads)
+        hessians = boolean("hessians", hessians)
         return derivatives.quadratize_trajectory(
-            self.dynamics, self.tangent, self.cost, states, ctrls, self.fd_eps, threads
+            self.dynamics, self.tangent, self.cost, states, ctrls, self.fd_eps, threads, hessians
         )

@@ -212,10 +212,10 @@ class ILQRSolver:
             )
             lin = compose_held(lin, self.steps)
             lin = interpolate_linearization(lin.A, lin.B, knots, self.horizon)
-        quad = scale_running(
-            p.quadratize_trajectory(states, ctrls, threads=self.threads), self.steps
-        )
-        if self._reference_hessians is not None:
+        own = self._reference_hessians is None  # else the knots' Hessians go unused
+        quad = p.quadratize_trajectory(states, ctrls, threads=self.threads, hessians=own)
+        quad = scale_running(quad, self.steps)
+        if not own:
             lxx, luu, lux = self._reference_hessians
             quad = quad._replace(lxx=lxx, luu=luu, lux=lux)
         return lin, quad

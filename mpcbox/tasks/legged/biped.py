@@ -99,7 +99,7 @@ class BipedStand(LeggedBalance):
     #: same forces, results/g1_push_recovery_ilqr_reference_hessians.json), so that every
     #: backward pass repeats the last one's matrices (the solver's Riccati cache: 7.4 ->
     #: 1.3 ms a pass), and caps a replan's regularization retries at one
-    #: (``mpc_max_retries=1``): ticks 12-13 ms median with the cost stages (were 22-24 ms;
+    #: (``mpc_max_retries=1``): ticks 10-11 ms median with the cost stages (were 22-24 ms;
     #: results/ilqr_tick_g1_stop42.json), 252.3 N (1.46x LQR's), 5/5 under noise
     #: (results/g1_balance_ilqr_riccati_cache.json). In the real-time loop on 2 cores a
     #: 250 N push under noise, seeds 100-109: 8, 5, 5, 8 and 8 of 10 in five runs, against
