@@ -32,6 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -179,6 +180,7 @@ def main() -> None:
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     report: dict = {
+        "command": "python benchmarks/humanoid_getup.py " + " ".join(sys.argv[1:]),
         "task": args.task,
         "gpu": args.gpu,
         "platform": platform.platform(),

@@ -3,7 +3,9 @@
     python benchmarks/planning_fidelity.py [--json benchmarks/results/planning_fidelity.json]
 
 A sampling controller only needs its planning model to *rank* candidates as the real world
-would. For each task and planning variant (planning timestep, integrator, solver cap) this
+would. For each task and planning variant (planning timestep, integrator, solver cap, servo
+armature: ``SamplingConfig.servo_armature``; and for the G1 get-up, the planning model's
+collision geoms, fitted capsules, against the world's meshes) this
 scores the same candidate knots (the task's knot count and noise scale around the reference
 control, over the task's horizon) from a few perturbed start states with the variant and with
 the full model (the simulation model: its own timestep, integrator and converged solver),
@@ -31,11 +33,15 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from mpcbox.controllers.sampling.planning import servo_armature
 from mpcbox.controllers.sampling.splines import Spline
 from mpcbox.registry import task_class
 
-#: task -> (horizon s, knots, noise, velocity perturbations of the start states, variants).
-#: A variant is (planning timestep, integrator or None for the model's, solver cap or None).
+#: task -> (horizon s, knots, noise, velocity perturbations of the start states, variants[,
+#: task options of the reference problem, task options of the variants' problem]). A
+#: variant is (planning timestep, integrator or None for the model's, solver cap or None[,
+#: servo armature factor or None]); the noise is a fraction of each control range when
+#: negative (the G1 get-up's 10 %).
 SETUPS: dict[str, tuple] = {
     "humanoid_stand": (
         0.5,
@@ -61,6 +67,29 @@ SETUPS: dict[str, tuple] = {
         (0.0, 1.0, 2.0, 3.0),
         [(0.02, None, None), (0.03, None, None), (0.04, None, None), (0.05, None, None)],
     ),
+    # Menagerie's G1 (MENAGERIE_ROOT): the world's meshes against capsule planning models
+    # (``G1Getup(planning_geoms="capsules")``, the default); its task config plans at 0.02 s,
+    # implicitfast, with servo_armature=0.5 (0.01 s without armature before).
+    "g1_getup": (
+        0.6,
+        6,
+        -0.1,
+        (0.0, 0.3, 0.6),
+        [
+            (0.002, None, None, None),
+            (0.01, None, None, None),
+            (0.01, None, None, 1.0),
+            (0.015, None, None, 1.0),
+            (0.02, None, None, None),
+            (0.02, None, None, 0.5),
+            (0.02, None, None, 1.0),
+            (0.02, None, None, 2.0),
+            (0.025, None, None, 1.0),
+            (0.03, None, None, 1.0),
+        ],
+        {"planning_geoms": "all"},
+        {"planning_geoms": "capsules"},
+    ),
 }
 
 INTEGRATORS = {"euler": mujoco.mjtIntegrator.mjINT_EULER}
@@ -69,11 +98,11 @@ INTEGRATORS = {"euler": mujoco.mjtIntegrator.mjINT_EULER}
 _WARP: dict = {}
 
 
-def warp_costs(problem, dt, integrator, cap, state, knots, horizon) -> np.ndarray:
+def warp_costs(problem, dt, integrator, cap, armature, state, knots, horizon) -> np.ndarray:
     """Costs ``(N,)`` of knots ``(N, K, nu)`` on one planning variant (MJWarp, float32)."""
     import mpcbox
 
-    key = (dt, integrator, cap, knots.shape)
+    key = (id(problem), dt, integrator, cap, armature, knots.shape)
     if key not in _WARP:
         _WARP[key] = mpcbox.make_controller(
             "ps",
@@ -85,6 +114,7 @@ def warp_costs(problem, dt, integrator, cap, state, knots, horizon) -> np.ndarra
             planning_timestep=dt,
             planning_integrator=integrator,
             solver_iterations=cap,
+            servo_armature=armature,
         )
     ctrl = _WARP[key]
     out = ctrl.backend.evaluate(state, ctrl.problem.clip_ctrl(knots))
@@ -92,7 +122,7 @@ def warp_costs(problem, dt, integrator, cap, state, knots, horizon) -> np.ndarra
     return np.where(bad, np.inf, out.costs[:, 0])
 
 
-def costs(problem, dt, integrator, cap, state, knots, horizon) -> np.ndarray:
+def costs(problem, dt, integrator, cap, armature, state, knots, horizon) -> np.ndarray:
     """Costs ``(N,)`` of knots ``(N, K, nu)`` on one planning variant (CPU, float64)."""
     p = problem.with_planning_timestep(dt)
     opt = p.planning_model.opt
@@ -100,6 +130,8 @@ def costs(problem, dt, integrator, cap, state, knots, horizon) -> np.ndarray:
         opt.integrator = INTEGRATORS[integrator]
     if cap is not None:
         opt.iterations = cap
+    if armature is not None:
+        servo_armature(p.planning_model, armature)
     steps = round(horizon / dt)
     spline = Spline(knots.shape[1], steps * dt, "cubic")
     weights = spline.weights(np.arange(steps) * dt)
@@ -143,24 +175,31 @@ def main() -> None:
     }
     variant_costs = warp_costs if args.backend == "warp" else costs
     for task in args.tasks.split(","):
-        horizon, nknots, noise, perturb, variants = SETUPS[task]
+        horizon, nknots, noise, perturb, variants, *options = SETUPS[task]
+        variants = [(*v, None)[:4] for v in variants]
         if args.backend == "cpu":  # MuJoCo's capped solver is not MJWarp's: no caps here
-            variants = sorted({(dt, integ, None) for dt, integ, _ in variants}, key=str)
-        problem = task_class(task)()
+            variants = list({(dt, integ, None, arm): 0 for dt, integ, _, arm in variants})
+        problem = task_class(task)(**(options[0] if options else {}))
+        planner = task_class(task)(**options[1]) if options else problem
         rng = np.random.default_rng(0)
         ref_u = problem.clip_ctrl(problem.ctrl_ref)
+        if noise < 0:  # a fraction of each control range
+            noise = -noise * np.diff(problem.model.actuator_ctrlrange, axis=1)[:, 0]
         rows: dict[str, list[dict]] = {}
         for scale in perturb:
             state = problem.initial_state().copy()
             state[problem.nq : problem.nq + problem.nv] += rng.normal(0, scale, problem.nv)
             knots = ref_u + noise * rng.standard_normal((args.samples, nknots, problem.nu))
             knots[0] = ref_u
-            ref = costs(problem, problem.dt, None, None, state, knots, horizon)
-            for dt, integ, cap in variants:
+            knots = problem.clip_ctrl(knots)
+            ref = costs(problem, problem.dt, None, None, None, state, knots, horizon)
+            for dt, integ, cap, arm in variants:
                 name = f"dt{dt}_{integ or 'model'}_cap{cap or 'none'}"
-                var = variant_costs(problem, dt, integ, cap, state, knots, horizon)
+                name += f"_armature{arm:g}" if arm is not None else ""
+                var = variant_costs(planner, dt, integ, cap, arm, state, knots, horizon)
                 rows.setdefault(name, []).append(compare(ref, var))
         report["tasks"][task] = {
+            "task_options": {"reference": options[0], "variants": options[1]} if options else {},
             "full_model": {
                 "timestep": problem.dt,
                 "integrator": int(problem.model.opt.integrator),

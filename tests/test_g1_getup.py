@@ -176,3 +176,41 @@ def test_g1_cost_decreases_towards_the_standing_keyframe(g1) -> None:
     time = np.linspace(0.0, g1.hold, 6)  # the last ``hold`` seconds
     assert g1.goal_failure(time, np.tile(standing, (6, 1))) is None
     assert g1.goal_failure(time, np.tile(lying, (6, 1))) is not None
+
+
+@pytest.mark.menagerie
+def test_g1_plans_at_0_02_s_with_servo_armature_and_stays_finite(g1) -> None:
+    ctrl = make_controller("ps", g1, backend="cpu", num_samples=8, seed=0)
+    plan = ctrl.problem.planning_model
+    assert plan.opt.timestep == pytest.approx(0.02)
+    kp = -g1.model.actuator_biasprm[:, 1]
+    dofs = g1.model.jnt_dofadr[g1.model.actuator_trnid[:, 0]]
+    np.testing.assert_allclose(plan.dof_armature[dofs], 0.5 * kp * 0.02**2)
+    # The world and the task's own planning model keep the G1's armature.
+    for model in (g1.model, g1.planning_model):
+        assert np.all(model.dof_armature[dofs] < plan.dof_armature[dofs])
+    # Rollouts of random set-points from the lying start stay finite at the coarse step.
+    rng = np.random.default_rng(0)
+    knots = g1.ctrl_ref + rng.normal(size=(16, 30, g1.nu)) * ctrl.noise_scale
+    out = ctrl.problem.rollout(g1.initial_state(), ctrl.problem.clip_ctrl(knots))
+    assert np.all(np.isfinite(out.states))
+
+
+@pytest.mark.menagerie
+def test_g1_standing_stage_holds_it_anywhere_on_the_floor(g1) -> None:
+    from mpcbox.sim.simulation import simulate
+    from mpcbox.tasks.legged.biped import BipedStand
+
+    assert isinstance(g1.stand_problem(), BipedStand)
+    ctrl = g1.handover_controller("ps", stand="lqr", backend="cpu", num_samples=4, seed=0)
+    start = g1.reference_state()
+    start[:2] += (0.5, -0.3)  # standing elsewhere, turned by 60 degrees
+    turn = np.zeros(4)
+    mujoco.mju_axisAngle2Quat(turn, np.array([0.0, 0.0, 1.0]), np.radians(60.0))
+    mujoco.mju_mulQuat(start[3:7], turn, start[3:7].copy())
+    assert g1.is_up(start)
+    result = simulate(g1, ctrl, 1.5, initial_state=start)
+    assert result.failure is None and ctrl.switches == 1 and ctrl.phase == 1
+    data = _torso(g1, result.states[-1])
+    assert data.xpos[g1.torso_id, 2] > g1.stand_height
+    np.testing.assert_allclose(data.xpos[g1.torso_id, :2], start[:2], atol=0.05)

@@ -241,8 +241,10 @@ def _geom_label(model: mujoco.MjModel, geom: int) -> str:
 def _within_ranges(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
     """``qpos`` with each limited hinge and slide joint clipped into its range."""
     out = np.array(qpos, dtype=float)
+    # int(): a numpy integer is never ``in`` a tuple of MuJoCo's enum values.
+    kinds = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
     for j in np.flatnonzero(model.jnt_limited):
-        if model.jnt_type[j] in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+        if int(model.jnt_type[j]) in kinds:
             adr = model.jnt_qposadr[j]
             out[adr] = np.clip(out[adr], *model.jnt_range[j])
     return out

@@ -26,7 +26,8 @@ def planning_problem(problem: Problem, config: SamplingConfig) -> Problem:
     """The Problem to plan on: ``problem``, or a copy with its own planning model.
 
     A copy is made when ``config`` sets ``planning_timestep`` (other than the Problem's),
-    ``planning_integrator``, ``planning_disable``, ``solver_tolerance``, or
+    ``planning_integrator``, ``planning_disable``, ``solver_tolerance``, ``servo_armature``
+    (:func:`servo_armature`), or
     ``solver_iterations`` with the warp backend (the CPU backend ignores the cap, see
     :class:`~mpcbox.controllers.sampling.config.SamplingConfig`); ``terminal_value="lqr"``
     then adds the LQR value of that planning model to its terminal cost. ``problem`` is
@@ -43,7 +44,7 @@ def planning_problem(problem: Problem, config: SamplingConfig) -> Problem:
     disable = disable_bits(config.planning_disable)
     # The solver cap is for MJWarp only (see SamplingConfig.solver_iterations).
     cap = config.solver_iterations if config.backend == "warp" else None
-    options = (cap, config.solver_tolerance, config.planning_integrator)
+    options = (cap, config.solver_tolerance, config.planning_integrator, config.servo_armature)
     if disable or any(v is not None for v in options):
         problem = problem.with_planning_timestep(problem.dt)  # a private planning model
         opt = problem.planning_model.opt
@@ -54,9 +55,52 @@ def planning_problem(problem: Problem, config: SamplingConfig) -> Problem:
             opt.iterations = cap
         if config.solver_tolerance is not None:
             opt.tolerance = float(config.solver_tolerance)
+        if config.servo_armature is not None:
+            servo_armature(problem.planning_model, float(config.servo_armature))
     if config.terminal_value == "lqr":
         problem = with_lqr_terminal_value(problem)
     return problem
+
+
+def servo_armature(model: mujoco.MjModel, factor: float) -> np.ndarray:
+    r"""Raise the armature of servo-driven joints so that ``model``'s step is stable.
+
+    For each actuator with a joint transmission on a hinge or slide whose force depends on
+    its length (``biasprm[1] < 0``: a position servo, or a general actuator with such a
+    bias), the joint's stiffness is :math:`k = -b_1 g^2` (gear :math:`g`), and its dof's
+    armature becomes :math:`\max(I_a, c\,k\,\Delta t^2)` with :math:`\Delta t` =
+    ``model.opt.timestep``. An explicit step of a spring :math:`k` on inertia :math:`I`
+    is stable while :math:`k \Delta t^2 / I < 4`, and the armature bounds :math:`I` from
+    below, so :math:`c \ge 1/4` keeps each servo's own spring stable at that step (the
+    implicit integrators treat the servo's damping, not its spring). The model is changed
+    in place, and its derived constants are recomputed (:func:`mujoco.mj_setConst`: MuJoCo
+    keeps the mass of a dof with a constant inertia apart).
+
+    Args:
+        model: The model (its ``dof_armature`` is changed).
+        factor: :math:`c > 0`.
+
+    Returns:
+        The dofs whose armature was raised ``(k,)``.
+    """
+    raised = []
+    joint_types = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    dt2 = float(model.opt.timestep) ** 2
+    for a in range(model.nu):
+        if int(model.actuator_trntype[a]) != int(mujoco.mjtTrn.mjTRN_JOINT):
+            continue
+        stiffness = -float(model.actuator_biasprm[a, 1]) * float(model.actuator_gear[a, 0]) ** 2
+        joint = int(model.actuator_trnid[a, 0])
+        if stiffness <= 0 or int(model.jnt_type[joint]) not in joint_types:
+            continue
+        dof = int(model.jnt_dofadr[joint])
+        least = factor * stiffness * dt2
+        if model.dof_armature[dof] < least:
+            model.dof_armature[dof] = least
+            raised.append(dof)
+    if raised:
+        mujoco.mj_setConst(model, mujoco.MjData(model))
+    return np.asarray(raised, dtype=int)
 
 
 def randomized_models(model: mujoco.MjModel, rand: Randomization) -> list[mujoco.MjModel]:

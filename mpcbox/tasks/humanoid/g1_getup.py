@@ -14,23 +14,32 @@ from mpcbox.controllers.sampling.config import CEMConfig, MPPIConfig, Predictive
 from mpcbox.core.model import ModelSource, load_spec
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.tasks.humanoid.getup import HumanoidGetup
+from mpcbox.tasks.legged.biped import BipedStand
 from mpcbox.validation import one_of, positive
 
-#: Sampling options of the G1 get-up besides the noise. The planning model steps 0.01 s
-#: with implicitfast: with its stiff position servos (kp 500, unlimited force) the G1 lying
-#: on the floor under knot noise of 10 % of each range diverges at 0.02 s (Euler and
-#: implicitfast, 6 of 6 rollouts) and at 0.01 s with Euler (1 of 6), not at 0.01 s with
-#: implicitfast (0 of 6); a 0.6 s horizon is 60 steps per rollout. A starting point, not a
-#: tuned config: on an H100 in the real-time loop it got up in 0 of 10 seeds within 5 s
-#: (torso at most 0.38-0.66 m of the 0.67 m needed), with ticks (p50) of 145-196 ms against the
-#: 20 ms period (benchmarks/results/g1_getup_final_h100.json); 256 samples over 0.5 s
-#: also 0/10 (g1_getup_fast_h100.json).
+#: Sampling options of the G1 get-up besides the noise. The planning model steps 0.02 s with
+#: implicitfast on fitted capsules (``planning_geoms="capsules"``), each servo-driven joint
+#: given the armature ``0.5 kp dt^2`` (``servo_armature=0.5``; 0.1 kg m^2 at kp 500): with
+#: its stiff position servos (kp 500, unlimited force) and no added armature the G1 lying on
+#: the floor diverges at 0.02 s (every one of 128 rollouts of random set-points), and the
+#: planner needed 0.01 s steps, 60 per 0.6 s rollout. With the armature the 30-step rollouts
+#: rank candidates as the world (meshes, 0.002 s) does as well as the 0.01 s plan did (rank
+#: correlation 0.747 against 0.745; ``benchmarks/planning_fidelity.py --tasks g1_getup``,
+#: ``benchmarks/results/planning_fidelity_g1_getup.json``). On an H200 in the real-time
+#: loop MPPI gets up within 5 s in 4 of 30 runs (2 of seeds 100-109 in each of two runs,
+#: none of held-out seeds 110-119), with ticks of p50 29-40 ms and p99 about 42 ms against
+#: the 20 ms period; with the world waiting for each tick (lock-step) 2 of 5 (110-114). The
+#: 0.01 s capsule plan (ticks p50 48-60 ms, p99 49-74 ms in the same run) and the mesh plan
+#: before it got up in none (``benchmarks/results/g1_getup_armature_h200.json``,
+#: ``g1_getup_handover_h200.json``, ``g1_getup_defaults_h200.json``).
+#: A starting point, not a tuned config.
 G1_SAMPLING: dict[str, Any] = dict(
     num_samples=512,
     horizon=0.6,
     num_knots=6,
-    planning_timestep=0.01,
+    planning_timestep=0.02,
     planning_integrator="implicitfast",
+    servo_armature=0.5,
     solver_iterations=2,
     period=0.02,
     headroom=8.0,
@@ -88,14 +97,16 @@ class G1Getup(HumanoidGetup):
     actuators are position servos, so the reference control is the keyframe's joint
     targets and the sampling noise is ``noise_fraction`` of each actuator's range (in
     radians, :func:`range_noise`), not the classic humanoid's 0.4 of a unit torque range.
-    On an H100 no config tried gets it up within 5 s in the real-time loop (0/10, see
-    :data:`G1_SAMPLING`): MJWarp's steps of the G1 (mesh collision geoms) make each tick
-    100-200 ms. That was measured with the earlier cost (torso height above the floor, no
-    velocity term of the centre of mass); with the two terms that got the classic humanoid
-    up (now inherited) MPPI still gets up 0/5 in real time, 1/3 in lock-step. Planning on
-    fitted capsules (``planning_geoms="capsules"``) makes a tick 3x shorter (p50 50-64 ms
-    against 145-187 ms) and the torso rises higher (0.59-0.89 m against 0.27-0.49 m), still
-    0/5 within 5 s (benchmarks/results/g1_getup_capsules_h100.json).
+    It plans on fitted capsules at 0.02 s with added servo armature (:data:`G1_SAMPLING`)
+    and gets up within 5 s in the real-time loop in 4 of 30 runs on an H200, far from the
+    target of 9 of 10: the torso often reaches the standing height and drops again. Planned
+    on its meshes at 0.01 s it got up in none (ticks 145-196 ms on an H100); on capsules at
+    0.01 s in none either (ticks p50 48-64 ms). :meth:`stand_problem` gives a standing
+    stage (:class:`~mpcbox.tasks.legged.biped.BipedStand`) for :meth:`handover_controller`;
+    its LQR holds the G1 from a standing state anywhere on the floor, but handed over at
+    the task's ``is_up`` (torso tilted up to 0.5 rad) it let the body fall (0 of 3 seeds),
+    and with ``handover_tilt=0.2, handover_speed=0.3`` it never took over
+    (``benchmarks/results/g1_getup_handover_h200.json``).
     The same task is ``HumanoidGetup(model="menagerie:unitree_g1", torso="torso_link",
     root="pelvis", feet=("left_foot", "right_foot"), stand_height=None,
     release_height=None)`` with the classic humanoid's controller configs.
@@ -110,8 +121,8 @@ class G1Getup(HumanoidGetup):
         release_height: Ditto (default: derived).
         noise_fraction: Sampling noise as a fraction of each control range.
         planning_geoms: What the planning model's collision meshes touch (the simulated
-            world keeps every contact): ``"meshes"`` (the default) the floor and the feet's
-            spheres, not each other (:func:`floor_only_meshes`); ``"capsules"`` the same,
+            world keeps every contact): ``"meshes"`` the floor and the feet's spheres, not
+            each other (:func:`floor_only_meshes`); ``"capsules"`` (the default) the same,
             each mesh replaced by the capsule fitted to it; ``"all"`` everything, as in the
             world.
         **kwargs: Passed to :class:`~mpcbox.tasks.humanoid.getup.HumanoidGetup`.
@@ -136,7 +147,7 @@ class G1Getup(HumanoidGetup):
         stand_height: float | None = None,
         release_height: float | None = None,
         noise_fraction: float = 0.1,
-        planning_geoms: str = "meshes",
+        planning_geoms: str = "capsules",
         **kwargs: Any,
     ) -> None:
         planning_geoms = one_of("planning_geoms", planning_geoms, PLANNING_GEOMS)
@@ -159,13 +170,22 @@ class G1Getup(HumanoidGetup):
             for name, config in type(self).controller_configs.items()
         }
 
-    def stand_problem(self, **kwargs: Any) -> HumanoidGetup:
-        """Not available: the standing stage is tuned for the classic humanoid only.
+    def stand_problem(self, **kwargs: Any) -> BipedStand:
+        """The standing stage: :class:`~mpcbox.tasks.legged.biped.BipedStand` on both feet
+        of this task's model (its equilibrium through the servos, its LQR, QP-MPC and
+        iLQR-MPC configs), for :meth:`handover_controller`.
+
+        Args:
+            **kwargs: Passed to :class:`~mpcbox.tasks.legged.biped.BipedStand`.
 
         Raises:
-            InvalidArgumentError: Always (use the get-up controller alone).
+            InvalidArgumentError: If this task was built on a compiled ``MjModel`` (the
+                standing task adds sites to the model's spec).
         """
-        raise InvalidArgumentError(
-            "G1Getup has no standing stage for handover_controller: HumanoidStand is tuned "
-            "for the classic humanoid; use make_controller with the get-up controller alone"
-        )
+        if isinstance(self._model_source, mujoco.MjModel):
+            raise InvalidArgumentError(
+                "G1Getup.stand_problem needs the model as a path, XML, spec or Menagerie "
+                "name, not a compiled MjModel (BipedStand adds sites to its spec)"
+            )
+        kwargs.setdefault("stance", "two")
+        return BipedStand(self._model_source, **kwargs)

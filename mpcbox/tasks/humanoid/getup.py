@@ -415,7 +415,7 @@ class HumanoidGetup(Problem):
         """The torso is lower than ``release_height``, for a state ``(nstate,)``."""
         return self._torso(state)[0] < self.release_height
 
-    def stand_problem(self, **kwargs: Any) -> HumanoidStand:
+    def stand_problem(self, **kwargs: Any) -> Problem:
         """The standing stage: :class:`~mpcbox.tasks.humanoid.stand.HumanoidStand` (its own
         costs and tuned controller configs) on this task's model.
 
