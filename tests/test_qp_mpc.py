@@ -581,3 +581,36 @@ def test_free_first_stage_forces_unbound_only_the_touching_points_of_stage_zero(
         QPMPCConfig(first_stage_forces="loose")
     with pytest.raises(InvalidArgumentError, match="stance_model='soft'"):
         QPMPCConfig(first_stage_forces="free", stance_model="rigid")
+
+
+def test_joint_limits_hold_the_plan_inside_each_range(one_leg):
+    """``joint_limits=True`` adds each limited hinge's range at every stage (a numpy joint
+    type compared with a tuple of MuJoCo's enum values had left it without any)."""
+    free = QPMPC(one_leg)
+    settings = {"max_iter": 20000, "adaptive_rho": True}
+    held = QPMPC(one_leg, joint_limits=True, osqp_settings=settings)
+    limits = held.formulation.limits
+    limited = [
+        j
+        for j in range(one_leg.model.njnt)
+        if one_leg.model.jnt_limited[j] and one_leg.model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
+    ]
+    assert len(limits.qpos) == len(limited) > 0
+    rows = held.formulation.A.shape[0] - free.formulation.A.shape[0]
+    assert rows == held.horizon * len(limited)
+    crossed = 0
+    for k in range(len(limits.qpos)):
+        # 0.02 rad below the upper limit, moving towards it at 0.5 rad/s.
+        state = one_leg.initial_state()
+        state[limits.qpos[k]] = limits.high[k] - 0.02
+        state[one_leg.nq + limits.dofs[k]] = 0.5
+        peaks = []
+        for controller in (free, held):
+            controller.reset()
+            plan = controller.solve(state)
+            assert plan is not None
+            q = one_leg.qpos_ref[limits.qpos[k]] + plan.dx[:, limits.dofs[k]]
+            peaks.append(float(q.max() - limits.high[k]))
+        crossed += peaks[0] > 0.01
+        assert peaks[1] <= 1e-3, (k, peaks)
+    assert crossed >= 1  # without the limits some plan goes through one

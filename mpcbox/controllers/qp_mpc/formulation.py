@@ -102,12 +102,11 @@ class JointLimits(NamedTuple):
 def joint_limits(model: mujoco.MjModel, enabled: bool) -> JointLimits:
     """The limited hinge and slide joints of ``model`` (none unless ``enabled``)."""
     lim_q, lim_d, lim_lo, lim_hi = [], [], [], []
+    # int(): a numpy integer is never ``in`` a tuple of MuJoCo's enum values.
+    kinds = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
     if enabled:
         for j in range(model.njnt):
-            if model.jnt_limited[j] and model.jnt_type[j] in (
-                mujoco.mjtJoint.mjJNT_HINGE,
-                mujoco.mjtJoint.mjJNT_SLIDE,
-            ):
+            if model.jnt_limited[j] and int(model.jnt_type[j]) in kinds:
                 lim_q.append(int(model.jnt_qposadr[j]))
                 lim_d.append(int(model.jnt_dofadr[j]))
                 lim_lo.append(model.jnt_range[j, 0])
