@@ -93,12 +93,18 @@ def weld_free_bodies(
         return ()
     bodies = set().union(*(_subtree(model, root) for root in roots))
     joints = [j for j in range(model.njnt) if int(model.jnt_bodyid[j]) in bodies]
-    sizes = {mujoco.mjtJoint.mjJNT_FREE: (7, 6), mujoco.mjtJoint.mjJNT_BALL: (4, 3)}
+    sizes = {int(mujoco.mjtJoint.mjJNT_FREE): (7, 6), int(mujoco.mjtJoint.mjJNT_BALL): (4, 3)}
     drop_q = np.concatenate(
-        [model.jnt_qposadr[j] + np.arange(sizes.get(model.jnt_type[j], (1, 1))[0]) for j in joints]
+        [
+            model.jnt_qposadr[j] + np.arange(sizes.get(int(model.jnt_type[j]), (1, 1))[0])
+            for j in joints
+        ]
     )
     drop_v = np.concatenate(
-        [model.jnt_dofadr[j] + np.arange(sizes.get(model.jnt_type[j], (1, 1))[1]) for j in joints]
+        [
+            model.jnt_dofadr[j] + np.arange(sizes.get(int(model.jnt_type[j]), (1, 1))[1])
+            for j in joints
+        ]
     )
     for root in roots:
         if model.body_parentid[root] != 0:
