@@ -149,25 +149,32 @@ def run_robot(
                 break
         out[name] = {"successes": sum(r["success"] for r in runs), "runs": runs}
         if push:
-            out[name]["largest_push_n"] = _largest_push(problem, name, push_settle, push_rest_speed)
+            out[name].update(_largest_push(problem, name, push_settle, push_rest_speed))
     problem.close()
     return out
 
 
 def _largest_push(
     problem, name: str, settle: float = 3.0, rest_speed: float | None = None
-) -> float | str:
+) -> dict:
     """The largest forward push of 0.1 s on the root that ``name`` survives (no noise, 5 N):
-    standing ``settle`` s after it and, with ``rest_speed``, the root slower than that."""
+    standing ``settle`` s after it and, with ``rest_speed``, the root slower than that.
+    Returns ``largest_push_n`` (or the error), the bisection's smallest failed force and
+    how far the root's subtree travelled in the largest survived trial."""
     from mpcbox.comparison.push_limits import largest_push
     from mpcbox.comparison.scenario import PushTest
 
     options = {} if rest_speed is None else {"rest_speed": rest_speed}
     test = PushTest(body=problem.root, tolerance=5.0, max_force=1500.0, settle=settle, **options)
     try:
-        return round(float(largest_push(problem, name, test).force), 1)
+        limit = largest_push(problem, name, test)
     except Exception as exc:
-        return _error(exc)
+        return {"largest_push_n": _error(exc)}
+    return {
+        "largest_push_n": round(float(limit.force), 1),
+        "smallest_failed_push_n": round(float(limit.smallest_failed), 1),
+        "largest_push_travel_m": round(float(limit.travel), 3),
+    }
 
 
 def _qp_counts(controller: object) -> dict:
