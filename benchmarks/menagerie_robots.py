@@ -154,9 +154,7 @@ def run_robot(
     return out
 
 
-def _largest_push(
-    problem, name: str, settle: float = 3.0, rest_speed: float | None = None
-) -> dict:
+def _largest_push(problem, name: str, settle: float = 3.0, rest_speed: float | None = None) -> dict:
     """The largest forward push of 0.1 s on the root that ``name`` survives (no noise, 5 N):
     standing ``settle`` s after it and, with ``rest_speed``, the root slower than that.
     Returns ``largest_push_n`` (or the error), the bisection's smallest failed force and
