@@ -14,8 +14,9 @@ from mpcbox.errors import InvalidArgumentError
 
 # A light link on a stiff position servo (kp 400: k dt^2 / I = 80 at 0.02 s, far past the
 # explicit step's limit of 4), a general actuator with a length bias through gear 2 on a
-# slide, a motor, a servo whose joint already has more armature than asked, and a servo on a
-# tendon (not a joint transmission: left alone).
+# slide, a motor, a servo whose joint already has more armature than asked, a servo on a
+# tendon (not a joint transmission) and a general actuator whose bias parameters are unused
+# (no bias): the last four are left alone.
 SERVOS = """
 <mujoco>
   <option timestep="0.02" integrator="implicitfast" gravity="0 0 0"/>
@@ -36,6 +37,10 @@ SERVOS = """
       <joint name="heavy" type="hinge" axis="0 0 1" armature="5"/>
       <geom type="box" size="0.1 0.02 0.02" mass="0.1" contype="0" conaffinity="0"/>
     </body>
+    <body name="f" pos="5 0 0">
+      <joint name="unbiased" type="hinge" axis="0 0 1"/>
+      <geom type="box" size="0.1 0.02 0.02" mass="0.1" contype="0" conaffinity="0"/>
+    </body>
     <body name="e" pos="4 0 0">
       <joint name="tendon_hinge" type="hinge" axis="0 0 1"/>
       <geom type="box" size="0.1 0.02 0.02" mass="0.1" contype="0" conaffinity="0"/>
@@ -46,10 +51,12 @@ SERVOS = """
   </tendon>
   <actuator>
     <position name="servo" joint="hinge" kp="400"/>
-    <general name="general" joint="slide" gear="2" gainprm="30" biasprm="0 -30 0"/>
+    <general name="general" joint="slide" gear="2" gainprm="30" biastype="affine"
+             biasprm="0 -30 0"/>
     <motor name="motor" joint="free_hinge"/>
     <position name="heavy_servo" joint="heavy" kp="400"/>
     <position name="tendon_servo" tendon="t" kp="400"/>
+    <general name="no_bias" joint="unbiased" biastype="none" biasprm="0 -400 0"/>
   </actuator>
 </mujoco>
 """
@@ -64,12 +71,12 @@ def test_armature_is_the_factor_times_the_servo_stiffness_times_the_step_squared
     before = model.dof_armature.copy()
     raised = servo_armature(model, 0.5)
     dt2 = 0.02**2
-    names = ("hinge", "slide", "free_hinge", "heavy", "tendon_hinge")
-    hinge, slide, motor, heavy, tendon = (model.joint(n).dofadr[0] for n in names)
+    names = ("hinge", "slide", "free_hinge", "heavy", "tendon_hinge", "unbiased")
+    hinge, slide, motor, heavy, tendon, unbiased = (model.joint(n).dofadr[0] for n in names)
     assert model.dof_armature[hinge] == pytest.approx(0.5 * 400 * dt2)
     # Stiffness on the joint is kp g^2 for gear g.
     assert model.dof_armature[slide] == pytest.approx(0.5 * 30 * 4 * dt2)
-    for dof in (motor, heavy, tendon):
+    for dof in (motor, heavy, tendon, unbiased):
         assert model.dof_armature[dof] == before[dof]
     assert sorted(raised.tolist()) == sorted([hinge, slide])
 

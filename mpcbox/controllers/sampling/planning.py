@@ -66,15 +66,16 @@ def servo_armature(model: mujoco.MjModel, factor: float) -> np.ndarray:
     r"""Raise the armature of servo-driven joints so that ``model``'s step is stable.
 
     For each actuator with a joint transmission on a hinge or slide whose force depends on
-    its length (``biasprm[1] < 0``: a position servo, or a general actuator with such a
-    bias), the joint's stiffness is :math:`k = -b_1 g^2` (gear :math:`g`), and its dof's
-    armature becomes :math:`\max(I_a, c\,k\,\Delta t^2)` with :math:`\Delta t` =
-    ``model.opt.timestep``. An explicit step of a spring :math:`k` on inertia :math:`I`
-    is stable while :math:`k \Delta t^2 / I < 4`, and the armature bounds :math:`I` from
-    below, so :math:`c \ge 1/4` keeps each servo's own spring stable at that step (the
-    implicit integrators treat the servo's damping, not its spring). The model is changed
-    in place, and its derived constants are recomputed (:func:`mujoco.mj_setConst`: MuJoCo
-    keeps the mass of a dof with a constant inertia apart).
+    its length (an affine bias with ``biasprm[1] < 0``: a position servo, or a general
+    actuator with such a bias), the joint's stiffness is :math:`k = -b_1 g^2` (gear
+    :math:`g`), and its dof's armature becomes :math:`\max(I_a, c\,k\,\Delta t^2)`
+    with :math:`\Delta t` = ``model.opt.timestep``. An explicit step of a spring
+    :math:`k` on inertia :math:`I` is stable while :math:`k \Delta t^2 / I < 4`, and the
+    armature bounds :math:`I` from below, so :math:`c \ge 1/4` keeps each servo's own
+    spring stable at that step (the implicit integrators treat the servo's damping, not
+    its spring). The model is changed in place, and its derived constants are recomputed
+    (:func:`mujoco.mj_setConst`: MuJoCo keeps the mass of a dof with a constant inertia
+    apart).
 
     Args:
         model: The model (its ``dof_armature`` is changed).
@@ -84,10 +85,13 @@ def servo_armature(model: mujoco.MjModel, factor: float) -> np.ndarray:
         The dofs whose armature was raised ``(k,)``.
     """
     raised = []
+    # int(): a numpy integer is never ``in`` a tuple of MuJoCo's enum values.
     joint_types = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    joint_trns = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT))
     dt2 = float(model.opt.timestep) ** 2
     for a in range(model.nu):
-        if int(model.actuator_trntype[a]) != int(mujoco.mjtTrn.mjTRN_JOINT):
+        affine = int(model.actuator_biastype[a]) == int(mujoco.mjtBias.mjBIAS_AFFINE)
+        if not affine or int(model.actuator_trntype[a]) not in joint_trns:
             continue
         stiffness = -float(model.actuator_biasprm[a, 1]) * float(model.actuator_gear[a, 0]) ** 2
         joint = int(model.actuator_trnid[a, 0])
