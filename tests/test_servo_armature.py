@@ -17,33 +17,22 @@ from mpcbox.errors import InvalidArgumentError
 # slide, a motor, a servo whose joint already has more armature than asked, a servo on a
 # tendon (not a joint transmission) and a general actuator whose bias parameters are unused
 # (no bias): the last four are left alone.
-SERVOS = """
+BOX = '<geom type="box" size="0.1 0.02 0.02" mass="0.1" contype="0" conaffinity="0"/>'
+HINGES = ("hinge", "free_hinge", "heavy", "tendon_hinge", "unbiased")
+ARMATURE = {"heavy": ' armature="5"'}
+LINKS = "".join(
+    f'<body pos="{2 * i} 0 0"><joint name="{name}" type="hinge" axis="0 0 1"'
+    f"{ARMATURE.get(name, '')}/>{BOX}</body>"
+    for i, name in enumerate(HINGES)
+)
+SERVOS = f"""
 <mujoco>
   <option timestep="0.02" integrator="implicitfast" gravity="0 0 0"/>
   <worldbody>
-    <body name="a">
-      <joint name="hinge" type="hinge" axis="0 0 1"/>
-      <geom type="box" size="0.1 0.02 0.02" mass="0.1" contype="0" conaffinity="0"/>
-    </body>
+    {LINKS}
     <body name="b" pos="1 0 0">
       <joint name="slide" type="slide" axis="1 0 0"/>
       <geom type="sphere" size="0.05" mass="1" contype="0" conaffinity="0"/>
-    </body>
-    <body name="c" pos="2 0 0">
-      <joint name="free_hinge" type="hinge" axis="0 0 1"/>
-      <geom type="box" size="0.1 0.02 0.02" mass="0.1" contype="0" conaffinity="0"/>
-    </body>
-    <body name="d" pos="3 0 0">
-      <joint name="heavy" type="hinge" axis="0 0 1" armature="5"/>
-      <geom type="box" size="0.1 0.02 0.02" mass="0.1" contype="0" conaffinity="0"/>
-    </body>
-    <body name="f" pos="5 0 0">
-      <joint name="unbiased" type="hinge" axis="0 0 1"/>
-      <geom type="box" size="0.1 0.02 0.02" mass="0.1" contype="0" conaffinity="0"/>
-    </body>
-    <body name="e" pos="4 0 0">
-      <joint name="tendon_hinge" type="hinge" axis="0 0 1"/>
-      <geom type="box" size="0.1 0.02 0.02" mass="0.1" contype="0" conaffinity="0"/>
     </body>
   </worldbody>
   <tendon>
