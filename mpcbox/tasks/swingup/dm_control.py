@@ -399,7 +399,9 @@ class DmAcrobotSwingup(Swingup):
         rad/s of the upright from the 6 caught starts (which the tracker's last gains and
         the LQR then catch; the LQR alone drops a 0.1 rad elbow offset at rest),
         and seeds 0-11 are upright within 5 s and held from 6/12 (the oracle's 5 and one
-        it does not reach; dev starts 100-107: 2/8, the oracle reaching 5/8;
+        it does not reach; dev starts 100-107: 2/8, the oracle reaching 5/8; held-out
+        starts 12-35: 7/12 and 8/12, the oracle reaching 11/12 and 8/12, four of the misses
+        being re-solved plans that end 0.38-1.04 m off;
         ``benchmarks/dm_acrobot_dm_starts.py --controllers ilqr_track_lqr``).
 
         Args:
