@@ -245,25 +245,6 @@ def test_stance_posture_takes_a_hand_out_of_the_head_when_it_can() -> None:
     assert posture.com_error < 1e-3
 
 
-def test_stance_posture_starts_inside_the_joint_ranges() -> None:
-    """A start beyond a hinge's or slide's range is clipped into it before the IK (a numpy
-    joint type compared with a tuple of MuJoCo's enum values never matched before)."""
-    from mpcbox.core.posture import _within_ranges
-
-    model = mujoco.MjModel.from_xml_string(
-        """<mujoco><compiler angle="radian"/><worldbody><body><freejoint/><geom size="0.1"/>
-        <body><joint name="h" type="hinge" range="-0.5 0.5"/><geom size="0.1"/>
-        <body><joint name="s" type="slide" range="0 0.2"/><geom size="0.1"/>
-        <body><joint name="free" type="hinge"/><geom size="0.1"/></body></body></body>
-        </body></worldbody></mujoco>"""
-    )
-    qpos = model.qpos0.copy()
-    qpos[7:] = (0.9, -0.3, 5.0)
-    out = _within_ranges(model, qpos)
-    np.testing.assert_allclose(out[7:], (0.5, 0.0, 5.0))
-    np.testing.assert_allclose(out[:7], qpos[:7])
-
-
 def test_stance_posture_reports_self_collision() -> None:
     model, start = _hand_in_head(locked=True)
     kw = dict(stance="foot_right", swing="foot_left")

@@ -238,18 +238,6 @@ def _geom_label(model: mujoco.MjModel, geom: int) -> str:
     return name or f"geom {geom} of body {body or model.geom_bodyid[geom]}"
 
 
-def _within_ranges(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
-    """``qpos`` with each limited hinge and slide joint clipped into its range."""
-    out = np.array(qpos, dtype=float)
-    # int(): a numpy integer is never ``in`` a tuple of MuJoCo's enum values.
-    kinds = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
-    for j in np.flatnonzero(model.jnt_limited):
-        if int(model.jnt_type[j]) in kinds:
-            adr = model.jnt_qposadr[j]
-            out[adr] = np.clip(out[adr], *model.jnt_range[j])
-    return out
-
-
 def _watched_pairs(
     colliding: list[int], touching: list[tuple[int, int]]
 ) -> list[tuple[list[int], list[int]]]:
@@ -404,9 +392,11 @@ def reach_posture(
     if max_error is not None:
         positive("max_error", max_error)
     name, kind = _mink_frame(model, frame, "frame")
-    # MuJoCo's joint limits are soft, so a measured start can lie just past one; mink's
-    # limits would make the first IK step infeasible. The IK starts inside the ranges.
-    config = mink.Configuration(model, q=_within_ranges(model, qpos_init))
+    # MuJoCo's joint limits are soft, so a measured start can lie just past one. The IK
+    # starts there: clipped into its range, a gripper's finger can land inside the other
+    # jaw (tests/test_end_effector.py); a first step that has no solution with the
+    # collision limit is taken within the joint limits alone.
+    config = mink.Configuration(model, q=np.asarray(qpos_init, dtype=float))
     task = mink.FrameTask(
         name, kind, position_cost=1.0, orientation_cost=0.0 if orientation is None else 0.5
     )
