@@ -400,8 +400,8 @@ class DmAcrobotSwingup(Swingup):
         the LQR then catch; the LQR alone drops a 0.1 rad elbow offset at rest),
         and seeds 0-11 are upright within 5 s and held from 6/12 (the oracle's 5 and one
         it does not reach; dev starts 100-107: 2/8, the oracle reaching 5/8; held-out
-        starts 12-35: 7/12 and 8/12, the oracle reaching 11/12 and 8/12, four of the misses
-        being re-solved plans that end 0.38-1.04 m off;
+        starts 12-35: 7/12 and 8/12, the oracle reaching 11/12 and 8/12 (on the misses its
+        plans reach the 0.2 m ball still moving, where these must end at rest);
         ``benchmarks/dm_acrobot_dm_starts.py --controllers ilqr_track_lqr``).
 
         Args:
