@@ -26,13 +26,14 @@ from mpcbox.validation import one_of, positive
 #: rank candidates as the world (meshes, 0.002 s) does as well as the 0.01 s plan did (rank
 #: correlation 0.747 against 0.745; ``benchmarks/planning_fidelity.py --tasks g1_getup``,
 #: ``benchmarks/results/planning_fidelity_g1_getup.json``). On an H200 in the real-time
-#: loop MPPI gets up within 5 s in 4 of 30 runs (2 of seeds 100-109 in each of two runs,
-#: none of held-out seeds 110-119), with ticks of p50 29-40 ms and p99 about 42 ms against
-#: the 20 ms period; with the world waiting for each tick (lock-step) 2 of 5 (110-114). The
-#: 0.01 s capsule plan (ticks p50 48-60 ms, p99 49-74 ms in the same run) and the mesh plan
-#: before it got up in none (``benchmarks/results/g1_getup_armature_h200.json``,
-#: ``g1_getup_handover_h200.json``, ``g1_getup_defaults_h200.json``).
-#: A starting point, not a tuned config.
+#: loop MPPI gets up within 5 s in 6 of 40 runs (2 of seeds 100-109 in each of two runs,
+#: 0 and 2 of held-out seeds 110-119 and 120-129), with ticks of p50 27-42 ms and p99
+#: about 42 ms against the 20 ms period; with the world waiting for each tick (lock-step) 2
+#: of 5 (110-114). The 0.01 s capsule plan (ticks p50 48-60 ms, p99 49-74 ms in the same
+#: run) and the mesh plan before it got up in none
+#: (``benchmarks/results/g1_getup_armature_h200.json``, ``g1_getup_handover_h200.json``,
+#: ``g1_getup_defaults_h200.json``, ``g1_getup_defaults_120_h200.json``). A starting
+#: point, not a tuned config.
 G1_SAMPLING: dict[str, Any] = dict(
     num_samples=512,
     horizon=0.6,
@@ -98,7 +99,7 @@ class G1Getup(HumanoidGetup):
     targets and the sampling noise is ``noise_fraction`` of each actuator's range (in
     radians, :func:`range_noise`), not the classic humanoid's 0.4 of a unit torque range.
     It plans on fitted capsules at 0.02 s with added servo armature (:data:`G1_SAMPLING`)
-    and gets up within 5 s in the real-time loop in 4 of 30 runs on an H200, far from the
+    and gets up within 5 s in the real-time loop in 6 of 40 runs on an H200, far from the
     target of 9 of 10: the torso often reaches the standing height and drops again. Planned
     on its meshes at 0.01 s it got up in none (ticks 145-196 ms on an H100); on capsules at
     0.01 s in none either (ticks p50 48-64 ms). :meth:`stand_problem` gives a standing
