@@ -143,6 +143,38 @@ def test_compare_checks_option_values_before_any_run():
         )
 
 
+@pytest.mark.parametrize(
+    ("options", "named"),
+    [
+        ({"num_samples": -1}, "num_samples"),
+        ({"servo_armature": -1.0}, "servo_armature"),
+        ({"num_knots": 1000}, "num_knots"),  # more knots than the horizon's steps
+        ({"noise_scale": [0.1, 0.2, 0.3]}, "noise_scale"),  # one per control, not three
+    ],
+)
+def test_compare_checks_sampling_values_that_need_the_problem_before_any_run(options, named):
+    """A sampling config checks its values against the Problem's sizes; compare builds the
+    task once to check them, where they used to come back as rows of failed runs."""
+    for task in ("cartpole_swingup", "pendulum_swingup"):  # a tuned config, and the defaults
+        with pytest.raises(mpcbox.MpcboxError, match=named):
+            mpcbox.compare(
+                task,
+                ["mppi"],
+                Scenario(duration=0.05, noise_scale=0.0),
+                seeds=1,
+                controller_options={"mppi": options},
+                workers=1,
+                progress=False,
+            )
+
+
+def test_cli_sampling_option_values_exit_2(tmp_path, capsys):
+    args = ["compare", "cartpole_swingup", "--controllers", "mppi", "--seeds", "1"]
+    args += ["--duration", "0.05", "--set", "mppi.num_samples=0", "--no-plots", "--no-progress"]
+    assert cli_main([*args, "--out", str(tmp_path)]) == 2
+    assert "num_samples must be" in capsys.readouterr().err
+
+
 def test_cli_option_values_exit_2(tmp_path, capsys):
     args = ["compare", "pendulum_swingup", "--controllers", "lqr", "--seeds", "1"]
     args += ["--duration", "0.05", "--set", "lqr.eps=-1", "--no-plots", "--no-progress"]

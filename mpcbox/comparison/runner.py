@@ -19,6 +19,7 @@ re-run skips them (:mod:`mpcbox.comparison.checkpoint`).
 
 from __future__ import annotations
 
+import inspect
 import os
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -40,7 +41,12 @@ from mpcbox.comparison.scenario import PushTest, Scenario, check_noise_models
 from mpcbox.config import check_option_names, resolve_config
 from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError, InvalidTypeError, UnknownNameError
+from mpcbox.errors import (
+    InvalidArgumentError,
+    InvalidTypeError,
+    MpcboxError,
+    UnknownNameError,
+)
 from mpcbox.registry import (
     CONTROLLERS,
     TASKS,
@@ -195,6 +201,7 @@ def compare(
     if controller_options is not None:
         instance_of("controller_options", controller_options, Mapping, "a mapping of mappings")
     overrides = {k: dict(v) for k, v in (controller_options or {}).items()}
+    sized: list[Problem | None] = [instance]  # built once, only to check sized options
     for name, options in overrides.items():
         if name not in specs:
             raise UnknownNameError("controller in controller_options", name, specs)
@@ -204,9 +211,15 @@ def compare(
             owner = f"controller_options[{name!r}]"
             tuned = getattr(instance or problem_class, "controller_configs", {}).get(spec)
             if isinstance(tuned, config_class):  # names and values, before any run starts
-                resolve_config(config_class, tuned, options, owner)
+                config = resolve_config(config_class, tuned, options, owner)
             else:
                 check_option_names(config_class, options, owner)
+                try:  # the class's defaults, unless it has required fields
+                    config = resolve_config(config_class, None, options, owner)
+                except TypeError:
+                    config = None
+            if options and config is not None:
+                _check_sized_values(config, sized, problem_class, problem_options)
 
     if scenarios is None:
         scenarios = (Scenario(),)
@@ -343,3 +356,29 @@ def _placement(done: list[Done]) -> dict[str, int]:
     for item in done:
         out[item.where] = out.get(item.where, 0) + 1
     return out
+
+
+def _check_sized_values(
+    config: Any,
+    sized: list[Problem | None],
+    problem_class: type,
+    problem_options: Mapping[str, Any] | None,
+) -> None:
+    """Check option values that need the Problem's sizes before any run starts: a config
+    whose ``validate(nu, dt)`` takes them (the sampling controllers') is checked against
+    ``sized[0]``, the given Problem or one built from the task once. A task that cannot be
+    built here is left to its runs, which report that error each.
+
+    Raises:
+        MpcboxError: The config's own error naming the option (an ``InvalidArgumentError``
+            for a value out of range).
+    """
+    validate = getattr(config, "validate", None)
+    if validate is None or len(inspect.signature(validate).parameters) != 2:
+        return
+    if sized[0] is None:
+        try:
+            sized[0] = problem_class(**dict(problem_options or {}))
+        except MpcboxError:
+            return
+    validate(sized[0].nu, sized[0].dt)
