@@ -216,7 +216,9 @@ def compare(
                 check_option_names(config_class, options, owner)
                 try:  # the class's defaults, unless it has required fields
                     config = resolve_config(config_class, None, options, owner)
-                except TypeError:
+                except TypeError as exc:  # a missing field; a bad value is an MpcboxError
+                    if isinstance(exc, MpcboxError):
+                        raise
                     config = None
             if options and config is not None:
                 _check_sized_values(config, sized, problem_class, problem_options)
