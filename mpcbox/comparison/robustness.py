@@ -307,19 +307,20 @@ def largest_push(
     """
     trial = _push_trial(problem, controller, test, seed)
     max_force, count = test.max_force, 0
-    last: list[SimulationResult] = []  # the last survived trial: the largest force so far
+    last: SimulationResult | None = None  # the last survived trial: the largest force so far
 
     def survives(force: float) -> bool:
-        nonlocal count
+        nonlocal count, last
         count += 1
         result = trial(force)
         if not recovered(problem, test, result):
             return False
-        last[:] = [result]
+        last = result
         return True
 
     def moved() -> float:
-        return travel(problem, last[0], test.body, test.start)
+        assert last is not None  # the push of 0 N was survived
+        return travel(problem, last, test.body, test.start)
 
     if not survives(0.0):
         return PushLimit(0.0, 0.0, 0.0, count)

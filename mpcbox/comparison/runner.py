@@ -19,7 +19,6 @@ re-run skips them (:mod:`mpcbox.comparison.checkpoint`).
 
 from __future__ import annotations
 
-import inspect
 import os
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -201,7 +200,7 @@ def compare(
     if controller_options is not None:
         instance_of("controller_options", controller_options, Mapping, "a mapping of mappings")
     overrides = {k: dict(v) for k, v in (controller_options or {}).items()}
-    sized: list[Problem | None] = [instance]  # built once, only to check sized options
+    changed = []  # configs with options given: their values are checked below
     for name, options in overrides.items():
         if name not in specs:
             raise UnknownNameError("controller in controller_options", name, specs)
@@ -221,7 +220,8 @@ def compare(
                         raise
                     config = None
             if options and config is not None:
-                _check_sized_values(config, sized, problem_class, problem_options)
+                changed.append(config)
+    _check_sized_values(changed, instance, problem_class, problem_options)
 
     if scenarios is None:
         scenarios = (Scenario(),)
@@ -361,26 +361,29 @@ def _placement(done: list[Done]) -> dict[str, int]:
 
 
 def _check_sized_values(
-    config: Any,
-    sized: list[Problem | None],
+    configs: Sequence[Any],
+    instance: Problem | None,
     problem_class: type,
     problem_options: Mapping[str, Any] | None,
 ) -> None:
-    """Check option values that need the Problem's sizes before any run starts: a config
-    whose ``validate(nu, dt)`` takes them (the sampling controllers') is checked against
-    ``sized[0]``, the given Problem or one built from the task once. A task that cannot be
-    built here is left to its runs, which report that error each.
+    """Check option values that need the Problem's sizes before any run starts: each
+    sampling config (its ``validate(nu, dt)``) against ``instance``, or a Problem built
+    once from the task. A task that cannot be built here is left to its runs, which
+    report that error each.
 
     Raises:
         MpcboxError: The config's own error naming the option (an ``InvalidArgumentError``
             for a value out of range).
     """
-    validate = getattr(config, "validate", None)
-    if validate is None or len(inspect.signature(validate).parameters) != 2:
+    from mpcbox.controllers.sampling.config import SamplingConfig
+
+    sized = [c for c in configs if isinstance(c, SamplingConfig)]
+    if not sized:
         return
-    if sized[0] is None:
+    if instance is None:
         try:
-            sized[0] = problem_class(**dict(problem_options or {}))
+            instance = problem_class(**dict(problem_options or {}))
         except MpcboxError:
             return
-    validate(sized[0].nu, sized[0].dt)
+    for config in sized:
+        config.validate(instance.nu, instance.dt)
