@@ -8,7 +8,9 @@ Each variant (``task.<kwarg>=v`` for :class:`~mpcbox.tasks.humanoid.getup.Humano
 ``hand.transfer=false``, ``stand.<field>=v`` (its config) and ``standtask.<kwarg>=v`` (its
 :class:`~mpcbox.tasks.humanoid.stand.HumanoidStand`) build the task-stage hand-over of
 :meth:`~mpcbox.tasks.humanoid.getup.HumanoidGetup.handover_controller` instead, ``C`` the
-standing stage's controller) runs every controller for ``--seeds`` seeds (from
+standing stage's controller; ``hand.stand_on=getup`` plans that stage on the get-up task
+itself, and ``stand.noise_factor=F`` gives it the get-up config's noise times ``F``) runs
+every controller for ``--seeds`` seeds (from
 ``--first-seed``, default 0) of ``--duration`` s in
 :func:`~mpcbox.sim.realtime.simulate_realtime` (``--loop lockstep``: :func:`mpcbox.simulate`,
 the world waits for the planner) (seed ``s``: joint angles
@@ -104,6 +106,12 @@ def task_options(task_kw: dict) -> dict:
 
 
 def build(problem, name, ctrl_opts, hand, seed, backend):
+    factor = hand.get("stand_options", {}).get("noise_factor")
+    if factor is not None:  # stand.noise_factor=F: the get-up noise times F, once up
+        hand = {**hand, "stand_options": dict(hand["stand_options"])}
+        del hand["stand_options"]["noise_factor"]
+        base = problem.controller_configs[hand.get("stand", name)].noise_scale
+        hand["stand_options"]["noise_scale"] = np.asarray(base) * float(factor)
     if hand:
         return problem.handover_controller(name, backend=backend, seed=seed, **hand, **ctrl_opts)
     return mpcbox.make_controller(name, problem, backend=backend, seed=seed, **ctrl_opts)

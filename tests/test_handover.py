@@ -156,6 +156,41 @@ def test_a_feedback_standing_stage_runs_at_the_getup_period_and_holds_the_stand(
     assert np.abs(heights - heights[0]).max() < 0.02
 
 
+def test_a_standing_ilqr_replans_at_the_getup_period_only_without_feedback():
+    task = HumanoidGetup(settle=0.3)
+    small = dict(num_samples=4, horizon=0.1, backend="cpu", seed=1)
+    # Its feedback law would run at every simulation step, between the planner's ticks.
+    with pytest.raises(mpcbox.InvalidArgumentError, match="feedback"):
+        task.handover_controller("ps", stand="ilqr", **small)
+    ctrl = task.handover_controller(
+        "ps", stand="ilqr", stand_options={"feedback": False, "horizon": 10}, **small
+    )
+    getup, keeper = ctrl.controllers
+    assert keeper.period == keeper.replan_period == getup.period == 0.02
+    u = ctrl(task.stand_problem().reference_state(), 0.0)
+    assert ctrl.phase == 1 and u.shape == (task.nu,) and np.all(np.isfinite(u))
+
+
+def test_the_standing_stage_can_plan_on_the_getup_task_with_its_own_options():
+    task = HumanoidGetup(settle=0.3)
+    small = dict(num_samples=4, horizon=0.1, backend="cpu", seed=1)
+    ctrl = task.handover_controller(
+        "mppi", stand_on="getup", stand_options={"noise_scale": 0.1}, **small
+    )
+    getup, keeper = ctrl.controllers
+    # Both plan on (a planning copy of) the get-up task, not on HumanoidStand.
+    assert type(keeper.problem) is type(getup.problem) is HumanoidGetup
+    assert keeper.period == getup.period
+    np.testing.assert_allclose(keeper.noise_scale, 0.1)
+    np.testing.assert_allclose(getup.noise_scale, task.controller_configs["mppi"].noise_scale)
+    ctrl(task.reference_state(), 0.0)
+    assert ctrl.phase == 1
+    with pytest.raises(mpcbox.InvalidArgumentError, match=r"stand_on.*'stand', 'getup'"):
+        task.handover_controller("mppi", stand_on="self", **small)
+    with pytest.raises(mpcbox.InvalidArgumentError, match="stand_task"):
+        task.handover_controller("mppi", stand_on="getup", stand_task={"root_cost": 1.0})
+
+
 def test_the_engage_test_can_ask_for_a_slow_centre_of_mass_over_the_feet():
     task = HumanoidGetup(settle=0.3)
     standing = task.reference_state()

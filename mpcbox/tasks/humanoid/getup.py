@@ -34,6 +34,7 @@ from mpcbox.validation import (
     in_range,
     non_negative,
     non_negative_weights,
+    one_of,
     optional_positive,
     positive,
 )
@@ -433,6 +434,7 @@ class HumanoidGetup(Problem):
         transfer: bool = True,
         stand_options: dict[str, Any] | None = None,
         stand_task: dict[str, Any] | None = None,
+        stand_on: str = "stand",
         **overrides: Any,
     ) -> HandOver:
         """Get-up controller ``name`` until :meth:`is_up`, then the standing stage's tuned
@@ -453,9 +455,14 @@ class HumanoidGetup(Problem):
                 default ``name``).
             transfer: Warm-start each incoming planner with the outgoing plan (else a cold
                 start from its reference control).
-            stand_options: Overrides of the standing controller's config (its ``period``
-                defaults to the get-up controller's).
+            stand_options: Overrides of the standing controller's config (its ``period``,
+                or iLQR-MPC's ``replan_period``, defaults to the get-up controller's; iLQR-MPC
+                needs ``feedback=False`` here).
             stand_task: Options of :meth:`stand_problem` (the standing costs).
+            stand_on: The standing stage's problem: ``"stand"`` :meth:`stand_problem`, or
+                ``"getup"`` this task itself (its costs, and its config of ``stand`` as the
+                base of ``stand_options``; e.g. the same planner with smaller noise once
+                up). ``stand_task`` is then not allowed.
             **overrides: Overrides of the get-up controller's config; ``backend``,
                 ``device`` and ``seed`` apply to both when the standing controller has
                 them (LQR and QP-MPC have none).
@@ -463,7 +470,16 @@ class HumanoidGetup(Problem):
         Raises:
             UnknownNameError: If ``name`` or ``stand`` is not a registered controller.
             UnknownOptionError: For an option that its controller does not have.
+            InvalidArgumentError: For ``stand_on`` not one of its choices,
+                ``stand_task`` with ``stand_on="getup"``, or a standing iLQR-MPC whose
+                feedback law would run between the planner's ticks.
         """
+        stand_on = one_of("stand_on", stand_on, ("stand", "getup"))
+        if stand_on == "getup" and stand_task:
+            raise InvalidArgumentError(
+                "stand_task sets the standing problem's options; with stand_on='getup' the "
+                "standing stage plans on this task, so leave stand_task out"
+            )
         getup = make_controller(name, self, **overrides)
         stand_name = name if stand is None else stand
         fields = _config_fields(controller_class(stand_name))
@@ -471,9 +487,18 @@ class HumanoidGetup(Problem):
         options = {k: v for k, v in options.items() if k in fields}
         if "period" in fields:
             options["period"] = getup.period
+        if "feedback" in fields:  # iLQR-MPC: replan at the get-up period
+            if (stand_options or {}).get("feedback", True):
+                raise InvalidArgumentError(
+                    f"stand={stand_name!r} applies its feedback law at every simulation step, "
+                    f"which a hand-over with a planner of period {getup.period:g} s cannot "
+                    "interleave; pass stand_options={'feedback': False} to replan at that "
+                    "period and hold each plan's control in between"
+                )
+            options["replan_period"] = getup.period
         keeper = make_controller(
             stand_name,
-            self.stand_problem(**(stand_task or {})),
+            self if stand_on == "getup" else self.stand_problem(**(stand_task or {})),
             **{**options, **(stand_options or {})},
         )
         return HandOver(
