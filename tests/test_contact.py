@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from mpcbox.core.contact import (
+    POINT_SOLE,
     collision_geoms,
     cone_violation,
     contact_jacobian,
@@ -101,6 +102,40 @@ def test_mesh_cylinder_and_ellipsoid_feet_stand_on_their_lowest_points():
     lowest = 0.1 - np.sqrt(shape[2, 2])
     assert egg[2] == pytest.approx(lowest, abs=1e-12)
     assert egg[2] < 0.1 - 0.05  # lower than the middle radius would put it
+
+
+# A rounded foot tip: a low-poly ball (radius 1.5 cm) whose bottom is a flat 1 x 1 cm
+# facet, a thin cylinder (radius 4 mm) and, for contrast, a 3 cm cylinder.
+TIPS = """
+<mujoco>
+  <asset>
+    <mesh name="tip" vertex="-.005 -.005 -.015  .005 -.005 -.015  .005 .005 -.015
+                              -.005 .005 -.015  -.015 0 0  .015 0 0  0 -.015 0  0 .015 0
+                              0 0 .015"/>
+  </asset>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 .1"/>
+    <body name="tip" pos="0 0 .1" euler="0 0 20"><geom name="tip" type="mesh" mesh="tip"/></body>
+    <body name="pin" pos="1 0 .1"><geom name="pin" type="cylinder" size=".004 .05"/></body>
+    <body name="post" pos="2 0 .1"><geom name="post" type="cylinder" size=".03 .05"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_a_sole_narrower_than_point_sole_is_one_point_at_its_centre():
+    model = mujoco.MjModel.from_xml_string(TIPS)
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    # The facet's corners lie 7.1 mm from its centre (< POINT_SOLE): one point there.
+    (tip,) = contact_points(model, "body:tip").world(data)
+    np.testing.assert_allclose(tip, [0.0, 0.0, 0.085], atol=1e-12)
+    (pin,) = contact_points(model, "pin").world(data)
+    np.testing.assert_allclose(pin, [1.0, 0.0, 0.05], atol=1e-12)
+    # A 3 cm cylinder keeps four rim points: it can carry a moment.
+    post = contact_points(model, "post").world(data)
+    assert len(post) == 4 and 0.03 > POINT_SOLE
+    np.testing.assert_allclose(np.linalg.norm(post[:, :2] - [2.0, 0.0], axis=1), 0.03)
 
 
 def test_a_geom_that_touches_only_through_a_pair_is_a_collision_geom():

@@ -82,6 +82,13 @@ STANDING_GEOMS = frozenset(
 #: its lowest point, as a fraction of the geom's bounding radius, stand on the ground.
 SOLE_BAND = 0.05
 
+#: A sole whose corners all lie within this distance (m) of their centroid is a point: its
+#: corners are replaced by the centroid. A rounded foot's lowest part (Google's Barkour: a
+#: mesh tip whose bottom vertices span 1 x 1.1 cm) would otherwise give four nearly equal
+#: points, whose friction pyramids make QP-MPC's problem degenerate (every OSQP solve of the
+#: standing Barkour hit its iteration cap) for a moment it cannot carry anyway.
+POINT_SOLE = 0.01
+
 #: Directions of the rim points sampled around each end of a cylinder.
 _RIM = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
 
@@ -89,19 +96,23 @@ _RIM = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
 def _sole(points: np.ndarray, rot: np.ndarray, band: float) -> list[np.ndarray]:
     """The corners of the lowest part of a geom: of the world ``points`` ``(p, 3)`` within
     ``band`` of the lowest, the extreme ones along the four diagonals of the geom's
-    horizontal axes (``rot``: geom to world), so a flat sole gives its four corners."""
+    horizontal axes (``rot``: geom to world), so a flat sole gives its four corners; their
+    centroid alone when they all lie within :data:`POINT_SOLE` of it."""
     low = points[points[:, 2] <= points[:, 2].min() + band]
-    if len(low) <= 4:
-        return list(low)
-    axes = rot[:2, :2]  # the geom's x and y axes, horizontal components
-    picked: list[int] = []
-    for sx in (-1.0, 1.0):
-        for sy in (-1.0, 1.0):
-            direction = sx * axes[:, 0] + sy * axes[:, 1]
-            i = int(np.argmax(low[:, :2] @ direction))
-            if i not in picked:
-                picked.append(i)
-    return [low[i] for i in picked]
+    if len(low) > 4:
+        axes = rot[:2, :2]  # the geom's x and y axes, horizontal components
+        picked: list[int] = []
+        for sx in (-1.0, 1.0):
+            for sy in (-1.0, 1.0):
+                direction = sx * axes[:, 0] + sy * axes[:, 1]
+                i = int(np.argmax(low[:, :2] @ direction))
+                if i not in picked:
+                    picked.append(i)
+        low = low[picked]
+    centre = low.mean(axis=0)
+    if len(low) > 1 and np.linalg.norm(low - centre, axis=1).max() <= POINT_SOLE:
+        return [centre]
+    return list(low)
 
 
 def geom_points(model: mujoco.MjModel, data: mujoco.MjData, gid: int) -> list[np.ndarray]:
@@ -165,8 +176,8 @@ def contact_points(
     * a **geom** gives the bottom of each end of a capsule, the bottom of a sphere or
       ellipsoid, the four lowest corners of a box, or the (up to four) corners of the lowest
       part of a cylinder or a mesh (its vertices within :data:`SOLE_BAND` of its bounding
-      radius above the lowest, extreme along the diagonals of the geom's axes), at posture
-      ``qpos``;
+      radius above the lowest, extreme along the diagonals of the geom's axes; their
+      centroid alone when they lie within :data:`POINT_SOLE` of it), at posture ``qpos``;
     * a **site** gives its own position;
     * a **body** gives the points of each of its collision geoms (:func:`collision_geoms`)
       of those types.

@@ -1,0 +1,42 @@
+"""Google's Barkour vB (MuJoCo Menagerie): a quadruped whose feet are rounded mesh tips.
+
+Each lower leg carries two collision meshes, the leg (whose lowest part hangs 2.5 cm above
+the floor) and a small foot whose bottom vertices span about 1 x 1.1 cm. Read as four sole
+corners per foot, the QP-MPC problem was degenerate (every OSQP solve of the standing robot
+hit its iteration cap; under noise it fell in 1.4 s); each tip is now one point
+(:data:`mpcbox.core.contact.POINT_SOLE`).
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+import pytest
+
+import mpcbox
+
+pytestmark = pytest.mark.menagerie
+
+
+@pytest.fixture(scope="module")
+def barkour():
+    from mpcbox.core import menagerie
+    from mpcbox.tasks.legged.quadruped import QuadrupedStand
+
+    if not (os.environ.get("MENAGERIE_ROOT") and menagerie.available("google_barkour_vb")):
+        pytest.skip("no offline Menagerie copy with google_barkour_vb (set MENAGERIE_ROOT)")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # a visual mesh may be missing offline
+        problem = QuadrupedStand("menagerie:google_barkour_vb", threads=1)
+    yield problem
+    problem.close()
+
+
+def test_qp_mpc_stands_the_barkour_on_one_point_per_rounded_foot(barkour) -> None:
+    qp = mpcbox.make_controller("qp", barkour)
+    assert qp.points.count == 4  # one per foot tip, the leg meshes' lifted points dropped
+    res = mpcbox.simulate(barkour, qp, 1.0, noise=barkour.noise(), seed=0)
+    assert res.survived, res.failure
+    assert qp.stats["failed_solves"] == 0 and res.metrics.fallbacks == 0
+    assert res.metrics.measures["tilt_rms_deg"] < 3.0
