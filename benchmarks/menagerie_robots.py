@@ -52,6 +52,14 @@ MORE_ROBOTS: dict[str, tuple[str, ...]] = {
     "unitree_g1": ("body:left_ankle_roll_link", "body:right_ankle_roll_link"),
     "unitree_go1": ("geom:FR", "geom:FL", "geom:RR", "geom:RL"),
     "anybotics_anymal_c": ("body:LF_SHANK", "body:RF_SHANK", "body:LH_SHANK", "body:RH_SHANK"),
+    # Rounded mesh foot tips (stop 44): the feet ground_feet finds.
+    "google_barkour_vb": tuple(
+        f"body:{b}" for b in ("lower_leg_front_left", "lower_leg_2", "lower_leg_3", "lower_leg_4")
+    ),
+    "google_barkour_v0": tuple(
+        f"body:lower_leg_1to1_{leg}"
+        for leg in ("front_right", "front_left", "hind_right", "hind_left")
+    ),
 }
 
 
@@ -72,7 +80,12 @@ def chosen_robots(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
     """The robots of ``--robots`` (comma-separated); a usage error without ``MENAGERIE_ROOT``."""
     if not os.environ.get("MENAGERIE_ROOT"):
         parser.error("set MENAGERIE_ROOT to an offline Menagerie copy")
-    return [r for r in args.robots.split(",") if r]
+    robots = [r for r in args.robots.split(",") if r]
+    known = {**ROBOTS, **MORE_ROBOTS}
+    unknown = [r for r in robots if r not in known]
+    if unknown:
+        parser.error(f"--robots: unknown {unknown}; known: {', '.join(known)}")
+    return robots
 
 
 def _error(exc: BaseException) -> str:
