@@ -12,6 +12,10 @@ replays.
 
 The default model is Menagerie's Franka Panda (needs ``MENAGERIE_ROOT`` or the
 ``mujoco_menagerie`` package); ``--model arm3`` uses the three-joint arm shipped with mpcbox.
+Any other arm works by name or path: the end effector defaults to the one
+:func:`~mpcbox.core.end_effector.end_effector` picks, and the goal to the start with each
+servo- or motor-driven hinge turned by :data:`DEFAULT_OFFSET` rad towards the middle of its
+range (:func:`default_offsets`).
 
     python problems/arm_trajectory.py [--model franka_emika_panda] [--duration 0.8]
         [--offsets 0.4 0.3 0.2 -0.3 0.1 0.2 -0.4] [--obstacle 0.05] [--save run]
@@ -24,13 +28,15 @@ import sys
 import warnings
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 import mpcbox
 from mpcbox.core import menagerie
+from mpcbox.core.end_effector import end_effector
 from mpcbox.core.menagerie import MissingMeshWarning
 from mpcbox.core.model import load_spec
-from mpcbox.errors import EquilibriumWarning
+from mpcbox.errors import EquilibriumWarning, MpcboxError
 from mpcbox.sim.trajectory import save_trajectory, trajectory_from_result
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.arm import (
@@ -47,6 +53,30 @@ PRESETS = {
     "franka_emika_panda": ("hand", [0.0, 0.0, 0.1034], [0.4, 0.3, 0.2, -0.3, 0.1, 0.2, -0.4]),
     "arm3": ("ee", [0.0, 0.0, 0.0], [1.2, 0.4, -0.3]),
 }
+
+
+#: Turn of each driven hinge (rad) when ``--offsets`` is not given for an arm without a preset.
+DEFAULT_OFFSET = 0.3
+
+
+def default_offsets(model: mujoco.MjModel, start: np.ndarray) -> np.ndarray:
+    """Offsets ``(nq,)`` from ``start``: each hinge driven by an actuator (through a joint
+    transmission) turns by :data:`DEFAULT_OFFSET` towards the middle of its range (up to
+    its middle when that is nearer; positive for an unlimited hinge); other joints stay."""
+    out = np.zeros(model.nq)
+    for a in range(model.nu):
+        if int(model.actuator_trntype[a]) != int(mujoco.mjtTrn.mjTRN_JOINT):
+            continue
+        j = int(model.actuator_trnid[a, 0])
+        if int(model.jnt_type[j]) != int(mujoco.mjtJoint.mjJNT_HINGE):
+            continue
+        i = int(model.jnt_qposadr[j])
+        if model.jnt_limited[j]:
+            toward = 0.5 * float(model.jnt_range[j].sum()) - float(start[i])
+            out[i] = np.sign(toward) * min(DEFAULT_OFFSET, abs(toward))
+        else:
+            out[i] = DEFAULT_OFFSET
+    return out
 
 
 def model_source(name: str) -> str:
@@ -71,19 +101,25 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     key = Path(args.model.removeprefix("menagerie:")).stem
-    frame, offset, offsets = PRESETS.get(key, ("ee", [0.0, 0.0, 0.0], None))
-    frame = args.frame or frame
+    frame, offset, offsets = PRESETS.get(key, (None, [0.0, 0.0, 0.0], None))
     offset = args.site_offset or offset
     offsets = args.offsets or offsets
     source = model_source(args.model)
     warnings.simplefilter("ignore", MissingMeshWarning)
     warnings.simplefilter("ignore", EquilibriumWarning)
     model = load_spec(source).compile()
+    try:
+        frame = args.frame or frame or end_effector(model)
+    except MpcboxError as exc:
+        raise SystemExit(f"{exc} (--frame)") from None
     start = model.key_qpos[0].copy() if model.nkey else model.qpos0.copy()
     goal = start.copy()
     if offsets is None:
-        raise SystemExit(f"give --offsets for {args.model!r} (one per arm joint, rad)")
-    goal[: len(offsets)] += np.asarray(offsets)
+        goal += default_offsets(model, start)
+    elif len(offsets) > model.nq:
+        raise SystemExit(f"--offsets: {len(offsets)} given, the model has {model.nq} qpos")
+    else:
+        goal[: len(offsets)] += np.asarray(offsets)
     options = {"frame": frame, "site_offset": offset, "goal_qpos": goal, "duration": args.duration}
     problem = ArmTrack(source, **options)
     obstacle = None

@@ -312,3 +312,44 @@ def test_panda_tracks_a_quintic_within_five_millimetres() -> None:
         sim = mpcbox.simulate(panda, tracker, 0.6, mismatch=mpcbox.ModelMismatch(mass_scale=1.2))
     assert "ee" in mujoco.mj_id2name(panda.model, mujoco.mjtObj.mjOBJ_SITE, panda.model.nsite - 1)
     assert sim.metrics.measures["tracking_error_rms_m"] < 0.005
+
+
+def _arm_trajectory_script():
+    """``problems/arm_trajectory.py`` as a module (``problems/`` is not a package)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parents[1] / "problems" / "arm_trajectory.py"
+    spec = importlib.util.spec_from_file_location("arm_trajectory_script", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+OFFSET_ARM = """
+<mujoco>
+  <worldbody>
+    <body name="a"><joint name="low" range="-1 2"/><geom size=".05"/>
+      <body name="b" pos="0 0 .2"><joint name="narrow" range="-.1 .1"/><geom size=".05"/>
+        <body name="c" pos="0 0 .2"><joint name="free_turn"/><geom size=".05"/>
+          <body name="d" pos="0 0 .2"><joint name="slide" type="slide"/><geom size=".05"/>
+            <body name="e" pos="0 0 .2"><joint name="idle" range="-1 1"/><geom size=".05"/>
+            </body></body></body></body></body>
+  </worldbody>
+  <actuator>
+    <position joint="low" kp="10"/><motor joint="narrow"/><motor joint="free_turn"/>
+    <position joint="slide" kp="10"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def test_arm_trajectory_defaults_turn_each_driven_hinge_towards_its_middle():
+    script = _arm_trajectory_script()
+    model = mujoco.MjModel.from_xml_string(OFFSET_ARM)
+    start = np.array([-1.0, 0.05, 0.0, 0.0, 0.0])
+    offsets = script.default_offsets(model, start)
+    # +0.3 from the low end; -0.05 to the middle of a 0.2 rad range (nearer than 0.3); +0.3
+    # unlimited; the slide and the undriven hinge stay.
+    np.testing.assert_allclose(offsets, [0.3, -0.05, 0.3, 0.0, 0.0], atol=1e-12)
+    assert script.DEFAULT_OFFSET == 0.3
