@@ -14,7 +14,10 @@ avoidance, the control that holds it from the actuator model), then compares in 
   latency).
 
 Needs an offline Menagerie copy (``MENAGERIE_ROOT``) or the ``mujoco_menagerie`` package for
-a Menagerie name; ``--model`` also takes an MJCF path.
+a Menagerie name; ``--model`` also takes an MJCF path. Without ``--target`` the Panda reaches
+:data:`PANDA_OFFSET` (40 cm) from its start, and another arm :data:`ARM_FRACTION` of its
+length (:func:`arm_length`) in the same direction, halved up to :data:`RETRIES` times while
+mink's IK finds no collision-free posture there.
 
     python problems/panda_reach.py [--model franka_emika_panda] [--frame FRAME]
         [--target 0 0.3 -0.2646] [--absolute] [--duration 2] [--skip mppi realtime]
@@ -23,20 +26,63 @@ a Menagerie name; ``--model`` also takes an MJCF path.
 from __future__ import annotations
 
 import argparse
+import itertools
 import sys
 import warnings
 
+import mujoco
 import numpy as np
 
 import mpcbox
 from mpcbox.config import config_options
 from mpcbox.controllers.ilqr.controller import ILQR
 from mpcbox.controllers.servo_actions import motors
+from mpcbox.core.end_effector import end_effector
 from mpcbox.core.menagerie import MissingMeshWarning, model_source
+from mpcbox.core.model import frame_object, load_spec
 from mpcbox.errors import SolverError
 from mpcbox.registry import make_controller
 from mpcbox.tasks.reach import ArmReach
 from mpcbox.tasks.reach_measures import arrival
+
+#: The Panda's default target offset from its start (m): 40 cm sideways and down.
+PANDA_OFFSET = np.array([0.0, 0.3, -0.2646])
+#: Another arm's default offset, as a fraction of its length (:func:`arm_length`).
+ARM_FRACTION = 0.3
+#: Halvings of the default offset tried while the IK finds no posture there.
+RETRIES = 2
+
+
+def arm_length(model: mujoco.MjModel, frame: str, qpos: np.ndarray) -> float:
+    """Length (m) of the chain from the end effector ``frame`` down to the root at posture
+    ``qpos`` ``(nq,)``: the sum of the distances between successive hinge and slide anchors,
+    from the frame to its nearest joint and on to the base (the Panda's is 0.986 m, a UR10e's
+    1.73 m, the low-cost robot arm's 0.304 m). An upper bound on its reach."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    kind, i = frame_object(model, frame, "frame")
+    points = [(data.site_xpos if kind == "site" else data.xpos)[i]]
+    body = int(model.site_bodyid[i]) if kind == "site" else i
+    moving = (int(mujoco.mjtJoint.mjJNT_SLIDE), int(mujoco.mjtJoint.mjJNT_HINGE))
+    while body > 0:
+        start = int(model.body_jntadr[body])
+        for j in range(start, start + int(model.body_jntnum[body])):
+            if int(model.jnt_type[j]) in moving:
+                points.append(data.xanchor[j].copy())
+        body = int(model.body_parentid[body])
+    return float(sum(np.linalg.norm(a - b) for a, b in itertools.pairwise(points)))
+
+
+def default_offset(source, frame: str | None) -> np.ndarray:
+    """The default target offset ``(3,)`` for the arm ``source`` (see the module docstring)."""
+    model = load_spec(source).compile()
+    if model.nkey == 0:
+        qpos = model.qpos0
+    else:
+        qpos = model.key_qpos[0]
+    length = arm_length(model, frame or end_effector(model), qpos)
+    return PANDA_OFFSET / np.linalg.norm(PANDA_OFFSET) * ARM_FRACTION * length
 
 
 def offline_row(problem: ArmReach, horizon_s: float, iterations: int) -> dict[str, str]:
@@ -92,7 +138,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--frame", default=None, help="end-effector site or body (default: picked from the model)"
     )
-    parser.add_argument("--target", type=float, nargs=3, default=[0.0, 0.3, -0.2646])
+    parser.add_argument(
+        "--target",
+        type=float,
+        nargs=3,
+        default=None,
+        help="offset from the start (m; default: see the module docstring)",
+    )
     parser.add_argument("--absolute", action="store_true", help="target in world coordinates")
     parser.add_argument("--duration", type=float, default=2.0)
     parser.add_argument("--offline-horizon", type=float, default=1.0)
@@ -104,17 +156,25 @@ def main(argv: list[str] | None = None) -> int:
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MissingMeshWarning)
-        try:
-            problem = ArmReach(
-                model_source(args.model),
-                frame=args.frame,
-                target=np.array(args.target),
-                relative=not args.absolute,
-            )
-        except SolverError as exc:
-            # The default target suits the Panda; another arm may need its own.
-            print(f"{exc}\nChoose another target with --target DX DY DZ.", file=sys.stderr)
-            return 2
+        source = model_source(args.model)
+        if args.target is not None:
+            targets = [np.array(args.target)]
+        elif args.model.removeprefix("menagerie:") == "franka_emika_panda":
+            targets = [PANDA_OFFSET]
+        else:
+            offset = default_offset(source, args.frame)
+            targets = [offset / 2**k for k in range(RETRIES + 1)]
+        for k, target in enumerate(targets):
+            try:
+                problem = ArmReach(
+                    source, frame=args.frame, target=target, relative=not args.absolute
+                )
+                break
+            except SolverError as exc:
+                if k + 1 == len(targets):
+                    print(f"{exc}\nChoose a target with --target DX DY DZ.", file=sys.stderr)
+                    return 2
+                print(f"{exc}\n(trying half that offset)", file=sys.stderr)
     start = problem.reach_error(problem.initial_state())
     print(
         f"{problem}: {problem.frame!r} {100 * start:.1f} cm from the target, IK goal "

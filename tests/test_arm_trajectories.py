@@ -314,13 +314,13 @@ def test_panda_tracks_a_quintic_within_five_millimetres() -> None:
     assert sim.metrics.measures["tracking_error_rms_m"] < 0.005
 
 
-def _arm_trajectory_script():
-    """``problems/arm_trajectory.py`` as a module (``problems/`` is not a package)."""
+def _script(name: str = "arm_trajectory"):
+    """``problems/NAME.py`` as a module (``problems/`` is not a package)."""
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).parents[1] / "problems" / "arm_trajectory.py"
-    spec = importlib.util.spec_from_file_location("arm_trajectory_script", path)
+    path = Path(__file__).parents[1] / "problems" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(f"{name}_script", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -345,7 +345,7 @@ OFFSET_ARM = """
 
 
 def test_arm_trajectory_defaults_turn_each_driven_hinge_towards_its_middle():
-    script = _arm_trajectory_script()
+    script = _script()
     model = mujoco.MjModel.from_xml_string(OFFSET_ARM)
     start = np.array([-1.0, 0.05, 0.0, 0.0, 0.0])
     offsets = script.default_offsets(model, start)
@@ -353,3 +353,16 @@ def test_arm_trajectory_defaults_turn_each_driven_hinge_towards_its_middle():
     # unlimited; the slide and the undriven hinge stay.
     np.testing.assert_allclose(offsets, [0.3, -0.05, 0.3, 0.0, 0.0], atol=1e-12)
     assert script.DEFAULT_OFFSET == 0.3
+
+
+def test_panda_reach_scales_its_default_target_by_the_arms_length():
+    script = _script("panda_reach")
+    model = mujoco.MjModel.from_xml_string(OFFSET_ARM)
+    # Five joints 0.2 m apart in a column and the frame at the last one: 0.8 m.
+    assert script.arm_length(model, "e", model.qpos0) == pytest.approx(0.8, abs=1e-12)
+    qpos = model.qpos0.copy()
+    qpos[0] = np.pi / 2  # folding the chain at its base does not change its length
+    assert script.arm_length(model, "e", qpos) == pytest.approx(0.8, abs=1e-12)
+    offset = script.default_offset(OFFSET_ARM, "e")
+    assert np.linalg.norm(offset) == pytest.approx(script.ARM_FRACTION * 0.8, abs=1e-12)
+    np.testing.assert_allclose(offset / np.linalg.norm(offset), [0.0, 0.75, -0.6615], atol=1e-3)
