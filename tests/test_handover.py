@@ -189,6 +189,21 @@ def test_the_standing_stage_can_plan_on_the_getup_task_with_its_own_options():
         task.handover_controller("mppi", stand_on="self", **small)
     with pytest.raises(mpcbox.InvalidArgumentError, match="stand_task"):
         task.handover_controller("mppi", stand_on="getup", stand_task={"root_cost": 1.0})
+    with pytest.raises(mpcbox.InvalidTypeError, match="stand_options must be a dict"):
+        task.handover_controller("mppi", stand_options=[("noise_scale", 0.1)], **small)
+
+
+def test_getup_stage_tests_check_the_shapes_of_what_they_read():
+    task = HumanoidGetup(settle=0.3)
+    for check in (task.is_up, task.is_down, task.balance_state, task.posture_distance):
+        with pytest.raises(mpcbox.ShapeError, match=r"state must have shape \(55,\)"):
+            check(np.zeros(3))
+    with pytest.raises(mpcbox.ShapeError, match="states"):
+        task.torso_heights(np.zeros((2, 3)))
+    states = np.tile(task.reference_state(), (2, 1))
+    with pytest.raises(mpcbox.ShapeError, match=r"time must have shape \(2,\)"):
+        task.getup_time(np.zeros(3), states)
+    assert task.getup_time(np.array([0.0, 0.1]), states) == 0.0
 
 
 def test_the_engage_test_can_ask_for_a_slow_centre_of_mass_over_the_feet():

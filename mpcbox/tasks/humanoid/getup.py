@@ -5,7 +5,7 @@ torso, feet and standing keyframe."""
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import mujoco
@@ -30,6 +30,7 @@ from mpcbox.registry import controller_class, make_controller
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.humanoid.stand import HumanoidStand
 from mpcbox.validation import (
+    as_array,
     boolean,
     in_range,
     non_negative,
@@ -332,9 +333,10 @@ class HumanoidGetup(Problem):
 
     def torso_heights(self, states: np.ndarray) -> np.ndarray:
         """Torso height ``(T,)`` of states ``(T, nstate)`` (m)."""
+        states = as_array("states", states, (None, self.nstate))
         data = mujoco.MjData(self.model)
         out = np.empty(len(states))
-        for i, state in enumerate(np.asarray(states)):
+        for i, state in enumerate(states):
             data.qpos[:] = state[: self.nq]
             mujoco.mj_kinematics(self.model, data)
             out[i] = data.xpos[self.torso_id, 2]
@@ -344,6 +346,7 @@ class HumanoidGetup(Problem):
         """Start of the final interval with the torso at ``stand_height`` (s; NaN if the run
         ends below it)."""
         up = self.torso_heights(states) >= self.stand_height
+        time = as_array("time", time, (len(up),))
         if not up.size or not up[-1]:
             return float("nan")
         down = np.flatnonzero(~up)
@@ -367,7 +370,7 @@ class HumanoidGetup(Problem):
     def _torso(self, state: np.ndarray) -> tuple[float, float]:
         """Torso height (m) and the z component of its z axis for one state."""
         data = self._stage_data
-        data.qpos[:] = np.asarray(state)[: self.nq]
+        data.qpos[:] = self.check_state(state)[: self.nq]
         mujoco.mj_kinematics(self.model, data)
         return float(data.xpos[self.torso_id, 2]), float(data.xmat[self.torso_id, 8])
 
@@ -376,8 +379,9 @@ class HumanoidGetup(Problem):
         and the horizontal distance :math:`\|c_{xy} - \bar p_{xy}\|` (m) of :math:`c` from
         the midpoint :math:`\bar p` of the feet, for a state ``(nstate,)``."""
         model, data = self.model, self._stage_data
-        data.qpos[:] = np.asarray(state)[: self.nq]
-        data.qvel[:] = np.asarray(state)[self.nq : self.nq + self.nv]
+        state = self.check_state(state)
+        data.qpos[:] = state[: self.nq]
+        data.qvel[:] = state[self.nq : self.nq + self.nv]
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         mujoco.mj_comVel(model, data)
@@ -390,7 +394,7 @@ class HumanoidGetup(Problem):
     def posture_distance(self, state: np.ndarray) -> float:
         r"""Distance :math:`\|q_j \ominus q_{j,ref}\|_2` (rad) of the joint angles of a
         state ``(nstate,)`` from the keyframe's (the floating root left out)."""
-        dq = self.state_difference(state, self.reference_state())[: self.nv]
+        dq = self.state_difference(self.check_state(state), self.reference_state())[: self.nv]
         return float(np.linalg.norm(dq[self._joint_dofs]))
 
     def is_up(self, state: np.ndarray) -> bool:
@@ -475,6 +479,11 @@ class HumanoidGetup(Problem):
                 feedback law would run between the planner's ticks.
         """
         stand_on = one_of("stand_on", stand_on, ("stand", "getup"))
+        for label, value in (("stand_options", stand_options), ("stand_task", stand_task)):
+            if value is not None and not isinstance(value, Mapping):
+                raise InvalidTypeError(
+                    f"{label} must be a dict of options, got {type(value).__name__}"
+                )
         if stand_on == "getup" and stand_task:
             raise InvalidArgumentError(
                 "stand_task sets the standing problem's options; with stand_on='getup' the "
