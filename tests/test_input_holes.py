@@ -277,3 +277,29 @@ def test_quadratize_trajectory_refuses_non_finite_input(problem, bad):
     {"states": states, "ctrls": ctrls}[bad][1, 0] = np.nan
     with pytest.raises(mpcbox.DivergenceError, match=f"{bad} holds non-finite"):
         problem.quadratize_trajectory(states, ctrls)
+
+
+def test_task_state_readers_name_a_wrong_shape_and_an_unknown_cube():
+    stack = task_class("stack_cubes")()
+    state = stack.initial_state()
+    np.testing.assert_allclose(
+        stack.cube_position(state, "red_cube"), state[stack._cube_adr["red_cube"] :][:3]
+    )
+    with pytest.raises(mpcbox.UnknownNameError, match="'blue_cube', 'red_cube'"):
+        stack.cube_position(state, "green_cube")
+    with pytest.raises(mpcbox.UnknownNameError, match="cube"):
+        stack.cube_speed(state, "c")
+    with pytest.raises(mpcbox.ShapeError, match="state must have shape"):
+        stack.cube_speed(state[:3], "red_cube")
+    pot = task_class("pot_lift")()
+    for reader in (pot.pot_height, pot.pot_tilt):
+        with pytest.raises(mpcbox.ShapeError, match="state must have shape"):
+            reader(np.zeros(3))
+    with pytest.raises(mpcbox.ShapeError, match="states"):
+        pot.goal_failure(np.zeros(2), np.zeros((2, 3)))
+    # The default first guess checks what it is given, though it does not read the state.
+    with pytest.raises(mpcbox.ShapeError, match="state"):
+        pot.initial_ctrls(np.zeros(3), 10)
+    with pytest.raises(mpcbox.InvalidArgumentError, match="horizon"):
+        pot.initial_ctrls(pot.initial_state(), 0)
+    assert pot.initial_ctrls(pot.initial_state(), 4).shape == (4, pot.nu)

@@ -243,7 +243,8 @@ class Problem(ProblemCosts):
         """Trajectory optimizers' default guess ``(horizon, nu)`` from ``state``: here
         ``ctrl_ref`` at every knot, within the control range; tasks may choose better
         (:meth:`mpcbox.tasks.reach.ArmReach.initial_ctrls`)."""
-        return np.tile(self.clip_ctrl(self.ctrl_ref), (horizon, 1))
+        self.check_state(state)
+        return np.tile(self.clip_ctrl(self.ctrl_ref), (positive_int("horizon", horizon), 1))
 
     def get_state(self, data: mujoco.MjData) -> np.ndarray:
         """The state ``[qpos, qvel, act]`` held in ``data``."""

@@ -22,6 +22,7 @@ from mpcbox.controllers.waypoints import ArmDrive, Phase, Waypoint, WaypointCont
 from mpcbox.core.problem import Problem
 from mpcbox.tasks.manipulation.arms import aloha_scene_path
 from mpcbox.tasks.manipulation.pick_place import body_yaw, top_down
+from mpcbox.validation import as_array
 
 #: Least rise of the pot's centre for a lift (m).
 LIFT_HEIGHT = 0.05
@@ -114,17 +115,22 @@ class PotLift(Problem):
         return self.trial_state(self.seed)
 
     def pot_height(self, state: np.ndarray) -> float:
-        """Height of the pot's frame at ``state`` (m)."""
-        return float(state[self._pot_adr + 2])
+        """Height of the pot's frame at ``state`` ``(nstate,)`` (m)."""
+        return float(as_array("state", state, (self.nstate,))[self._pot_adr + 2])
 
     def pot_tilt(self, state: np.ndarray) -> float:
-        """Angle between the pot's up axis and the world's (rad)."""
+        """Angle between the pot's up axis and the world's (rad), at ``state``
+        ``(nstate,)``."""
+        state = as_array("state", state, (self.nstate,))
         quat = state[self._pot_adr + 3 : self._pot_adr + 7]
         x, y = quat[1:3] / np.linalg.norm(quat)
         return float(np.arccos(np.clip(1.0 - 2.0 * (x * x + y * y), -1.0, 1.0)))
 
     def goal_failure(self, time: np.ndarray, states: np.ndarray) -> str | None:
         """Why the pot is not lifted at the end, or ``None``."""
+        states = as_array("states", states, (None, self.nstate))
+        if len(states) == 0:
+            return "no states recorded"
         rise = self.pot_height(states[-1]) - self.pot_height(states[0])
         tilt = self.pot_tilt(states[-1])
         if rise >= LIFT_HEIGHT and tilt <= MAX_TILT:

@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from mpcbox.core.problem import Problem
+from mpcbox.errors import UnknownNameError
 from mpcbox.tasks.manipulation.arms import ArmSpec, arm_spec
 from mpcbox.tasks.manipulation.scene import (
     ARM_PREFIX,
@@ -153,14 +154,21 @@ class StackCubes(Problem):
 
     # ------------------------------------------------------------------ measures
     def cube_position(self, state: np.ndarray, cube: str) -> np.ndarray:
-        """Centre ``(3,)`` of ``cube`` (``"red_cube"`` or ``"blue_cube"``) at ``state``."""
-        adr = self._cube_adr[cube]
-        return np.asarray(state[adr : adr + 3], dtype=float)
+        """Centre ``(3,)`` of ``cube`` (``"red_cube"`` or ``"blue_cube"``) at ``state``
+        ``(nstate,)``."""
+        adr = self._cube_adr[self._cube_name(cube)]
+        return as_array("state", state, (self.nstate,))[adr : adr + 3].copy()
 
     def cube_speed(self, state: np.ndarray, cube: str) -> float:
-        """Linear speed of ``cube``'s centre at ``state`` (m/s)."""
-        dof = self.nq + self._cube_dof[cube]
+        """Linear speed of ``cube``'s centre at ``state`` ``(nstate,)`` (m/s)."""
+        dof = self.nq + self._cube_dof[self._cube_name(cube)]
+        state = as_array("state", state, (self.nstate,))
         return float(np.linalg.norm(state[dof : dof + 3]))
+
+    def _cube_name(self, cube: str) -> str:
+        if cube not in self._cube_adr:
+            raise UnknownNameError("cube", cube, self._cube_adr, "cube")
+        return cube
 
     def check(self, state: np.ndarray) -> StackCheck:
         """:func:`stack_check` of the cubes at ``state``."""
