@@ -4,8 +4,7 @@ torso, feet and standing keyframe."""
 
 from __future__ import annotations
 
-import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import mujoco
@@ -26,8 +25,8 @@ from mpcbox.core.cost import (
 from mpcbox.core.model import ModelSource, dof_weights, frame_object, object_id
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError
-from mpcbox.registry import controller_class, make_controller
 from mpcbox.tasks import scene_path
+from mpcbox.tasks.humanoid.getup_handover import getup_handover
 from mpcbox.tasks.humanoid.stand import HumanoidStand
 from mpcbox.validation import (
     as_array,
@@ -35,7 +34,6 @@ from mpcbox.validation import (
     in_range,
     non_negative,
     non_negative_weights,
-    one_of,
     optional_positive,
     positive,
 )
@@ -478,49 +476,13 @@ class HumanoidGetup(Problem):
                 ``stand_task`` with ``stand_on="getup"``, or a standing iLQR-MPC whose
                 feedback law would run between the planner's ticks.
         """
-        stand_on = one_of("stand_on", stand_on, ("stand", "getup"))
-        for label, value in (("stand_options", stand_options), ("stand_task", stand_task)):
-            if value is not None and not isinstance(value, Mapping):
-                raise InvalidTypeError(
-                    f"{label} must be a dict of options, got {type(value).__name__}"
-                )
-        if stand_on == "getup" and stand_task:
-            raise InvalidArgumentError(
-                "stand_task sets the standing problem's options; with stand_on='getup' the "
-                "standing stage plans on this task, so leave stand_task out"
-            )
-        getup = make_controller(name, self, **overrides)
-        stand_name = name if stand is None else stand
-        fields = _config_fields(controller_class(stand_name))
-        options = {k: overrides[k] for k in ("backend", "device", "seed") if k in overrides}
-        options = {k: v for k, v in options.items() if k in fields}
-        if "period" in fields:
-            options["period"] = getup.period
-        if "feedback" in fields:  # iLQR-MPC: replan at the get-up period
-            if (stand_options or {}).get("feedback", True):
-                raise InvalidArgumentError(
-                    f"stand={stand_name!r} applies its feedback law at every simulation step, "
-                    f"which a hand-over with a planner of period {getup.period:g} s cannot "
-                    "interleave; pass stand_options={'feedback': False} to replan at that "
-                    "period and hold each plan's control in between"
-                )
-            options["replan_period"] = getup.period
-        keeper = make_controller(
-            stand_name,
-            self if stand_on == "getup" else self.stand_problem(**(stand_task or {})),
-            **{**options, **(stand_options or {})},
-        )
-        return HandOver(
-            getup,
-            keeper,
-            engage=self.is_up,
-            release=self.is_down,
+        return getup_handover(
+            self,
+            name,
+            stand=stand,
             transfer=transfer,
-            name=f"{name}+{stand_name}",
+            stand_options=stand_options,
+            stand_task=stand_task,
+            stand_on=stand_on,
+            **overrides,
         )
-
-
-def _config_fields(cls: type) -> set[str]:
-    """Option names of a controller class's config dataclass (empty without one)."""
-    config = getattr(cls, "config_class", None)
-    return {f.name for f in dataclasses.fields(config)} if config is not None else set()
