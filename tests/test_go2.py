@@ -90,3 +90,12 @@ def test_scaled_controls_same_plan_fewer_iterations(go2) -> None:
     np.testing.assert_allclose(ctrls[True], ctrls[False], atol=1e-3)  # N m
     assert iters[True, "quadruped"] < iters[False, "quadruped"], iters
     assert iters[True, "defaults"] < 0.5 * iters[False, "defaults"], iters
+
+
+def test_inspect_suggests_a_compare_command_that_runs_for_a_bare_name(go2, capsys) -> None:
+    from mpcbox.cli.inspect_model import run_inspect
+
+    run_inspect(["unitree_go2", "--hold", "0", "--no-servo-test"])
+    out = " ".join(capsys.readouterr().out.split())
+    # `compare --model` takes a path or "menagerie:NAME", not the bare name inspect took.
+    assert "mpcbox compare quadruped_stand --model menagerie:unitree_go2" in out

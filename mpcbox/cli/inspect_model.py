@@ -100,7 +100,7 @@ def run_inspect(argv: Sequence[str], stream=None) -> int:
         hold=args.hold,
         servo_test=not args.no_servo_test,
     )
-    legged = _legged_finding(report, args.model)
+    legged = _legged_finding(report, model_source(args.model))
     if legged is not None:
         report = report._replace(findings=(*report.findings, legged))
     print(f"{args.model}: {report.level}", file=stream)
