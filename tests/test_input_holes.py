@@ -303,3 +303,25 @@ def test_task_state_readers_name_a_wrong_shape_and_an_unknown_cube():
     with pytest.raises(mpcbox.InvalidArgumentError, match="horizon"):
         pot.initial_ctrls(pot.initial_state(), 0)
     assert pot.initial_ctrls(pot.initial_state(), 4).shape == (4, pot.nu)
+
+
+@pytest.mark.parametrize("name", ["lqr", "ilqr", "mppi", "ps"])
+def test_a_controller_names_a_time_that_is_not_a_finite_number(name):
+    task = task_class("cartpole_swingup")()
+    options = {"backend": "cpu", "num_samples": 4} if name in ("mppi", "ps") else {}
+    ctrl = mpcbox.make_controller(name, task, **options)
+    state = task.initial_state()
+    with pytest.raises(mpcbox.InvalidArgumentError, match="time must be a finite number"):
+        ctrl(state, float("nan"))
+    with pytest.raises(mpcbox.InvalidTypeError, match="time must be a number"):
+        ctrl(state, "0.1")
+    assert ctrl(state, 0.0).shape == (task.nu,)
+
+
+def test_lqr_refuses_a_non_finite_state_rather_than_returning_nan():
+    task = task_class("cartpole_swingup")()
+    lqr = mpcbox.LQR(task)
+    bad = task.initial_state()
+    bad[0] = np.nan
+    with pytest.raises(mpcbox.DivergenceError, match="state"):
+        lqr(bad, 0.0)

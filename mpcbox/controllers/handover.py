@@ -23,7 +23,7 @@ import numpy as np
 
 from mpcbox.controllers.base import Controller
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError
-from mpcbox.validation import boolean
+from mpcbox.validation import boolean, finite
 
 #: A predicate on the measured state ``(nstate,)``.
 StatePredicate = Callable[[np.ndarray], bool]
@@ -124,6 +124,7 @@ class HandOver(Controller):
         self.last_call = "solve"
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
+        time = finite("time", time)
         if not self._primed:
             self._primed = True
             second = self.controllers[1]

@@ -27,6 +27,7 @@ from mpcbox.validation import (
     as_array,
     boolean,
     checked_options,
+    finite,
     integer,
     positive,
     positive_int,
@@ -219,6 +220,7 @@ class IpoptController(Controller):
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
         p = self.problem
         state = as_array("state", state, (p.nstate,))
+        time = finite("time", time)
         self.last_call = "solve"
         if self._K is None or time < self._plan_time - 1e-9:
             self.last_call = "offline"

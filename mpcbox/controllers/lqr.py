@@ -52,7 +52,7 @@ from mpcbox.errors import (
     ShapeError,
     SolverError,
 )
-from mpcbox.validation import as_array, boolean, checked_options, positive
+from mpcbox.validation import as_array, boolean, checked_options, finite, positive
 
 
 def check_symmetric(name: str, mat: np.ndarray, rtol: float = 1e-9) -> None:
@@ -348,6 +348,11 @@ class LQR(Controller):
         return dx
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
+        """``clip(u0 - K (state ⊖ x0))`` ``(nu,)``; a state of another shape is a
+        ``ShapeError``, a non-finite one a ``DivergenceError`` (``time`` is not read but
+        must be a finite number)."""
+        finite("time", time)
+        state = self.problem.check_state(state)
         return self.problem.clip_ctrl(self.ctrl0 - self.K @ self.deviation(state))
 
 

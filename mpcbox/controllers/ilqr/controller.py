@@ -26,7 +26,7 @@ from mpcbox.core.blas_threads import single_blas_thread
 from mpcbox.core.mujoco_warnings import captured_warnings
 from mpcbox.core.problem import Problem
 from mpcbox.errors import MpcboxError
-from mpcbox.validation import as_array
+from mpcbox.validation import as_array, finite
 
 
 class ILQR(ILQRSolver, Controller):
@@ -150,6 +150,7 @@ class ILQR(ILQRSolver, Controller):
         """
         cfg = self.config
         state = as_array("state", state, (self.problem.nstate,))
+        time = finite("time", time)
         if self._last_result is not None and time < self._plan_time - 1e-9:
             self.reset()  # a new simulation started
         due = self._last_result is None or time - self._plan_time >= self.replan_period - 1e-9

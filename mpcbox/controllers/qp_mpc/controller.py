@@ -50,6 +50,7 @@ from mpcbox.core.contact import (
 from mpcbox.core.divergence import check_planning_step
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, UnknownNameError
+from mpcbox.validation import finite
 
 
 class QPPlan(NamedTuple):
@@ -422,6 +423,7 @@ class QPMPC(Controller):
         return plan
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
+        time = finite("time", time)
         if self._t_solve is not None and time - self._t_solve < self.replan_period - 0.5 * (
             self.period
         ):

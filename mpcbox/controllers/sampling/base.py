@@ -49,6 +49,7 @@ from mpcbox.controllers.sampling.splines import Spline
 from mpcbox.controllers.sampling.traces import PlannerTrace, TraceRecorder
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError
+from mpcbox.validation import finite
 
 
 class TickInfo(NamedTuple):
@@ -408,7 +409,7 @@ class SamplingController(Controller):
         )
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
-        ctrl = self._planned(state, time)
+        ctrl = self._planned(state, finite("time", time))
         if self.catch is not None:
             caught = self.catch.control(self.problem.check_state(state))
             if caught is not None:

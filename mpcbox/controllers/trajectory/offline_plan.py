@@ -48,7 +48,7 @@ from mpcbox.controllers.trajectory.reference import TrackingWeights, tracking_re
 from mpcbox.controllers.trajectory.tracker import TrajectoryTracker
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError
-from mpcbox.validation import as_array, boolean, finite_array, integer, positive
+from mpcbox.validation import as_array, boolean, finite, finite_array, integer, positive
 
 #: Scores a plan; lower is better.
 PlanScore = Callable[[ILQRResult], float]
@@ -277,6 +277,7 @@ class OfflinePlanTracker(Controller):
         return self.tracker is not None and self._last_time >= end
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
+        time = finite("time", time)
         if self.tracker is None or time < self._plan_time - 1e-9:
             self.plan(state)
             self._plan_time = float(time)
