@@ -38,3 +38,23 @@ def warp_device() -> str:
     """``"cuda"`` when Warp sees a GPU, else ``"cpu"`` (warp's CPU device)."""
     pytest.importorskip("mujoco_warp")
     return "cuda" if _cuda_available() else "cpu"
+
+
+@pytest.fixture(scope="module")
+def menagerie_quadruped(request: pytest.FixtureRequest):
+    """``QuadrupedStand`` on the Menagerie robot named by indirect parametrization (one
+    thread, a missing visual mesh's warning silenced); skipped without an offline copy of
+    that robot."""
+    import warnings
+
+    from mpcbox.core import menagerie
+    from mpcbox.tasks.legged.quadruped import QuadrupedStand
+
+    robot = request.param
+    if not (os.environ.get("MENAGERIE_ROOT") and menagerie.available(robot)):
+        pytest.skip(f"no offline Menagerie copy with {robot} (set MENAGERIE_ROOT)")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        problem = QuadrupedStand(f"menagerie:{robot}", threads=1)
+    yield problem
+    problem.close()

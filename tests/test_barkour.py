@@ -9,31 +9,18 @@ hit its iteration cap; under noise it fell in 1.4 s); each tip is now one point
 
 from __future__ import annotations
 
-import os
-import warnings
-
 import pytest
 
 import mpcbox
 
-pytestmark = pytest.mark.menagerie
+pytestmark = [
+    pytest.mark.menagerie,
+    pytest.mark.parametrize("menagerie_quadruped", ["google_barkour_vb"], indirect=True),
+]
 
 
-@pytest.fixture(scope="module")
-def barkour():
-    from mpcbox.core import menagerie
-    from mpcbox.tasks.legged.quadruped import QuadrupedStand
-
-    if not (os.environ.get("MENAGERIE_ROOT") and menagerie.available("google_barkour_vb")):
-        pytest.skip("no offline Menagerie copy with google_barkour_vb (set MENAGERIE_ROOT)")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)  # a visual mesh may be missing offline
-        problem = QuadrupedStand("menagerie:google_barkour_vb", threads=1)
-    yield problem
-    problem.close()
-
-
-def test_qp_mpc_stands_the_barkour_on_one_point_per_rounded_foot(barkour) -> None:
+def test_qp_mpc_stands_the_barkour_on_one_point_per_rounded_foot(menagerie_quadruped) -> None:
+    barkour = menagerie_quadruped
     qp = mpcbox.make_controller("qp", barkour)
     assert qp.points.count == 4  # one per foot tip, the leg meshes' lifted points dropped
     res = mpcbox.simulate(barkour, qp, 1.0, noise=barkour.noise(), seed=0)

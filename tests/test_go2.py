@@ -5,9 +5,6 @@ Needs an offline Menagerie copy with the Go2 (``MENAGERIE_ROOT``); skips without
 
 from __future__ import annotations
 
-import os
-import warnings
-
 import mujoco
 import numpy as np
 import pytest
@@ -16,21 +13,15 @@ import mpcbox
 from mpcbox.controllers.qp_mpc.controller import QPMPC
 from mpcbox.controllers.qp_mpc.solvers import OSQP_DEFAULTS
 
-pytestmark = pytest.mark.menagerie
+pytestmark = [
+    pytest.mark.menagerie,
+    pytest.mark.parametrize("menagerie_quadruped", ["unitree_go2"], indirect=True),
+]
 
 
 @pytest.fixture(scope="module")
-def go2():
-    from mpcbox.core import menagerie
-    from mpcbox.tasks.legged.quadruped import QuadrupedStand
-
-    if not (os.environ.get("MENAGERIE_ROOT") and menagerie.available("unitree_go2")):
-        pytest.skip("no offline Menagerie copy with unitree_go2 (set MENAGERIE_ROOT)")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)  # a visual mesh is missing offline
-        problem = QuadrupedStand("menagerie:unitree_go2", threads=1)
-    yield problem
-    problem.close()
+def go2(menagerie_quadruped):
+    return menagerie_quadruped
 
 
 def test_go2_holds_its_posture_on_motor_torques(go2) -> None:
