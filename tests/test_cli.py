@@ -256,3 +256,13 @@ def test_set_values_are_python_literals_or_json_words() -> None:
         "mppi": {"n": 64},
     }
     assert parse_sets(["cem.name=trueish"]) == {"cem": {"name": "trueish"}}
+
+
+def test_compare_takes_a_bare_menagerie_name_as_the_scripts_do(tmp_path, monkeypatch, capsys):
+    # The bare name is looked up in Menagerie (it was read as a missing MJCF file), and the
+    # error lists Menagerie's robots.
+    monkeypatch.setenv("MENAGERIE_ROOT", str(tmp_path / "menagerie"))
+    code = main(["compare", "quadruped_stand", "--model", "no_such_robot", "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "unknown Menagerie robot 'no_such_robot'" in err
+    assert "'anybotics_anymal_b'" in err and "no MJCF file" not in err
