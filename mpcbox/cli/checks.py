@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import tempfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -30,7 +31,8 @@ def _finite(flag: str, value: float, *, low: float | None = None, strict: bool =
 
 
 def check_arguments(args: argparse.Namespace) -> None:
-    """Check the numbers of ``mpcbox compare`` (seeds, duration, pushes, scales, ...).
+    """Check the numbers of ``mpcbox compare`` (seeds, duration, pushes, scales, ...), and
+    read a bare Menagerie name in ``--model`` as one (:func:`resolve_model`).
 
     Raises:
         InvalidArgumentError: Naming the first flag with a bad value.
@@ -58,6 +60,7 @@ def check_arguments(args: argparse.Namespace) -> None:
                 f"--noise must be numbers separated by commas, got {args.noise!r}"
             ) from None
         _finite("--noise", value, low=0.0, strict=False)
+    resolve_model(args)
 
 
 def check_output_folder(folder: str | Path) -> Path:
@@ -89,3 +92,13 @@ def check_options(name: str, options: Mapping[str, Any], chosen: Iterable[str]) 
     if name not in chosen:
         raise UnknownNameError("controller in --set (not among the chosen ones)", name, chosen)
     check_option_names(controller_class(name).config_class, options, f"--set {name}")
+
+
+def resolve_model(args: argparse.Namespace) -> None:
+    """Read a ``--model`` that is not a file as a Menagerie robot (a bare name becomes
+    ``"menagerie:NAME"``), as ``problems/*.py`` and ``mpcbox inspect`` take it."""
+    model = getattr(args, "model", None)
+    if isinstance(model, str) and not os.path.exists(model):
+        from mpcbox.core.menagerie import model_source
+
+        args.model = model_source(model)

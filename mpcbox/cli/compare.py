@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import inspect
-import os
 import sys
 import time
 from collections.abc import Sequence
@@ -337,12 +336,6 @@ def run_comparison(
         overrides.setdefault(name, {}).update(options)
     reductions = cpu_reductions(task_class(task), defaults, sets)
     task_options = {name: getattr(args, name) for name in task_parameters(task)}
-    model = task_options.get("model")
-    if isinstance(model, str) and not os.path.exists(model):
-        from mpcbox.core.menagerie import model_source
-
-        # A bare Menagerie name, as problems/*.py and `mpcbox inspect` take it.
-        task_options["model"] = model_source(model)
     # Built here (write_outputs needs it anyway) so that a bad task option or --set value
     # stops the command before any run, instead of failing every run.
     problem = task_class(task)(**task_options)
