@@ -36,7 +36,7 @@ from mpcbox.core import menagerie
 from mpcbox.core.end_effector import end_effector
 from mpcbox.core.menagerie import MissingMeshWarning
 from mpcbox.core.model import load_spec
-from mpcbox.errors import EquilibriumWarning, MpcboxError
+from mpcbox.errors import EquilibriumWarning, InvalidArgumentError, MpcboxError
 from mpcbox.sim.trajectory import save_trajectory, trajectory_from_result
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.arm import (
@@ -87,7 +87,16 @@ def model_source(name: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Plan, track and print (``argv`` defaults to the command line)."""
+    """Plan, track and print (``argv`` defaults to the command line); a bad argument
+    prints its named error and returns 2."""
+    try:
+        return _run(argv)
+    except MpcboxError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _run(argv: list[str] | None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", default="franka_emika_panda")
     parser.add_argument("--frame", default=None, help="end-effector site or body")
@@ -108,16 +117,15 @@ def main(argv: list[str] | None = None) -> int:
     warnings.simplefilter("ignore", MissingMeshWarning)
     warnings.simplefilter("ignore", EquilibriumWarning)
     model = load_spec(source).compile()
-    try:
-        frame = args.frame or frame or end_effector(model)
-    except MpcboxError as exc:
-        raise SystemExit(f"{exc} (--frame)") from None
+    frame = args.frame or frame or end_effector(model)  # its error asks for --frame's value
     start = model.key_qpos[0].copy() if model.nkey else model.qpos0.copy()
     goal = start.copy()
     if offsets is None:
         goal += default_offsets(model, start)
     elif len(offsets) > model.nq:
-        raise SystemExit(f"--offsets: {len(offsets)} given, the model has {model.nq} qpos")
+        raise InvalidArgumentError(
+            f"--offsets: {len(offsets)} given, the model has {model.nq} qpos"
+        )
     else:
         goal[: len(offsets)] += np.asarray(offsets)
     options = {"frame": frame, "site_offset": offset, "goal_qpos": goal, "duration": args.duration}

@@ -40,7 +40,7 @@ from mpcbox.controllers.servo_actions import motors
 from mpcbox.core.end_effector import end_effector
 from mpcbox.core.menagerie import MissingMeshWarning, model_source
 from mpcbox.core.model import frame_object, load_spec
-from mpcbox.errors import SolverError
+from mpcbox.errors import MpcboxError, SolverError
 from mpcbox.registry import make_controller
 from mpcbox.tasks.reach import ArmReach
 from mpcbox.tasks.reach_measures import arrival
@@ -132,7 +132,16 @@ def closed_loop_row(
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the comparison (``argv`` defaults to the command line)."""
+    """Run the comparison (``argv`` defaults to the command line); a bad argument prints its named
+    error and returns 2."""
+    try:
+        return _run(argv)
+    except MpcboxError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _run(argv: list[str] | None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", default="franka_emika_panda")
     parser.add_argument(

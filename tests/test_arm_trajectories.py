@@ -366,3 +366,11 @@ def test_panda_reach_scales_its_default_target_by_the_arms_length():
     offset = script.default_offset(OFFSET_ARM, "e")
     assert np.linalg.norm(offset) == pytest.approx(script.ARM_FRACTION * 0.8, abs=1e-12)
     np.testing.assert_allclose(offset / np.linalg.norm(offset), [0.0, 0.75, -0.6615], atol=1e-3)
+
+
+def test_the_arm_scripts_print_a_bad_arguments_named_error_and_return_2(capsys):
+    script = _script()
+    assert script.main(["--model", "arm3", "--duration", "0"]) == 2
+    assert "error: duration must be a positive finite number" in capsys.readouterr().err
+    assert script.main(["--model", "arm3", "--offsets", "1", "1", "1", "1"]) == 2
+    assert "--offsets: 4 given, the model has 3 qpos" in capsys.readouterr().err
