@@ -32,11 +32,12 @@ import mujoco
 import numpy as np
 
 import mpcbox
+from mpcbox.cli.checks import script_main
 from mpcbox.core import menagerie
 from mpcbox.core.end_effector import end_effector
 from mpcbox.core.menagerie import MissingMeshWarning
 from mpcbox.core.model import load_spec
-from mpcbox.errors import EquilibriumWarning, InvalidArgumentError, MpcboxError
+from mpcbox.errors import EquilibriumWarning, InvalidArgumentError
 from mpcbox.sim.trajectory import save_trajectory, trajectory_from_result
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.arm import (
@@ -89,11 +90,7 @@ def model_source(name: str) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Plan, track and print (``argv`` defaults to the command line); a bad argument
     prints its named error and returns 2."""
-    try:
-        return _run(argv)
-    except MpcboxError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    return script_main(_run, argv)
 
 
 def _run(argv: list[str] | None) -> int:

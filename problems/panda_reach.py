@@ -34,13 +34,14 @@ import mujoco
 import numpy as np
 
 import mpcbox
+from mpcbox.cli.checks import script_main
 from mpcbox.config import config_options
 from mpcbox.controllers.ilqr.controller import ILQR
 from mpcbox.controllers.servo_actions import motors
 from mpcbox.core.end_effector import end_effector
 from mpcbox.core.menagerie import MissingMeshWarning, model_source
 from mpcbox.core.model import frame_object, load_spec
-from mpcbox.errors import MpcboxError, SolverError
+from mpcbox.errors import SolverError
 from mpcbox.registry import make_controller
 from mpcbox.tasks.reach import ArmReach
 from mpcbox.tasks.reach_measures import arrival
@@ -134,11 +135,7 @@ def closed_loop_row(
 def main(argv: list[str] | None = None) -> int:
     """Run the comparison (``argv`` defaults to the command line); a bad argument prints its named
     error and returns 2."""
-    try:
-        return _run(argv)
-    except MpcboxError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    return script_main(_run, argv)
 
 
 def _run(argv: list[str] | None) -> int:

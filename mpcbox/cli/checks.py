@@ -9,13 +9,14 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import sys
 import tempfile
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
 from mpcbox.config import check_option_names
-from mpcbox.errors import InvalidArgumentError, UnknownNameError
+from mpcbox.errors import InvalidArgumentError, MpcboxError, UnknownNameError
 
 #: Smallest bisection tolerance of ``--push-tolerance`` (N): below it a bisection over forces
 #: of hundreds of newtons would run into the float resolution.
@@ -102,3 +103,13 @@ def resolve_model(args: argparse.Namespace) -> None:
         from mpcbox.core.menagerie import model_source
 
         args.model = model_source(model)
+
+
+def script_main(run: Callable[[list[str] | None], int], argv: list[str] | None) -> int:
+    """``run(argv)`` of a problem script; a bad argument (an :class:`MpcboxError`, which
+    names it) prints ``error: ...`` to stderr and returns 2."""
+    try:
+        return run(argv)
+    except MpcboxError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
