@@ -40,7 +40,7 @@ from mpcbox.controllers.ilqr.controller import ILQR
 from mpcbox.controllers.servo_actions import motors
 from mpcbox.core.end_effector import end_effector
 from mpcbox.core.menagerie import MissingMeshWarning, model_source
-from mpcbox.core.model import frame_object, load_spec
+from mpcbox.core.model import frame_object, frame_position, load_spec
 from mpcbox.errors import SolverError
 from mpcbox.registry import make_controller
 from mpcbox.tasks.reach import ArmReach
@@ -63,7 +63,7 @@ def arm_length(model: mujoco.MjModel, frame: str, qpos: np.ndarray) -> float:
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
     kind, i = frame_object(model, frame, "frame")
-    points = [(data.site_xpos if kind == "site" else data.xpos)[i]]
+    points = [frame_position(model, data, frame)]
     body = int(model.site_bodyid[i]) if kind == "site" else i
     moving = (int(mujoco.mjtJoint.mjJNT_SLIDE), int(mujoco.mjtJoint.mjJNT_HINGE))
     while body > 0:
