@@ -131,6 +131,36 @@ def test_a_stalled_replan_keeps_riccati_gains_and_the_next_starts_afresh():
     np.testing.assert_allclose(second.K, gains, rtol=1e-6, atol=1e-9)
 
 
+def test_a_replan_that_improves_and_then_stalls_is_a_stall_not_a_fallback():
+    # The first iteration's line search succeeds; every later one fails: the replan
+    # returns the improved plan with a stall reason. Counted as a fallback it had read
+    # as a degraded run of a controller that kept replanning.
+    class SecondStalls(ILQR):
+        searches = 0
+
+        def _forward(self, x0, states, ctrls, k, K, alpha):
+            out = super()._forward(x0, states, ctrls, k, K, alpha)
+            if alpha == max(self.config.step_sizes):
+                SecondStalls.searches += 1
+            return out if SecondStalls.searches <= 1 else (out[0], out[1], np.inf)
+
+    options = dict(horizon=20, replan_period=0.2, mpc_iterations=2, first_iterations=2)
+    ctrl = SecondStalls(point_mass(), max_retries=2, **options)
+    x0 = np.array([1.0, -0.5, 0.0, 0.0])
+    ctrl(x0, 0.0)
+    result = ctrl.last_result
+    assert result.stop_reason.stalled and len(result.costs) == 2
+    assert result.costs[1] < result.costs[0]
+    # The plan is the first iteration's, not the initial guess rolled out.
+    fresh = ILQR(point_mass(), **options).solve(x0, max_iterations=1)
+    np.testing.assert_allclose(result.ctrls, fresh.ctrls, rtol=1e-9, atol=1e-12)
+    assert ctrl.stats["stalled"] == 1 and ctrl.stats["fallbacks"] == 0
+    # A replan whose every search fails keeps the previous plan: a stall and a fallback.
+    ctrl(x0 + 0.1, 0.2)
+    assert len(ctrl.last_result.costs) == 1
+    assert ctrl.stats["stalled"] == 2 and ctrl.stats["fallbacks"] == 1
+
+
 def test_replans_after_the_first_stop_at_mpc_max_retries():
     # Every rollout diverges, so every line search fails at all six step sizes and each
     # failure raises the regularization once more until the cap: the cold first solve may
