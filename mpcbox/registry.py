@@ -72,23 +72,28 @@ def task_class(name: str) -> type:
     return resolve(TASKS[name])
 
 
-def make_controller(name: str, problem: Any, **overrides: Any):
+def make_controller(name: str, problem: Any, *, config: Any = None, **overrides: Any):
     """Build controller ``name`` for ``problem`` with the task's tuned config.
 
     Args:
         name: A key of :data:`CONTROLLERS`.
         problem: The Problem; its ``controller_configs[name]`` (when present) is the config,
             otherwise the controller's documented defaults apply.
+        config: A config of the controller's own class (e.g. an
+            :class:`~mpcbox.controllers.ilqr.config.ILQRConfig` for ``"ilqr"``) used instead
+            of the task's.
         **overrides: Options that replace fields of that config.
 
     Raises:
         UnknownNameError: If ``name`` is not registered (lists the registered names).
+        InvalidTypeError: If ``config`` is not of the controller's config class.
         UnknownOptionError: If an override is not an option of the controller (lists them).
     """
     cls = controller_class(name)
     if not hasattr(problem, "controller_configs"):  # not a Problem (a lower layer than core)
         raise InvalidTypeError(f"problem must be an mpcbox.Problem, got {type(problem).__name__}")
-    config = problem.controller_configs.get(name)
+    if config is None:
+        config = problem.controller_configs.get(name)
     controller = cls(problem, config, **overrides)
     controller.name = name
     return controller

@@ -52,6 +52,16 @@ def test_wrong_config_type_is_rejected(plain_pendulum) -> None:
         mpcbox.ILQR(plain_pendulum, mpcbox.LQRConfig())
 
 
+def test_make_controller_takes_a_config_of_its_own_and_overrides_on_top(plain_pendulum) -> None:
+    config = mpcbox.ILQRConfig(horizon=7, replan_period=0.05)
+    controller = make_controller("ilqr", plain_pendulum, config=config, mpc_iterations=3)
+    assert controller.horizon == 7 and controller.replan_period == 0.05
+    assert controller.config.mpc_iterations == 3 and controller.name == "ilqr"
+    # It was a raw "got multiple values for argument 'config'".
+    with pytest.raises(TypeError, match="ILQRConfig"):
+        make_controller("ilqr", plain_pendulum, config=mpcbox.LQRConfig())
+
+
 def test_controller_with_a_missing_optional_module_is_left_out(monkeypatch) -> None:
     from mpcbox.controllers.lqr import LQR
     from mpcbox.registry import available_controllers
