@@ -371,10 +371,19 @@ def with_lqr_terminal_value(problem: Problem) -> Problem:
     :math:`P` of :class:`LQR` on ``problem``'s planning model at its reference (made positive
     semidefinite by :func:`nearest_psd`): the infinite-horizon cost-to-go of the linearized
     problem, so a short horizon still sees what follows it.
+
+    On a model with activation states (``na > 0``: filters, integrators, muscles) the
+    Riccati matrix is ``(2 nv + na, 2 nv + na)`` but a cost term reads only positions and
+    velocities, so the term is its leading ``(2 nv, 2 nv)`` block: the cost-to-go with each
+    activation at its reference value (a principal block of a positive semidefinite matrix
+    is one too). The whole matrix was a ``ShapeError`` when the term was bound, so that
+    iLQR-MPC with ``terminal_value="lqr"`` could not be built on dm_control's quadruped,
+    whose actuators are first-order filters.
     """
     lqr = LQR(problem)
+    nx = 2 * problem.model.nv
     value = QuadraticValue(
-        problem.qpos_ref, problem.qvel_ref, P=nearest_psd(lqr.P), name="lqr_value"
+        problem.qpos_ref, problem.qvel_ref, P=nearest_psd(lqr.P)[:nx, :nx], name="lqr_value"
     )
     return problem.with_cost(Cost(problem.cost.running, [*problem.cost.terminal, value]))
 
