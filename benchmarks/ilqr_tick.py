@@ -8,7 +8,10 @@ warm-up iterations), the 99th percentile of the total, and the run's outcome:
 * ``panda``: :class:`~mpcbox.tasks.reach.ArmReach` on the Franka Panda, the 40 cm reach of
   ``benchmarks/panda_reach.py`` (its seeds perturb the start and the target), 2 s;
 * ``g1``: :class:`~mpcbox.tasks.legged.biped.BipedStand` on the Unitree G1 under the noise
-  recipe (the seed's noise), 3 s.
+  recipe (the seed's noise), 3 s;
+* ``go2``, ``anymal_c``: :class:`~mpcbox.tasks.legged.quadruped.QuadrupedStand` on Unitree's
+  Go2 and ANYbotics' ANYmal C, the same way (code before stop 45 gives these the generic
+  iLQR config).
 
 To compare with other code, put its ``mpcbox`` first on the path
 (``git archive <commit> mpcbox | tar -x -C /tmp/base``, then ``PYTHONPATH=/tmp/base``); the
@@ -49,7 +52,22 @@ def _stand(seed: int):
     return problem, 3.0, problem.noise()
 
 
-ROBOTS = {"panda": _reach, "g1": _stand}
+def _quadruped(name: str):
+    def build(seed: int):
+        from mpcbox.tasks.legged.quadruped import QuadrupedStand
+
+        problem = QuadrupedStand(f"menagerie:{name}")
+        return problem, 3.0, problem.noise()
+
+    return build
+
+
+ROBOTS = {
+    "panda": _reach,
+    "g1": _stand,
+    "go2": _quadruped("unitree_go2"),
+    "anymal_c": _quadruped("anybotics_anymal_c"),
+}
 
 
 def run(robot: str, seed: int, options: dict | None = None) -> dict:

@@ -6,7 +6,7 @@ import importlib.util
 from collections.abc import Sequence
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import Any, ClassVar
 
 import mujoco
 import numpy as np
@@ -14,6 +14,7 @@ import numpy as np
 from mpcbox.core.model import ModelSource
 from mpcbox.errors import ModelNotFoundError
 from mpcbox.tasks.legged.balance import LeggedBalance
+from mpcbox.tasks.legged.biped import BipedStand
 from mpcbox.tasks.legged.ground_feet import ground_feet
 
 #: The four feet of Menagerie quadrupeds, by robot name (``"menagerie:NAME"``). The Go1 has
@@ -100,6 +101,25 @@ class QuadrupedStand(LeggedBalance):
     """
 
     name = "quadruped_stand"
+    #: iLQR-MPC: :class:`~mpcbox.tasks.legged.biped.BipedStand`'s config (dynamics and
+    #: cost Hessians at the standing reference, LQR terminal value, one iteration a
+    #: replan). It keeps the 20 ms period where the generic ``ILQRConfig()`` (linearized
+    #: along each trajectory) does not: replans 7.2-7.3 ms median on the Go2 and 10.7-11.4
+    #: ms on the ANYmal C against 89 and 143 ms (one thread, 2-core sandbox;
+    #: ``benchmarks/ilqr_tick.py --robots go2,anymal_c``, results/ilqr_tick_quadrupeds.json).
+    #: Under the noise recipe it stands 34 of 35 runs of 5 s on seven Menagerie quadrupeds
+    #: (the Barkour v0 fell once), with 0-4 % of replans falling back on the Go1, Go2,
+    #: Spot and Barkour v0, 5-11 % on the ANYmal B and Barkour vB, 12-23 % on the ANYmal C.
+    #: Its largest forward push is 1.02-1.04x LQR's on the Go1 and both Barkours but
+    #: 0.64x on the ANYmal B, 0.84x on the ANYmal C, 0.90x on the Spot and 0.62x on the
+    #: Go2, where the generic config survives 263.7 N against 155.3 N (LQR 249.0 N;
+    #: results/quadruped_ilqr_reference.json). A second iteration a replan
+    #: (``mpc_iterations=2``) left the tilt unchanged and tripled the tick: its second
+    #: step stalls on most replans, on the reference model there is little left to gain.
+    controller_configs: ClassVar[dict[str, Any]] = {
+        **LeggedBalance.controller_configs,
+        "ilqr": BipedStand.controller_configs["ilqr"],
+    }
 
     def __init__(
         self,
