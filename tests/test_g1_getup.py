@@ -150,6 +150,26 @@ def test_g1_getup_builds_by_name_with_noise_in_radians(g1) -> None:
 
 
 @pytest.mark.menagerie
+def test_g1_height_weight_outweighs_the_classic_humanoids_and_can_be_given(g1) -> None:
+    # The torso half-way between lying and standing, upright: its height terms cost ten
+    # times the classic humanoid's weight of 100 (the G1's default is 1000), and a given
+    # weight replaces the default in every height term, running and terminal.
+    def height_part(task, state):
+        feats = task.features(state, task.ctrl_ref)
+        terms = [t for t in task.cost.running if t.name.startswith("height")]
+        return sum(0.5 * np.sum(t.weight * t.residual(feats) ** 2) for t in terms)
+
+    crouch = g1.reference_state()
+    crouch[2] -= 0.35  # the root 0.35 m lower: the torso below the standing mark
+    light = G1Getup(settle=0.0, height_cost=100.0)
+    assert height_part(g1, crouch) == pytest.approx(10 * height_part(light, crouch))
+    assert height_part(light, crouch) > 0
+    weights = {t.name: np.max(t.weight) for t in (*light.cost.running, *light.cost.terminal)}
+    assert weights["height_left"] == pytest.approx(50.0)
+    assert weights["height_left_terminal"] == pytest.approx(50.0 * light.getup_weights["terminal"])
+
+
+@pytest.mark.menagerie
 def test_g1_lying_start_is_on_the_floor_on_its_back(g1) -> None:
     data = _torso(g1, g1.initial_state())
     torso = data.xmat[g1.torso_id].reshape(3, 3)
