@@ -27,6 +27,8 @@ import numpy as np
 from quadruped_stand import add_push_options  # benchmarks/ is not a package
 from quadruped_walk import parse_set  # benchmarks/ is not a package
 
+from mpcbox.cli.compare import parse_sets
+
 OUT = Path(__file__).parent / "results" / "menagerie_robots.json"
 
 #: Robot (``"name"`` or ``"name/entry"``) -> feet. Four feet: a quadruped.
@@ -105,6 +107,7 @@ def run_robot(
     push: bool = False,
     push_settle: float = 3.0,
     push_rest_speed: float | None = None,
+    controller_options: dict | None = None,
 ) -> dict:
     import mpcbox
     from mpcbox.tasks.legged.biped import BipedStand
@@ -144,6 +147,7 @@ def run_robot(
             try:
                 unlimited = name == "qp" and qp_time_limit == "none"
                 overrides = {"time_limit": None} if unlimited else {}
+                overrides.update((controller_options or {}).get(name, {}))
                 controller = mpcbox.make_controller(name, problem, **overrides)
                 noise = problem.noise(noise_scale)
                 res = mpcbox.simulate(problem, controller, duration, noise=noise, seed=seed)
@@ -154,6 +158,7 @@ def run_robot(
                         "failure": res.failure,
                         "tilt_rms_deg": round(float(res.metrics.measures["tilt_rms_deg"]), 2),
                         "fallbacks": int(res.metrics.fallbacks),
+                        **_stalled(controller),
                         **_qp_counts(controller),
                     }
                 )
@@ -162,12 +167,19 @@ def run_robot(
                 break
         out[name] = {"successes": sum(r["success"] for r in runs), "runs": runs}
         if push:
-            out[name].update(_largest_push(problem, name, push_settle, push_rest_speed))
+            options = (controller_options or {}).get(name, {})
+            out[name].update(_largest_push(problem, name, push_settle, push_rest_speed, options))
     problem.close()
     return out
 
 
-def _largest_push(problem, name: str, settle: float = 3.0, rest_speed: float | None = None) -> dict:
+def _largest_push(
+    problem,
+    name: str,
+    settle: float = 3.0,
+    rest_speed: float | None = None,
+    controller_options: dict | None = None,
+) -> dict:
     """The largest forward push of 0.1 s on the root that ``name`` survives (no noise, 5 N):
     standing ``settle`` s after it and, with ``rest_speed``, the root slower than that.
     Returns ``largest_push_n`` (or the error), the bisection's smallest failed force and
@@ -178,7 +190,7 @@ def _largest_push(problem, name: str, settle: float = 3.0, rest_speed: float | N
     options = {} if rest_speed is None else {"rest_speed": rest_speed}
     test = PushTest(body=problem.root, tolerance=5.0, max_force=1500.0, settle=settle, **options)
     try:
-        limit = largest_push(problem, name, test)
+        limit = largest_push(problem, name, test, controller_options=controller_options or None)
     except Exception as exc:
         return {"largest_push_n": _error(exc)}
     return {
@@ -186,6 +198,14 @@ def _largest_push(problem, name: str, settle: float = 3.0, rest_speed: float | N
         "smallest_failed_push_n": round(float(limit.smallest_failed), 1),
         "largest_push_travel_m": round(float(limit.travel), 3),
     }
+
+
+def _stalled(controller: object) -> dict:
+    """An iLQR-MPC's stalled replans (``stats["stalled"]``; empty for others)."""
+    stats = getattr(controller, "stats", None)
+    if not isinstance(stats, dict) or "stalled" not in stats:
+        return {}
+    return {"stalled": int(stats["stalled"]), "replans": int(stats["replans"])}
 
 
 def _qp_counts(controller: object) -> dict:
@@ -229,6 +249,13 @@ def main() -> int:
         default="",
         help="task options for every robot, read as realtime.py reads them: 'joint_cost=10'",
     )
+    parser.add_argument(
+        "--controller-set",
+        action="append",
+        default=[],
+        metavar="NAME.KEY=VALUE",
+        help="override an option of a controller's task config, e.g. ilqr.mpc_iterations=2",
+    )
     parser.add_argument("--noise-scale", type=float, default=1.0, help="x the noise recipe")
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument(
@@ -243,6 +270,7 @@ def main() -> int:
     robots = chosen_robots(parser, args)
     controllers = tuple(c for c in args.controllers.split(",") if c)
     task_options = parse_set(args.task_set)
+    controller_options = parse_sets(args.controller_set)
     jobs = [
         (
             r,
@@ -257,6 +285,7 @@ def main() -> int:
             args.largest_push,
             args.push_settle,
             args.push_rest_speed,
+            controller_options,
         )
         for r in robots
     ]
@@ -272,6 +301,7 @@ def main() -> int:
         f"--controllers {args.controllers} --qp-time-limit {args.qp_time_limit} "
         f"--dry-friction {args.dry_friction}"
         + (f" --task-set '{args.task_set}'" if args.task_set else "")
+        + "".join(f" --controller-set {item}" for item in args.controller_set)
         + f" --noise-scale {args.noise_scale} --first-seed {args.first_seed}"
         + (" --largest-push" if args.largest_push else "")
         + (
@@ -281,6 +311,7 @@ def main() -> int:
             else ""
         ),
         "task_options": task_options,
+        "controller_options": controller_options,
         "seeds": args.seeds,
         "duration_s": args.duration,
         "noise": "each task's robot-independent recipe (5 % of each actuator's half range)"

@@ -101,7 +101,8 @@ class G1Getup(HumanoidGetup):
     It plans on fitted capsules at 0.02 s with added servo armature (:data:`G1_SAMPLING`)
     and, with the torso's height weighted 1000 (``height_cost``), gets up within 5 s in
     the real-time loop in 44 of 50 held-out runs on an H200 (8 to 10 of each 10); of the
-    six misses four ended bent just under the standing mark, two on the floor. Planned
+    six misses three ended bent just under the standing mark, one was still rising when
+    the 5 s ran out, two lay on the floor. Planned
     on its meshes at 0.01 s it got up in none (ticks 145-196 ms on an H100); on capsules at
     0.01 s in none either (ticks p50 48-64 ms). :meth:`stand_problem` gives a standing
     stage (:class:`~mpcbox.tasks.legged.biped.BipedStand`) for :meth:`handover_controller`;

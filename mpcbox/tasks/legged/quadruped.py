@@ -114,8 +114,9 @@ class QuadrupedStand(LeggedBalance):
     #: 0.64x on the ANYmal B, 0.84x on the ANYmal C, 0.90x on the Spot and 0.62x on the
     #: Go2, where the generic config survives 263.7 N against 155.3 N (LQR 249.0 N;
     #: results/quadruped_ilqr_reference.json). A second iteration a replan
-    #: (``mpc_iterations=2``) left the tilt unchanged and tripled the tick: its second
-    #: step stalls on most replans, on the reference model there is little left to gain.
+    #: (``mpc_iterations=2``) left the tilt and the fallbacks unchanged and took 2.5-5x
+    #: the tick: its second step stalls on most replans, there being little left to gain
+    #: on the reference model.
     controller_configs: ClassVar[dict[str, Any]] = {
         **LeggedBalance.controller_configs,
         "ilqr": BipedStand.controller_configs["ilqr"],
