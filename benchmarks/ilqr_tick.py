@@ -36,6 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import mpcbox
 from mpcbox.cli.compare import parse_sets
 from mpcbox.controllers.ilqr import solver as ilqr_solver
+from mpcbox.errors import MpcboxError
 from mpcbox.registry import make_controller
 
 
@@ -125,7 +126,10 @@ def main() -> None:
     unknown = sorted(set(robots) - set(ROBOTS))
     if unknown:
         parser.error(f"--robots: unknown {unknown}; choose from {sorted(ROBOTS)}")
-    options = parse_sets([f"ilqr.{s}" for s in args.ilqr_set]).get("ilqr", {})
+    try:
+        options = parse_sets([f"ilqr.{s}" for s in args.ilqr_set]).get("ilqr", {})
+    except MpcboxError as exc:
+        parser.error(f"--ilqr-set: {exc}")
     t0 = time.perf_counter()
     seeds = range(args.first_seed, args.first_seed + args.seeds)
     out = {

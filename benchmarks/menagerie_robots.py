@@ -28,6 +28,7 @@ from quadruped_stand import add_push_options  # benchmarks/ is not a package
 from quadruped_walk import parse_set  # benchmarks/ is not a package
 
 from mpcbox.cli.compare import parse_sets
+from mpcbox.errors import MpcboxError
 
 OUT = Path(__file__).parent / "results" / "menagerie_robots.json"
 
@@ -270,7 +271,10 @@ def main() -> int:
     robots = chosen_robots(parser, args)
     controllers = tuple(c for c in args.controllers.split(",") if c)
     task_options = parse_set(args.task_set)
-    controller_options = parse_sets(args.controller_set)
+    try:
+        controller_options = parse_sets(args.controller_set)
+    except MpcboxError as exc:
+        parser.error(f"--controller-set: {exc}")
     jobs = [
         (
             r,
