@@ -114,7 +114,7 @@ class QuadrupedStand(LeggedBalance):
     #: 0.64x on the ANYmal B, 0.84x on the ANYmal C, 0.90x on the Spot and 0.62x on the
     #: Go2, where the generic config survives 263.7 N against 155.3 N (LQR 249.0 N;
     #: results/quadruped_ilqr_reference.json). A second iteration a replan
-    #: (``mpc_iterations=2``) left the tilt and the fallbacks unchanged and took 2.5-5x
+    #: (``mpc_iterations=2``) left the tilt and the fallbacks unchanged and took 2.5-5.5x
     #: the tick: its second step stalls on most replans, there being little left to gain
     #: on the reference model.
     controller_configs: ClassVar[dict[str, Any]] = {
