@@ -1,0 +1,38 @@
+"""Unitree G1 get-up (MuJoCo Menagerie): from lying on its back to standing, by sampling MPC.
+
+A thin wrapper of ``mpcbox compare g1_getup`` (:class:`~mpcbox.tasks.humanoid.g1_getup.G1Getup`:
+29 position servos, sampling noise 5 % of each servo's range, the torso's height weighted
+1000): one seed of 5 s, success when the torso is up within the 5 s and held for the last
+0.5 s. Needs the robot: ``pip install "mpcbox[menagerie]"`` or ``MENAGERIE_ROOT`` pointing at
+an offline copy (without it the script names what is missing and returns 2). With an NVIDIA
+GPU MPPI runs its tuned config on MuJoCo Warp (in the real-time loop on an H200: 44 of 50
+held-out runs, ``docs/results/sampling_gpu.md``); without one it runs with a handful of
+samples, which shows the loop but does not get the G1 up.
+
+Examples::
+
+    MENAGERIE_ROOT=... python problems/g1_getup.py --controllers mppi
+    MENAGERIE_ROOT=... python problems/g1_getup.py --controllers mppi --seeds 10 --realtime
+"""
+
+from __future__ import annotations
+
+import sys
+
+from mpcbox.cli import quick_sampling_options, run_task_script
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the comparison (``argv`` defaults to the command line)."""
+    return run_task_script(
+        "g1_getup",
+        argv,
+        controller_options=quick_sampling_options("g1_getup"),
+        duration=5.0,
+        seeds=1,
+        push=0.0,
+    )
+
+
+if __name__ == "__main__":
+    sys.exit(main())
