@@ -18,20 +18,15 @@ Examples::
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
-from mpcbox.cli import quick_sampling_options, run_task_script
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # problems/ is not a package
+from humanoid_getup import main as getup_main
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the comparison (``argv`` defaults to the command line)."""
-    return run_task_script(
-        "g1_getup",
-        argv,
-        controller_options=quick_sampling_options("g1_getup"),
-        duration=5.0,
-        seeds=1,
-        push=0.0,
-    )
+    return getup_main(argv, task="g1_getup")
 
 
 if __name__ == "__main__":

@@ -22,12 +22,12 @@ import sys
 from mpcbox.cli import quick_sampling_options, run_task_script
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the comparison (``argv`` defaults to the command line)."""
+def main(argv: list[str] | None = None, task: str = "humanoid_getup") -> int:
+    """Run the comparison of get-up ``task`` (``argv`` defaults to the command line)."""
     return run_task_script(
-        "humanoid_getup",
+        task,
         argv,
-        controller_options=quick_sampling_options("humanoid_getup"),
+        controller_options=quick_sampling_options(task),
         duration=5.0,
         seeds=1,
         push=0.0,
