@@ -1,8 +1,11 @@
-"""Shared fixtures: the Warp device for the sampling tests, and skipping GPU tests."""
+"""Shared fixtures: the Warp device for the sampling tests, skipping GPU tests, Menagerie
+quadrupeds and the scripts of ``problems/``."""
 
 from __future__ import annotations
 
+import importlib.util
 import os
+from pathlib import Path
 
 import pytest
 
@@ -58,3 +61,17 @@ def menagerie_quadruped(request: pytest.FixtureRequest):
         problem = QuadrupedStand(f"menagerie:{robot}", threads=1)
     yield problem
     problem.close()
+
+
+@pytest.fixture(scope="session")
+def problem_script():
+    """A loader of ``problems/NAME.py`` as a module (``problems/`` is not a package)."""
+
+    def load(name: str):
+        path = Path(__file__).resolve().parents[1] / "problems" / f"{name}.py"
+        spec = importlib.util.spec_from_file_location(f"{name}_script", path)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        return module
+
+    return load

@@ -314,18 +314,6 @@ def test_panda_tracks_a_quintic_within_five_millimetres() -> None:
     assert sim.metrics.measures["tracking_error_rms_m"] < 0.005
 
 
-def _script(name: str = "arm_trajectory"):
-    """``problems/NAME.py`` as a module (``problems/`` is not a package)."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).parents[1] / "problems" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(f"{name}_script", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 OFFSET_ARM = """
 <mujoco>
   <worldbody>
@@ -344,8 +332,8 @@ OFFSET_ARM = """
 """
 
 
-def test_arm_trajectory_defaults_turn_each_driven_hinge_towards_its_middle():
-    script = _script()
+def test_arm_trajectory_defaults_turn_each_driven_hinge_towards_its_middle(problem_script):
+    script = problem_script("arm_trajectory")
     model = mujoco.MjModel.from_xml_string(OFFSET_ARM)
     start = np.array([-1.0, 0.05, 0.0, 0.0, 0.0])
     offsets = script.default_offsets(model, start)
@@ -355,8 +343,8 @@ def test_arm_trajectory_defaults_turn_each_driven_hinge_towards_its_middle():
     assert script.DEFAULT_OFFSET == 0.3
 
 
-def test_panda_reach_scales_its_default_target_by_the_arms_length():
-    script = _script("panda_reach")
+def test_panda_reach_scales_its_default_target_by_the_arms_length(problem_script):
+    script = problem_script("panda_reach")
     model = mujoco.MjModel.from_xml_string(OFFSET_ARM)
     # Five joints 0.2 m apart in a column and the frame at the last one: 0.8 m.
     assert script.arm_length(model, "e", model.qpos0) == pytest.approx(0.8, abs=1e-12)
@@ -368,8 +356,8 @@ def test_panda_reach_scales_its_default_target_by_the_arms_length():
     np.testing.assert_allclose(offset / np.linalg.norm(offset), [0.0, 0.75, -0.6615], atol=1e-3)
 
 
-def test_the_arm_scripts_print_a_bad_arguments_named_error_and_return_2(capsys):
-    script = _script()
+def test_the_arm_scripts_print_a_bad_arguments_named_error_and_return_2(capsys, problem_script):
+    script = problem_script("arm_trajectory")
     assert script.main(["--model", "arm3", "--duration", "0"]) == 2
     assert "error: duration must be a positive finite number" in capsys.readouterr().err
     assert script.main(["--model", "arm3", "--offsets", "1", "1", "1", "1"]) == 2
