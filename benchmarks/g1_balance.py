@@ -132,6 +132,7 @@ def main(argv: list[str] | None = None) -> int:
             body=probe.root,
             settle=args.push_settle,
             rest_speed=args.push_rest_speed,
+            scan_step=args.push_scan_step,
             tolerance=args.push_tolerance,
             max_force=5 * weight,
             name="forward",

@@ -28,6 +28,7 @@ import warnings
 
 import mujoco
 import numpy as np
+from quadruped_walk import parse_set  # benchmarks/ is not a package
 
 import mpcbox
 from mpcbox.cli.compare import parse_sets
@@ -63,12 +64,13 @@ def main() -> None:
         metavar="OPTION=VALUE",
         help="controller option, read as `mpcbox compare --set` reads it (repeatable)",
     )
+    parser.add_argument("--task-set", default="", help="task options, e.g. balance_target=support")
     args = parser.parse_args()
     sets = [f"{args.controller}.{item}" for item in args.set]
     options = parse_sets(sets).get(args.controller, {})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MissingMeshWarning)
-        problem = task_class("biped_stand")("menagerie:unitree_g1")
+        problem = task_class("biped_stand")("menagerie:unitree_g1", **parse_set(args.task_set))
     model, data = problem.model, mujoco.MjData(problem.model)
     feet = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name) for name in FEET]
     rows = []
@@ -105,6 +107,7 @@ def main() -> None:
         "robot": "menagerie:unitree_g1 (biped_stand, two feet)",
         "controller": args.controller,
         "options": options,
+        "task_options": parse_set(args.task_set),
         "push": "forward on the pelvis at 1 s for 0.1 s, no noise, seed 0",
         "machine": f"{os.cpu_count()}-core CPU ({platform.machine()})",
         "python": platform.python_version(),

@@ -148,6 +148,9 @@ def main(argv: list[str] | None = None) -> int:
             duration=args.duration,
             push_tolerance=args.push_tolerance,
             push=True,
+            push_settle=2.0,  # quadruped_stand.py's defaults (add_push_options)
+            push_rest_speed=None,
+            push_scan_step=None,
             workers=args.workers,
             controller_options="{}",  # the task's own configs
         )

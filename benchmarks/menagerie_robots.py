@@ -109,6 +109,7 @@ def run_robot(
     push_settle: float = 3.0,
     push_rest_speed: float | None = None,
     controller_options: dict | None = None,
+    push_scan_step: float | None = None,
 ) -> dict:
     import mpcbox
     from mpcbox.tasks.legged.biped import BipedStand
@@ -169,7 +170,9 @@ def run_robot(
         out[name] = {"successes": sum(r["success"] for r in runs), "runs": runs}
         if push:
             options = (controller_options or {}).get(name, {})
-            out[name].update(_largest_push(problem, name, push_settle, push_rest_speed, options))
+            out[name].update(
+                _largest_push(problem, name, push_settle, push_rest_speed, options, push_scan_step)
+            )
     problem.close()
     return out
 
@@ -180,6 +183,7 @@ def _largest_push(
     settle: float = 3.0,
     rest_speed: float | None = None,
     controller_options: dict | None = None,
+    scan_step: float | None = None,
 ) -> dict:
     """The largest forward push of 0.1 s on the root that ``name`` survives (no noise, 5 N):
     standing ``settle`` s after it and, with ``rest_speed``, the root slower than that.
@@ -189,6 +193,8 @@ def _largest_push(
     from mpcbox.comparison.scenario import PushTest
 
     options = {} if rest_speed is None else {"rest_speed": rest_speed}
+    if scan_step is not None:
+        options["scan_step"] = scan_step
     test = PushTest(body=problem.root, tolerance=5.0, max_force=1500.0, settle=settle, **options)
     try:
         limit = largest_push(problem, name, test, controller_options=controller_options or None)
@@ -290,6 +296,7 @@ def main() -> int:
             args.push_settle,
             args.push_rest_speed,
             controller_options,
+            args.push_scan_step,
         )
         for r in robots
     ]
@@ -311,6 +318,7 @@ def main() -> int:
         + (
             f" --push-settle {args.push_settle}"
             + (f" --push-rest-speed {args.push_rest_speed}" if args.push_rest_speed else "")
+            + (f" --push-scan-step {args.push_scan_step}" if args.push_scan_step else "")
             if args.largest_push
             else ""
         ),

@@ -89,6 +89,13 @@ def add_push_options(parser: argparse.ArgumentParser, settle: float = 2.0) -> No
         default=None,
         help="a survived push must also end with the root slower than this (m/s)",
     )
+    parser.add_argument(
+        "--push-scan-step",
+        type=float,
+        default=None,
+        help="walk up in steps of this (N) to the first failure, then bisect below it "
+        "(PushTest.scan_step; default: bisect the whole range)",
+    )
 
 
 def push_record(args: argparse.Namespace) -> dict:
@@ -98,6 +105,7 @@ def push_record(args: argparse.Namespace) -> dict:
         "duration_s": 0.1,
         "settle_s": args.push_settle,
         "rest_speed_m_s": args.push_rest_speed,
+        "scan_step_N": args.push_scan_step,
         "noise": 0,
     }
 
@@ -112,6 +120,7 @@ def evaluate(robot: str, args: argparse.Namespace) -> dict:
         duration=0.1,
         settle=args.push_settle,
         rest_speed=args.push_rest_speed,
+        scan_step=args.push_scan_step,
         tolerance=args.push_tolerance,
         max_force=20 * float(probe.model.body_subtreemass[probe.root_id]) * 9.81,
         name="forward",

@@ -79,7 +79,7 @@ def humanoid_terms(ref: mpcbox.Problem) -> list:
     return [
         StateCost(ref.qpos_ref, weight_qpos=2.0, weight_qvel=0.5),
         ControlCost(np.full(ref.nu, 0.1), weight=np.linspace(0.5, 1.5, ref.nu)),
-        ComOverSupport("foot_left", weight=[3.0, 4.0], root="torso"),
+        ComOverSupport("foot_left", weight=[3.0, 4.0], root="torso", offset=[0.05, -0.02]),
         FramePosition("hand_right", np.array([0.2, -0.3, 1.0]), weight=[1.0, 0.0, 2.0]),
         FrameHeight("torso", 1.3, weight=5.0),
         HeightAbove("torso", "foot_left", 1.2, weight=3.0),

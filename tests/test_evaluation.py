@@ -91,6 +91,36 @@ def test_bisection_below_float_resolution_ends(monkeypatch) -> None:
     assert len(calls) < 100  # about 60 halvings of 400 N down to the spacing near 37 N
 
 
+def test_a_scan_finds_the_first_failure_where_survival_is_not_monotone(monkeypatch):
+    """Survived up to 100 N, fallen at 150-250 N, survived again at 300-700 N (as a G1 that
+    hops away from some large pushes): the plain bisection lands in the upper band, the scan
+    below the first failure."""
+    from types import SimpleNamespace
+
+    from mpcbox.comparison import robustness
+
+    def fake_trial(problem, controller, test, seed):
+        def trial(force: float):
+            success = force <= 100.0 or 300.0 <= force <= 700.0
+            return SimpleNamespace(metrics=SimpleNamespace(success=success))
+
+        return trial
+
+    monkeypatch.setattr(robustness, "_push_trial", fake_trial)
+    monkeypatch.setattr(robustness, "travel", lambda *args: 0.0)
+    plain = robustness.largest_push(None, None, PushTest(max_force=1000.0, tolerance=1.0))
+    assert 699.0 <= plain.force <= 700.0
+    scanned = PushTest(max_force=1000.0, tolerance=1.0, scan_step=50.0)
+    limit = robustness.largest_push(None, None, scanned)
+    assert 99.0 <= limit.force <= 100.0 < limit.smallest_failed <= 101.0
+    # Survived up to the cap: the cap, as without the scan.
+    assert (
+        robustness.largest_push(None, None, PushTest(max_force=90.0, scan_step=50.0)).force == 90.0
+    )
+    with pytest.raises(InvalidArgumentError, match="scan_step"):
+        PushTest(scan_step=0.0)
+
+
 def _lqr(problem):
     """A module-level factory: worker processes rebuild the controller from it."""
     return LQR(problem)

@@ -145,7 +145,7 @@ def test_a_replan_that_improves_and_then_stalls_is_a_stall_not_a_fallback():
             return out if SecondStalls.searches <= 1 else (out[0], out[1], np.inf)
 
     options = dict(horizon=20, replan_period=0.2, mpc_iterations=2, first_iterations=2)
-    ctrl = SecondStalls(point_mass(), max_retries=2, **options)
+    ctrl = SecondStalls(point_mass(), max_retries=2, warm_start_feedback=True, **options)
     x0 = np.array([1.0, -0.5, 0.0, 0.0])
     ctrl(x0, 0.0)
     result = ctrl.last_result
@@ -155,7 +155,15 @@ def test_a_replan_that_improves_and_then_stalls_is_a_stall_not_a_fallback():
     fresh = ILQR(point_mass(), **options).solve(x0, max_iterations=1)
     np.testing.assert_allclose(result.ctrls, fresh.ctrls, rtol=1e-9, atol=1e-12)
     assert ctrl.stats["stalled"] == 1 and ctrl.stats["fallbacks"] == 0
-    # A replan whose every search fails keeps the previous plan: a stall and a fallback.
+    # A replan whose every search fails keeps the previous plan's feedback law rolled out
+    # from the measured state: a stall. From its controls rolled out open loop
+    # (warm_start_feedback=False) it is a fallback too.
+    ctrl(x0 + 0.1, 0.2)
+    assert len(ctrl.last_result.costs) == 1
+    assert ctrl.stats["stalled"] == 2 and ctrl.stats["fallbacks"] == 0
+    SecondStalls.searches = 0
+    ctrl = SecondStalls(point_mass(), max_retries=2, warm_start_feedback=False, **options)
+    ctrl(x0, 0.0)
     ctrl(x0 + 0.1, 0.2)
     assert len(ctrl.last_result.costs) == 1
     assert ctrl.stats["stalled"] == 2 and ctrl.stats["fallbacks"] == 1
@@ -173,7 +181,15 @@ def test_replans_after_the_first_stop_at_mpc_max_retries():
             out = super()._forward(*args)
             return out[0] * np.nan, out[1], np.inf
 
-    ctrl = Failing(point_mass(), horizon=10, replan_period=0.1, max_retries=6, mpc_max_retries=2)
+    # (Open-loop warm starts: each stall before a step is then a fallback too.)
+    ctrl = Failing(
+        point_mass(),
+        horizon=10,
+        replan_period=0.1,
+        max_retries=6,
+        mpc_max_retries=2,
+        warm_start_feedback=False,
+    )
     steps = len(ctrl.config.step_sizes)
     ctrl(np.array([1.0, -0.5, 0.0, 0.0]), 0.0)
     assert ctrl.last_result.stop_reason.stalled
@@ -196,3 +212,66 @@ def test_replans_after_the_first_stop_at_mpc_max_retries():
 def test_mpc_max_retries_is_checked():
     with pytest.raises(InvalidArgumentError, match="mpc_max_retries"):
         ILQR(point_mass(), horizon=5, mpc_max_retries=-1)
+
+
+# A pendulum balanced upright by a motor: open loop, a deviation grows by e^(7.7 t).
+INVERTED = """
+<mujoco>
+  <option timestep="0.01"/>
+  <worldbody>
+    <body name="pole">
+      <joint name="hinge" axis="0 1 0" damping="0.01"/>
+      <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.02" mass="1"/>
+    </body>
+  </worldbody>
+  <actuator><motor joint="hinge" ctrlrange="-20 20"/></actuator>
+</mujoco>
+"""
+
+
+def test_replans_roll_the_warm_start_out_under_the_previous_feedback_law():
+    """``warm_start_feedback``: a replan starts from the previous plan's feedback law rolled
+    out from the measured state, as the world executes it between replans, not from its
+    controls open loop, which leave an unstable plant's trajectory within the horizon."""
+    problem = mpcbox.Problem(
+        INVERTED,
+        cost=Cost(
+            [
+                StateCost(np.zeros(1), weight_qpos=10.0, weight_qvel=0.1),
+                ControlCost(np.zeros(1), weight=0.01),
+            ]
+        ),
+        threads=1,
+    )
+    x0, dt = np.array([0.05, 0.0]), 0.02
+    starts = {}
+    for feedback in (True, False):
+        mpc = ILQR(
+            problem,
+            horizon=40,
+            terminal_value="lqr",
+            linearization="reference",
+            regularization=0.0,
+            replan_period=dt,
+            warm_start_feedback=feedback,
+        )
+        mpc(x0, 0.0)
+        plan = mpc.last_result
+        # The measured state is off the plan's prediction, as after a disturbance.
+        x1 = plan.states[2] + np.array([0.02, -0.1])
+        if feedback:
+            warm, (states, gains) = mpc._shifted_policy(dt)
+            np.testing.assert_array_equal(warm[:-2], plan.ctrls[2:])
+            np.testing.assert_array_equal(states[:-2], plan.states[2:])
+            np.testing.assert_array_equal(gains[-3:], np.repeat(plan.K[-1:], 3, axis=0))
+        mpc(x1, dt)
+        replan = mpc.last_result
+        assert replan.states[0] == pytest.approx(x1)
+        starts[feedback] = replan.costs[0]
+    # Near an equilibrium the previous plan's law (LQR's gains with the LQR terminal value)
+    # is already the optimal plan from the new state; its controls open loop are not.
+    best = mpc.solve(x1, max_iterations=50).cost
+    assert best <= starts[True] < best * (1 + 1e-3)
+    assert starts[False] > 1.5 * best
+    with pytest.raises(InvalidArgumentError, match="warm_start_feedback"):
+        ILQR(problem, warm_start_feedback="yes")

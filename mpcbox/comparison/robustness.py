@@ -295,8 +295,9 @@ def largest_push(
 
     Bisection on the magnitude over ``[0, test.max_force]`` until the bracket is narrower
     than ``test.tolerance``, assuming that surviving a force means surviving every smaller
-    one; :func:`push_grid` checks that assumption. Each trial simulates
-    ``test.total_time`` seconds.
+    one; :func:`push_grid` checks that assumption, and ``test.scan_step`` walks up to the
+    first failure before bisecting below it. Each trial simulates ``test.total_time``
+    seconds.
 
     Args:
         problem: The Problem.
@@ -324,10 +325,16 @@ def largest_push(
 
     if not survives(0.0):
         return PushLimit(0.0, 0.0, 0.0, count)
-    if survives(max_force):
+    lo, hi = 0.0, max_force
+    # With scan_step, walk up to the first failure (test.scan_step's docstring).
+    while test.scan_step is not None and lo + test.scan_step < max_force:
+        if not survives(lo + test.scan_step):
+            hi = lo + test.scan_step
+            break
+        lo += test.scan_step
+    if hi == max_force and survives(max_force):
         limit = PushLimit(max_force, max_force * test.duration, float("inf"), count)
         return limit._replace(travel=moved())
-    lo, hi = 0.0, max_force
     while hi - lo > test.tolerance:
         mid = 0.5 * (lo + hi)
         if not lo < mid < hi:  # the bracket is at float resolution: a smaller tolerance

@@ -111,7 +111,8 @@ class ILQR(ILQRSolver, Controller):
 
         ``replans``, ``iterations`` and ``divergences`` (diverged rollouts); ``fallbacks``:
         calls that kept the previous plan (a failed replan, a non-finite state, or a replan
-        that stalled before accepting a step); ``stalled``: replans that stopped on a stall
+        that stalled before accepting a step from an open-loop warm start); ``stalled``:
+        replans that stopped on a stall
         (:attr:`~mpcbox.controllers.ilqr.result.StopReason.stalled`), whether or not an
         earlier iteration of theirs improved the plan; ``converged``: converged replans."""
         out = {key: float(val) for key, val in self._counts.items()}
@@ -140,6 +141,17 @@ class ILQR(ILQRSolver, Controller):
         out[0] = state
         return out
 
+    def _shifted_policy(self, time: float) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """The plan's controls ``(T, nu)`` and its (states ``(T + 1, nstate)``, gains
+        ``(T, nu, nx)``) shifted by the whole knots elapsed since it was made, each padded
+        with its last entry: the feedback law the world has been executing, continued."""
+        plan = self._last_result
+        assert plan is not None
+        shift = round((time - self._plan_time) / self.knot_dt)
+        knots = np.minimum(np.arange(self.horizon) + shift, self.horizon - 1)
+        nodes = np.minimum(np.arange(self.horizon + 1) + shift, self.horizon)
+        return plan.ctrls[knots], (plan.states[nodes], plan.K[knots])
+
     def policy(self) -> FeedbackPolicy | None:
         """The feedback law of the current plan, as an object of its own:
         :func:`mpcbox.simulate_realtime` evaluates it in the world's thread at every step
@@ -153,8 +165,14 @@ class ILQR(ILQRSolver, Controller):
         Never raises on numerical trouble: a failed replan keeps the previous plan (or
         ``ctrl_ref``) and counts a fallback. A replan that stalled
         (``stop_reason.stalled``) is used and counted in ``stats["stalled"]``; it counts a
-        fallback too only when it stalled before accepting a step, its plan being then the
-        previous one shifted to the measured state. One that improved the plan in an
+        fallback too only when it stalled before accepting a step from the previous plan's
+        controls rolled out open loop (``warm_start_feedback=False``, the default). From the
+        previous plan's feedback law rolled out from the measured state
+        (``warm_start_feedback=True``), such a replan keeps that law, as LQR keeps its gain: a
+        stall, not a fallback (on
+        Menagerie's Robotis OP3 and Talos with position servos most replans find no step
+        that improves on it, and the robots stand as LQR stands them, tilt RMS 0.3-0.8
+        deg). One that improved the plan in an
         iteration and stalled in the next is not a fallback (with ``mpc_iterations=2`` a
         second iteration stalls on most replans of a standing ANYmal B, whose first
         accepted a step: counted as fallbacks, 124-128 of 150 replans had read as a
@@ -188,8 +206,14 @@ class ILQR(ILQRSolver, Controller):
                 try:
                     # MuJoCo's warnings of diverged rollouts are counted
                     # (result.divergences), not printed.
+                    rolled_law = guess is None and not first and cfg.warm_start_feedback
                     with captured_warnings():
-                        if guess is None:
+                        if rolled_law:
+                            warm, policy = self._shifted_policy(time)
+                            result = self._optimize(
+                                state, warm, iters, self._regularization, None, retries, policy
+                            )
+                        elif guess is None:
                             result = self._optimize(
                                 state, warm, iters, self._regularization, None, retries
                             )
@@ -204,8 +228,11 @@ class ILQR(ILQRSolver, Controller):
             else:
                 if result.stop_reason.stalled:
                     self._counts["stalled"] += 1
-                    # Stalled before any step was accepted: the plan is the previous one.
-                    if len(result.costs) == 1:
+                    # Stalled before any step was accepted: the plan is the previous one's
+                    # controls (a fallback), or its feedback law rolled out from the
+                    # measured state (``warm_start_feedback``: what LQR would do, counted
+                    # as a stall only).
+                    if len(result.costs) == 1 and not rolled_law:
                         self._counts["fallbacks"] += 1
                 self._last_result = result
                 self._plan_time = float(time)

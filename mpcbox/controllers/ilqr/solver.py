@@ -38,6 +38,7 @@ from mpcbox.controllers.ilqr.reference_model import (
 from mpcbox.controllers.ilqr.regularization import Regularization
 from mpcbox.controllers.ilqr.result import ILQRResult, StopReason, Timing
 from mpcbox.controllers.ilqr.riccati_cache import RiccatiCache
+from mpcbox.controllers.ilqr.saddle import descent_probe
 from mpcbox.controllers.lqr import with_lqr_terminal_value
 from mpcbox.core.blas_threads import single_blas_thread
 from mpcbox.core.divergence import check_planning_step
@@ -45,9 +46,6 @@ from mpcbox.core.mujoco_warnings import captured_warnings
 from mpcbox.core.problem import Linearization, Problem, Quadratization
 from mpcbox.errors import DivergenceError, InvalidArgumentError, SolverError
 from mpcbox.validation import as_array, finite_array, positive_int
-
-#: Random directions (each tried with both signs) of the saddle probe at a stationary point.
-PROBES = 4
 
 
 class ILQRSolver:
@@ -310,7 +308,11 @@ class ILQRSolver:
         reg: float | Regularization,
         k_warm: np.ndarray | None,
         max_retries: int | None = None,
+        policy: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> ILQRResult:
+        """The iterations from ``ctrls`` ``(T, nu)``, rolled out open loop, or under the
+        feedback law of ``policy`` = (states ``(T + 1, nstate)``, gains ``(T, nu, nx)``)
+        around them (the controller's warm start, ``warm_start_feedback``)."""
         p, cfg = self.problem, self.config
         max_retries = cfg.max_retries if max_retries is None else max_retries
         mu = reg if isinstance(reg, Regularization) else self._schedule(reg)
@@ -320,7 +322,14 @@ class ILQRSolver:
         divergences = 0
 
         t0 = _time.perf_counter()
-        states, cost = self._initial_rollout(x0, ctrls)
+        if policy is not None:
+            states, closed, cost = self._rollout(x0, policy[0], ctrls, 0 * ctrls, policy[1], 0.0)
+            if np.isfinite(cost):
+                ctrls = closed
+            else:
+                divergences += 1
+        if policy is None or not np.isfinite(cost):
+            states, cost = self._initial_rollout(x0, ctrls)
         if not np.isfinite(cost):
             divergences += 1
             ctrls = np.tile(np.clip(p.ctrl_ref, self.ctrl_low, self.ctrl_high), (self.horizon, 1))
@@ -370,7 +379,13 @@ class ILQRSolver:
             dv1, dv2 = bp.expected
             if -(dv1 + dv2) <= 1e-12 * max(1.0, abs(cost)):
                 t0 = _time.perf_counter()
-                if self._descent_probe(x0, ctrls, cost):
+                if descent_probe(
+                    lambda c: self._initial_rollout(x0, c)[1],
+                    ctrls,
+                    self.ctrl_low,
+                    self.ctrl_high,
+                    cost,
+                ):
                     reason = StopReason.SADDLE
                     status = (
                         "saddle (no predicted decrease, but a small change of the controls "
@@ -459,35 +474,6 @@ class ILQRSolver:
         except SolverError:
             return K
         return bp.K
-
-    def _descent_probe(self, x0: np.ndarray, ctrls: np.ndarray, cost: float) -> bool:
-        r"""Whether a small change of the controls lowers the cost at a stationary point.
-
-        The Gauss-Newton model is convex, so it sees no decrease at a saddle or maximum of the
-        true cost, e.g. at the hanging rest of a swing-up whose cost is periodic in the angle.
-        Tries smooth directions :math:`\pm\delta` (a constant per control, and
-        :data:`PROBES` random ones interpolated between four knots), scaled to ``1e-3`` of each
-        control's bound range (of 1 when unbounded) and kept within the bounds.
-        """
-        horizon, nu = ctrls.shape
-        span = self.ctrl_high - self.ctrl_low
-        span = np.where(np.isfinite(span), span, 1.0)
-        rng = np.random.default_rng(0)
-        knots = np.linspace(0.0, 1.0, 4)
-        grid = np.linspace(0.0, 1.0, horizon)
-        directions = [np.tile(np.eye(nu)[j], (horizon, 1)) for j in range(nu)]
-        for _ in range(PROBES):
-            values = rng.standard_normal((knots.size, nu))
-            directions.append(np.stack([np.interp(grid, knots, v) for v in values.T], axis=1))
-        threshold = cost - 1e-10 * max(1.0, abs(cost))
-        for direction in directions:
-            for sign in (1.0, -1.0):
-                trial = np.clip(
-                    ctrls + sign * 1e-3 * span * direction, self.ctrl_low, self.ctrl_high
-                )
-                if self._initial_rollout(x0, trial)[1] < threshold:
-                    return True
-        return False
 
     def _stall_reason(self, regularization: float, diverged: bool) -> StopReason:
         if diverged:

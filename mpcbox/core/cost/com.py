@@ -11,7 +11,7 @@ from mpcbox.core.cost.base import CostTerm, Features, Jacobian, SensorRequest
 from mpcbox.core.cost.frames import frame_sensor, point_jacobian
 from mpcbox.core.cost.rows import Row, SensorRow
 from mpcbox.core.model import object_id
-from mpcbox.validation import checked_options
+from mpcbox.validation import checked_options, finite_array
 
 
 class _SubtreeTerm(CostTerm):
@@ -62,10 +62,12 @@ class ComOverSupport(_SubtreeTerm):
         *,
         weight: float | np.ndarray,
         root: str | None = None,
+        offset: Sequence[float] | np.ndarray = (0.0, 0.0),
         name: str = "",
     ) -> None:
         super().__init__(weight, name or f"com_over_{support}", root)
         self.support = support
+        self.offset = finite_array("offset", offset, (2,))
 
     def sensors(self, model: mujoco.MjModel) -> Sequence[SensorRequest]:
         com = self._subtree_sensor(
@@ -82,7 +84,7 @@ class ComOverSupport(_SubtreeTerm):
     def residual(self, features: Features) -> np.ndarray:
         com = self.sensor_slice(features, f"mpcbox_{self.name}_com")
         foot = self.sensor_slice(features, f"mpcbox_{self.name}_support")
-        return com[:, :2] - foot[:, :2]
+        return com[:, :2] - foot[:, :2] - self.offset
 
     def jacobian(self, model: mujoco.MjModel, data: mujoco.MjData) -> Jacobian:
         jac_com = np.zeros((3, model.nv))
@@ -91,10 +93,12 @@ class ComOverSupport(_SubtreeTerm):
         return Jacobian(jq, np.zeros((2, model.nv)), np.zeros((2, model.nu)))
 
     def rows(self) -> list[Row]:
-        """Sensor rows ``com_i - support_i`` for ``i = x, y``."""
+        """Sensor rows ``com_i - support_i - offset_i`` for ``i = x, y``."""
         com = self.sensor_address(f"mpcbox_{self.name}_com").start
         foot = self.sensor_address(f"mpcbox_{self.name}_support").start
-        return [SensorRow(com + i, foot + i, 0.0, self.weight[i]) for i in range(2)]
+        return [
+            SensorRow(com + i, foot + i, float(self.offset[i]), self.weight[i]) for i in range(2)
+        ]
 
 
 class ComVelocity(_SubtreeTerm):

@@ -20,6 +20,7 @@ from mpcbox.core.model import (
     ModelSource,
     compile_spec,
     dof_weights,
+    frame_object,
     free_body,
     load_spec,
     names,
@@ -49,8 +50,25 @@ from mpcbox.validation import (
 FEET_CENTER = "feet_center"
 #: Where the center of mass is kept (see :class:`LeggedBalance`).
 SUPPORTS: tuple[str, ...] = ("center", "feet")
+#: Where the balance term wants the center of mass (see :class:`LeggedBalance`).
+BALANCE_TARGETS: tuple[str, ...] = ("reference", "support")
 #: How flat mesh soles are planned on (``mesh_soles``).
 MESH_SOLES: tuple[str, ...] = ("box", "mesh")
+
+
+def support_offsets(
+    model: mujoco.MjModel, data: mujoco.MjData, root_id: int, frames: Sequence[str]
+) -> np.ndarray:
+    """Horizontal offsets ``(n, 2)`` of the root's subtree center of mass from each of the
+    support ``frames`` (site or body names) (m), at the posture whose kinematics ``data``
+    holds."""
+    mujoco.mj_comPos(model, data)
+    com = data.subtree_com[root_id, :2]
+    out = np.zeros((len(frames), 2))
+    for i, name in enumerate(frames):
+        kind, idx = frame_object(model, name, "support")
+        out[i] = com - (data.site_xpos[idx, :2] if kind == "site" else data.xpos[idx, :2])
+    return out
 
 
 def _root_body(model: mujoco.MjModel, root: str | None) -> int:
@@ -120,7 +138,7 @@ class LeggedBalance(Problem):
     :math:`p` the support point:
 
     .. math::
-        \tfrac12 w_b \|c_{xy} - p_{xy}\|^2 + \tfrac12 \|q \ominus q_{ref}\|^2_{W_q}
+        \tfrac12 w_b \|c_{xy} - p_{xy} - o\|^2 + \tfrac12 \|q \ominus q_{ref}\|^2_{W_q}
         + \tfrac12 w_v \|v\|^2 + \tfrac12 \|u - u_{ref}\|^2_{W_u} ,
 
     where :math:`W_q` is ``joint_cost`` on the joints and zero on the free root, and
@@ -131,6 +149,12 @@ class LeggedBalance(Problem):
     world-fixed site ``feet_center`` at the middle of the feet's soles in the keyframe (the
     foot itself for one foot); with ``"feet"`` the cost keeps the center of mass over each
     foot (weight ``w_b / n`` each, the same as over their moving mean up to a constant).
+    The offset :math:`o` is, with ``balance_target="reference"`` (the default), where the
+    equilibrium holds the center of mass relative to :math:`p`, so that the whole cost is
+    zero and stationary at the reference, the state LQR and QP-MPC regulate to; with
+    ``"support"`` it is zero: a pull off the equilibrium, a gradient that LQR and QP-MPC
+    drop and iLQR follows (iLQR-MPC leant off and fell, without noise too, on the Unitree H1
+    and PNDbotics Adam Lite, which stand with it 10-17 cm behind the soles' middle).
 
     A run fails when the root body drops below ``fall_height`` or tilts by more than
     ``fall_tilt``. The measures are the center
@@ -153,6 +177,7 @@ class LeggedBalance(Problem):
             its reference tilt (a robot thrown onto its side or back may keep its root
             high); ``None``: height only.
         support: ``"center"`` or ``"feet"`` (see above).
+        balance_target: ``"reference"`` or ``"support"``: the offset :math:`o` (see above).
         contacts: Contact geoms, bodies or sites for QP-MPC (default: each foot as given,
             except a body foot standing on one point, such as a sphere: its sole site).
         balance_cost: :math:`w_b` (per m²).
@@ -248,6 +273,7 @@ class LeggedBalance(Problem):
         fall_fraction: float = 0.6,
         fall_tilt: float | None = 60.0,
         support: str = "center",
+        balance_target: str = "reference",
         contacts: Sequence[str] | None = None,
         balance_cost: float = 1000.0,
         joint_cost: float | np.ndarray = 1.0,
@@ -264,6 +290,7 @@ class LeggedBalance(Problem):
         self.root_adjust = one_of("root_adjust", root_adjust, ROOT_ADJUSTMENTS)
         self.mesh_soles = one_of("mesh_soles", mesh_soles, MESH_SOLES)
         self.support = one_of("support", support, SUPPORTS)
+        self.balance_target = one_of("balance_target", balance_target, BALANCE_TARGETS)
         self.ctrl_units = one_of("ctrl_units", ctrl_units, UNITS)
         self.fall_fraction = positive("fall_fraction", fall_fraction)
         self.fall_height = None if fall_height is None else finite("fall_height", fall_height)
@@ -388,6 +415,9 @@ class LeggedBalance(Problem):
             self.fall_height = self.fall_fraction * float(data.xpos[self.root_id, 2])
         #: The root's tilt in the reference posture (deg).
         self.reference_tilt = Tilt(body=self.root).sample(model, data)
+        #: Horizontal offset of the center of mass from each support point in the
+        #: reference posture ``(n, 2)`` (m), for ``balance_target="reference"``.
+        self.balance_offsets = support_offsets(model, data, self.root_id, self.support_points)
 
     def joint_weights(self, model: mujoco.MjModel) -> np.ndarray:
         """Per-dof posture weights ``(nv,)``: ``joint_cost``, zero on free joints (the root)."""
@@ -401,11 +431,26 @@ class LeggedBalance(Problem):
     def balance_terms(self) -> list[CostTerm]:
         """The center of mass over the support point (or over each foot)."""
         w, frames = self.weights["balance"], self.support_points
+        offsets = (
+            self.balance_offsets
+            if self.balance_target == "reference"
+            else np.zeros((len(frames), 2))
+        )
         if len(frames) == 1:
-            return [ComOverSupport(frames[0], weight=w, root=self.root, name="balance")]
+            return [
+                ComOverSupport(
+                    frames[0], weight=w, root=self.root, offset=offsets[0], name="balance"
+                )
+            ]
         return [
-            ComOverSupport(frame, weight=w / len(frames), root=self.root, name=f"balance_{i}")
-            for i, frame in enumerate(frames)
+            ComOverSupport(
+                frame,
+                weight=w / len(frames),
+                root=self.root,
+                offset=offset,
+                name=f"balance_{i}",
+            )
+            for i, (frame, offset) in enumerate(zip(frames, offsets, strict=True))
         ]
 
     def build_cost(self, model: mujoco.MjModel) -> Cost:
