@@ -15,7 +15,9 @@ Measured:
 * the largest forward push on the pelvis (0.1 s at 1 s, no noise, ``--push-settle`` s to
   recover, 2 by default; with ``--push-rest-speed`` the pelvis must also end slower than
   that, so that a robot still hopping does not count) by bisection to ``--push-tolerance``
-  N, for LQR and each MPC (``--mpc``);
+  N, for LQR and each MPC (``--mpc``); with ``--push-scan-step`` the bisection starts
+  below the first failure of a scan in steps of that many newtons (iLQR-MPC's survival
+  is not monotone in the force: ``PushTest.scan_step``);
 * each MPC under the recipe over ``--mpc-seeds`` seeds: success, QP fallbacks over all
   solves, and the median and 99th percentile tick time (one thread, one process per run,
   on a shared 2-core machine: other jobs inflate the percentiles);

@@ -9,7 +9,7 @@ needs ``MENAGERIE_ROOT`` (an offline Menagerie copy)::
 
     MENAGERIE_ROOT=/work/menagerie python benchmarks/g1_push_recovery.py \
         [--controller ilqr] [--forces 150,200,250,300,350,400] [--duration 6] \
-        [--set cost_hessian=reference]
+        [--set cost_hessian=reference] [--task-set balance_target=support]
 
 To see what an older version of mpcbox did on the same robot, run this file with that
 checkout first on the path (``git worktree add /tmp/old COMMIT``, then

@@ -198,8 +198,9 @@ class PushTest:
             :func:`~mpcbox.comparison.push_limits.push_grid` reports it. ``None`` bisects
             ``[0, max_force]`` directly, which assumes that surviving a force means
             surviving every smaller one. A Unitree G1 under iLQR-MPC breaks that assumption:
-            it falls after every push from 250 to 650 N on a grid but hopped 2.75 m and came
-            to rest after 638.8 N, the figure the plain bisection reported.
+            it falls after every push from 250 to 650 N on a grid, but after 638.8 N it
+            hopped 2.75 m and was still up 2 s later, the figure the plain bisection
+            reported (no rest criterion).
         rest_speed: Largest speed (m/s) of ``body``'s centre of mass at the end of a trial to
             count as recovered; ``None``: staying up is enough. A robot that is still hopping
             or drifting when ``settle`` ends has not recovered yet, and may fall later (a
