@@ -10,6 +10,7 @@ import mpcbox
 from mpcbox.controllers.ilqr.controller import ILQR
 from mpcbox.core.cost import ControlCost, Cost, StateCost
 from mpcbox.errors import InvalidArgumentError
+from mpcbox.tasks import scene_path
 
 # A two-link arm hanging under gravity, held by position servos at zero: the reference is an
 # equilibrium. ``frictionloss`` gives each hinge MuJoCo's dry friction (stick or slip).
@@ -214,45 +215,34 @@ def test_mpc_max_retries_is_checked():
         ILQR(point_mass(), horizon=5, mpc_max_retries=-1)
 
 
-# A pendulum balanced upright by a motor: open loop, a deviation grows by e^(7.7 t).
-INVERTED = """
-<mujoco>
-  <option timestep="0.01"/>
-  <worldbody>
-    <body name="pole">
-      <joint name="hinge" axis="0 1 0" damping="0.01"/>
-      <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.02" mass="1"/>
-    </body>
-  </worldbody>
-  <actuator><motor joint="hinge" ctrlrange="-20 20"/></actuator>
-</mujoco>
-"""
-
-
 def test_replans_roll_the_warm_start_out_under_the_previous_feedback_law():
     """``warm_start_feedback``: a replan starts from the previous plan's feedback law rolled
     out from the measured state, as the world executes it between replans, not from its
     controls open loop, which leave an unstable plant's trajectory within the horizon."""
+    # The project's pendulum balanced upright (2 N m motor, unsaturated here): open loop, a
+    # deviation grows by e^(4.4 t) over the 0.8 s horizon.
     problem = mpcbox.Problem(
-        INVERTED,
+        scene_path("pendulum.xml"),
+        keyframe="up",
         cost=Cost(
             [
-                StateCost(np.zeros(1), weight_qpos=10.0, weight_qvel=0.1),
-                ControlCost(np.zeros(1), weight=0.01),
+                StateCost(np.array([np.pi]), weight_qpos=10.0, weight_qvel=0.1),
+                ControlCost(np.zeros(1), weight=1.0),
             ]
         ),
         threads=1,
     )
-    x0, dt = np.array([0.05, 0.0]), 0.02
+    x0, dt = np.array([np.pi + 0.05, 0.0]), 0.02
     starts = {}
     for feedback in (True, False):
         mpc = ILQR(
             problem,
-            horizon=40,
+            horizon=80,
             terminal_value="lqr",
             linearization="reference",
             regularization=0.0,
             replan_period=dt,
+            first_iterations=20,
             warm_start_feedback=feedback,
         )
         mpc(x0, 0.0)
