@@ -124,7 +124,7 @@ class BipedStand(LeggedBalance):
     #: replans then find no better step than that law (a stall, not a fallback), so a
     #: replan tries three step sizes and no retry (``step_sizes=(1.0, 0.5, 0.25)``,
     #: ``mpc_max_retries=0``): the Go2's median replan 10 ms instead of 29-37 ms with the
-    #: six sizes and a retry, at the same pushes within 3 % on five of seven quadrupeds
+    #: six sizes and a retry, at the same pushes within 3 % on six of seven quadrupeds
     #: (the ANYmal C 9 % less, 1.05x LQR's still; results/ilqr_feedback_warm_start.json).
     controller_configs: ClassVar[dict[str, Any]] = {
         **LeggedBalance.controller_configs,
