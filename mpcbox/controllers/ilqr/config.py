@@ -143,10 +143,10 @@ class ILQRConfig:
             repairing its own warm start. On Menagerie's PNDbotics Adam Lite under the noise
             recipe that repair fell short and the robot fell (0/3); from the law it stands
             (3/3), and seven quadrupeds survive 1.00-1.16x LQR's push instead of 0.62-1.04x
-            (:class:`~mpcbox.tasks.legged.biped.BipedStand`). On the Panda's 40 cm reach and
-            the project humanoid's one-leg balance it changed nothing measurable (same
-            arrivals; same survival and tilt at 1.5x noise), so those presets keep the
-            default (``benchmarks/results/*_warm_start_feedback.json``).
+            (:class:`~mpcbox.tasks.legged.biped.BipedStand`). On the Panda's 40 cm reach, the
+            project humanoid's one-leg balance and the cart-pole swing-up it changed nothing
+            measurable (same arrivals, survival and tilt), so those presets keep the default
+            (``benchmarks/results/*_warm_start_feedback.json``).
         threads: Threads for derivatives and parallel line search (default: the Problem's).
         planning_timestep: Plan on a copy of the Problem whose planning model has this
             timestep (:meth:`~mpcbox.Problem.with_planning_timestep`); default: ``problem.dt``.
