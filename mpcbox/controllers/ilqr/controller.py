@@ -130,14 +130,20 @@ class ILQR(ILQRSolver, Controller):
             out[:, j] = np.interp(new_t, old_t, plan.ctrls[:, j])
         return out
 
+    def _shifted_indices(self, time: float) -> tuple[np.ndarray, np.ndarray]:
+        """Indices of the plan's knots ``(T,)`` and states ``(T + 1,)`` shifted by the whole
+        knots elapsed since it was made, each clamped to the last."""
+        shift = round((time - self._plan_time) / self.knot_dt)
+        knots = np.minimum(np.arange(self.horizon) + shift, self.horizon - 1)
+        nodes = np.minimum(np.arange(self.horizon + 1) + shift, self.horizon)
+        return knots, nodes
+
     def _shifted_states(self, time: float, state: np.ndarray) -> np.ndarray:
         """The plan's states shifted by the whole knots elapsed, padded with its last state;
         the first is the measured ``state``."""
         plan = self._last_result
         assert plan is not None
-        shift = round((time - self._plan_time) / self.knot_dt)
-        index = np.minimum(np.arange(self.horizon + 1) + shift, self.horizon)
-        out = plan.states[index].copy()
+        out = plan.states[self._shifted_indices(time)[1]].copy()
         out[0] = state
         return out
 
@@ -147,9 +153,7 @@ class ILQR(ILQRSolver, Controller):
         with its last entry: the feedback law the world has been executing, continued."""
         plan = self._last_result
         assert plan is not None
-        shift = round((time - self._plan_time) / self.knot_dt)
-        knots = np.minimum(np.arange(self.horizon) + shift, self.horizon - 1)
-        nodes = np.minimum(np.arange(self.horizon + 1) + shift, self.horizon)
+        knots, nodes = self._shifted_indices(time)
         return plan.ctrls[knots], (plan.states[nodes], plan.K[knots])
 
     def policy(self) -> FeedbackPolicy | None:

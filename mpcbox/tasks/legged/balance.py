@@ -20,7 +20,7 @@ from mpcbox.core.model import (
     ModelSource,
     compile_spec,
     dof_weights,
-    frame_object,
+    frame_position,
     free_body,
     load_spec,
     names,
@@ -64,11 +64,7 @@ def support_offsets(
     holds."""
     mujoco.mj_comPos(model, data)
     com = data.subtree_com[root_id, :2]
-    out = np.zeros((len(frames), 2))
-    for i, name in enumerate(frames):
-        kind, idx = frame_object(model, name, "support")
-        out[i] = com - (data.site_xpos[idx, :2] if kind == "site" else data.xpos[idx, :2])
-    return out
+    return np.array([com - frame_position(model, data, name)[:2] for name in frames])
 
 
 def _root_body(model: mujoco.MjModel, root: str | None) -> int:

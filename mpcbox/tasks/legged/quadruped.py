@@ -103,9 +103,10 @@ class QuadrupedStand(LeggedBalance):
     name = "quadruped_stand"
     #: iLQR-MPC: :class:`~mpcbox.tasks.legged.biped.BipedStand`'s config (dynamics and
     #: cost Hessians at the standing reference, LQR terminal value, one iteration a
-    #: replan). It keeps the 20 ms period where the generic ``ILQRConfig()`` (linearized
-    #: along each trajectory) does not: replans 7.2-7.3 ms median on the Go2 and 10.7-11.4
-    #: ms on the ANYmal C against 89 and 143 ms (one thread, 2-core sandbox;
+    #: replan). Stop 45, with that config's open-loop warm start then: it kept the 20 ms
+    #: period where the generic ``ILQRConfig()`` (linearized along each trajectory) does
+    #: not: replans 7.2-7.3 ms median on the Go2 and 10.7-11.4 ms on the ANYmal C against
+    #: 89 and 143 ms (one thread, 2-core sandbox;
     #: ``benchmarks/ilqr_tick.py --robots go2,anymal_c``, results/ilqr_tick_quadrupeds.json).
     #: Under the noise recipe it stands 34 of 35 runs of 5 s on seven Menagerie quadrupeds
     #: (the Barkour v0 fell once), with 0-4 % of replans falling back on the Go1, Go2,
