@@ -38,6 +38,8 @@ def test_options_lists_a_controllers_config_with_defaults(capsys) -> None:
         (["compare", "pendulum_swingup", "--push", "nan"], "--push"),
         (["compare", "pendulum_swingup", "--duration", "0"], "--duration"),
         (["compare", "pendulum_swingup", "--push-tolerance", "1e-20"], "--push-tolerance"),
+        (["compare", "pendulum_swingup", "--push-scan-step", "-5"], "--push-scan-step"),
+        (["compare", "pendulum_swingup", "--push-rest-speed", "0"], "--push-rest-speed"),
         (["compare", "pendulum_swingup", "--noise", "x"], "--noise"),
         (["compare", "pendulum_swingup", "--controllers", "nope"], "nope"),
         (["compare", "no_such_task"], "no_such_task"),

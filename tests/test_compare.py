@@ -374,3 +374,23 @@ def test_cli_largest_push_can_ask_for_rest(tmp_path, capsys):
     key = next(k for k in rows[False] if "push" in k and "forward" in k)
     assert float(rows[False][key]) > 0.0
     assert float(rows[True][key]) == 0.0
+
+
+def test_cli_push_scan_step_walks_the_force_grid_before_bisecting(tmp_path, capsys):
+    """``--push-scan-step S`` tries S, 2S, ... up to the first failure and bisects only
+    inside that bracket: with a tolerance wider than S no bisection step is taken, so each
+    limit is a positive multiple of S (plain bisection over [0, max_force] lands elsewhere)."""
+    out = tmp_path / "res"
+    argv = ["compare", "humanoid_balance", "--controllers", "lqr", "--seeds", "1"]
+    argv += ["--duration", "0.2", "--largest-push", "--push-tolerance", "30"]
+    argv += ["--push-scan-step", "25", "--workers", "1", "--no-progress", "--no-plots"]
+    assert main([*argv, "--out", str(out)]) == 0
+    capsys.readouterr()
+    with open(out / "results.csv") as f:
+        row = next(csv.DictReader(f))
+    limits = [
+        float(v) for k, v in row.items() if "push" in k and ("forward" in k or "backward" in k)
+    ]
+    assert len(limits) == 2, row
+    for limit in limits:
+        assert limit >= 25.0 and limit % 25.0 == 0.0, limits

@@ -34,12 +34,11 @@ import sys
 from collections.abc import Sequence
 
 from mpcbox.cli.compare import (
-    DEFAULTS,
-    build_parser,
     quick_sampling_options,
     run_comparison,
     run_task_script,
 )
+from mpcbox.cli.compare_parser import DEFAULTS, build_parser
 from mpcbox.errors import MpcboxError, UnknownNameError
 
 __all__ = [

@@ -51,6 +51,10 @@ def check_arguments(args: argparse.Namespace) -> None:
     _finite("--mass-scale", args.mass_scale, low=0.0)
     _finite("--friction-scale", args.friction_scale, low=0.0)
     _finite("--push-tolerance", args.push_tolerance, low=MIN_PUSH_TOLERANCE, strict=False)
+    for flag in ("--push-rest-speed", "--push-scan-step"):
+        value = getattr(args, flag[2:].replace("-", "_"), None)
+        if value is not None:
+            _finite(flag, value, low=0.0)
     for part in str(args.noise).split(","):
         if not part.strip():
             continue
