@@ -62,6 +62,7 @@ def test_defects_left_open_at_the_iteration_cap_are_not_convergence():
     )
     assert res.defect == pytest.approx(0.25 * np.max(np.abs(start[0])), rel=1e-9)
     assert not res.converged and res.stop_reason is StopReason.ITERATION_LIMIT
+    assert res.start == "states"
     assert "defect" in res.status
 
 
@@ -71,7 +72,8 @@ def test_pendulum_swingup_from_zero_controls_and_a_straight_line():
     single = solver.solve(x0)
     assert not single.converged and single.stop_reason is StopReason.SADDLE
     res = solver.solve(x0, states_init=straight_line_states(problem, x0, goal, T))
-    assert res.converged and res.defect == 0.0
+    assert res.converged and res.defect == 0.0 and res.start == "states"
+    assert single.start == "guess"
     assert problem.upright_error(res.states[-1]) < 0.05
     assert np.all(np.abs(res.ctrls) <= 2.0 + 1e-12)
     rollout = problem.rollout(x0, res.ctrls)  # a trajectory of the model, its cost the same

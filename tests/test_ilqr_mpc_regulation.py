@@ -156,17 +156,33 @@ def test_a_replan_that_improves_and_then_stalls_is_a_stall_not_a_fallback():
     fresh = ILQR(point_mass(), **options).solve(x0, max_iterations=1)
     np.testing.assert_allclose(result.ctrls, fresh.ctrls, rtol=1e-9, atol=1e-12)
     assert ctrl.stats["stalled"] == 1 and ctrl.stats["fallbacks"] == 0
+    assert result.start == "guess"  # the first solve: the controls, open loop
     # A replan whose every search fails keeps the previous plan's feedback law rolled out
     # from the measured state: a stall. From its controls rolled out open loop
     # (warm_start_feedback=False) it is a fallback too.
     ctrl(x0 + 0.1, 0.2)
-    assert len(ctrl.last_result.costs) == 1
+    assert len(ctrl.last_result.costs) == 1 and ctrl.last_result.start == "policy"
     assert ctrl.stats["stalled"] == 2 and ctrl.stats["fallbacks"] == 0
     SecondStalls.searches = 0
     ctrl = SecondStalls(point_mass(), max_retries=2, warm_start_feedback=False, **options)
     ctrl(x0, 0.0)
     ctrl(x0 + 0.1, 0.2)
     assert len(ctrl.last_result.costs) == 1
+    assert ctrl.stats["stalled"] == 2 and ctrl.stats["fallbacks"] == 1
+    assert ctrl.last_result.start == "guess"
+    # A law whose rollout diverges (here its plan's states are NaN) leaves the solver to
+    # start from the controls open loop: a stall from there is a fallback again.
+    SecondStalls.searches = 0
+
+    class LawDiverges(SecondStalls):
+        def _shifted_policy(self, time):
+            ctrls, (states, gains) = super()._shifted_policy(time)
+            return ctrls, (states * np.nan, gains)
+
+    ctrl = LawDiverges(point_mass(), max_retries=2, warm_start_feedback=True, **options)
+    ctrl(x0, 0.0)
+    ctrl(x0 + 0.1, 0.2)
+    assert ctrl.last_result.start == "guess" and ctrl.last_result.divergences >= 1
     assert ctrl.stats["stalled"] == 2 and ctrl.stats["fallbacks"] == 1
 
 
@@ -265,3 +281,20 @@ def test_replans_roll_the_warm_start_out_under_the_previous_feedback_law():
     assert starts[False] > 1.5 * best
     with pytest.raises(InvalidArgumentError, match="warm_start_feedback"):
         ILQR(problem, warm_start_feedback="yes")
+
+
+def test_a_guess_that_diverges_is_replaced_by_ctrl_ref_and_said_so():
+    class GuessDiverges(ILQR):
+        calls = 0
+
+        def _initial_rollout(self, x0, ctrls):
+            GuessDiverges.calls += 1
+            states, cost = super()._initial_rollout(x0, ctrls)
+            return (states, np.inf) if GuessDiverges.calls == 1 else (states, cost)
+
+    x0 = np.array([1.0, -0.5, 0.0, 0.0])
+    result = GuessDiverges(point_mass(), horizon=10).solve(x0)
+    assert result.start == "ctrl_ref" and result.divergences == 1 and result.converged
+    plain = ILQR(point_mass(), horizon=10).solve(x0)  # its guess is ctrl_ref too
+    assert plain.start == "guess" and plain.divergences == 0
+    np.testing.assert_allclose(result.ctrls, plain.ctrls, atol=1e-9)

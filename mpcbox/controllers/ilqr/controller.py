@@ -235,8 +235,9 @@ class ILQR(ILQRSolver, Controller):
                     # Stalled before any step was accepted: the plan is the previous one's
                     # controls (a fallback), or its feedback law rolled out from the
                     # measured state (``warm_start_feedback``: what LQR would do, counted
-                    # as a stall only).
-                    if len(result.costs) == 1 and not rolled_law:
+                    # as a stall only, unless that rollout diverged and the solver
+                    # started from the controls after all).
+                    if len(result.costs) == 1 and result.start != "policy":
                         self._counts["fallbacks"] += 1
                 self._last_result = result
                 self._plan_time = float(time)

@@ -306,6 +306,7 @@ def optimize_multiple_shooting(
             status=f"{status}: largest defect {defect:.3g} > {cfg.defect_tolerance:g}",
             stop_reason=reason,
             defect=defect,
+            start="states",
         )
     # Feasible: its controls roll out to its states; continue as single shooting.
     rest = solver._optimize(x0, ctrls, iters - iteration, mu, k, max_retries)
@@ -315,6 +316,7 @@ def optimize_multiple_shooting(
         iterations=rest.iterations + iteration,
         divergences=rest.divergences + divergences,
         timing=timing,
+        start="states",
     )
 
 

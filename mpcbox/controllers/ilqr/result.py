@@ -102,6 +102,11 @@ class ILQRResult(NamedTuple):
         defect: Largest defect ``max |F(x_t, u_t) ⊖ x_{t+1}|`` left between shooting nodes
             of a multiple-shooting solve (a ``states_init`` guess); 0 for a feasible
             trajectory. A solve with defects above ``defect_tolerance`` is not converged.
+        start: What the first trajectory was, one of :data:`STARTS`: ``"guess"``, the
+            given controls rolled out open loop; ``"policy"``, a feedback law rolled out
+            from ``x0`` (the controller's ``warm_start_feedback``); ``"ctrl_ref"``, the
+            reference control held, after the guess (and the law) rolled out to
+            non-finite states or cost; ``"states"``, a multiple-shooting guess.
     """
 
     states: np.ndarray
@@ -118,6 +123,10 @@ class ILQRResult(NamedTuple):
     status: str
     stop_reason: StopReason
     defect: float = 0.0
+    start: str = "guess"
 
 
-__all__ = ["ILQRResult", "StopReason", "Timing"]
+#: The values of :attr:`ILQRResult.start`.
+STARTS = ("guess", "policy", "ctrl_ref", "states")
+
+__all__ = ["STARTS", "ILQRResult", "StopReason", "Timing"]

@@ -322,16 +322,18 @@ class ILQRSolver:
         divergences = 0
 
         t0 = _time.perf_counter()
+        start = "guess"
         if policy is not None:
             states, closed, cost = self._rollout(x0, policy[0], ctrls, 0 * ctrls, policy[1], 0.0)
             if np.isfinite(cost):
-                ctrls = closed
+                ctrls, start = closed, "policy"
             else:
                 divergences += 1
         if policy is None or not np.isfinite(cost):
             states, cost = self._initial_rollout(x0, ctrls)
         if not np.isfinite(cost):
             divergences += 1
+            start = "ctrl_ref"
             ctrls = np.tile(np.clip(p.ctrl_ref, self.ctrl_low, self.ctrl_high), (self.horizon, 1))
             states, cost = self._initial_rollout(x0, ctrls)
             if not np.isfinite(cost):
@@ -449,6 +451,7 @@ class ILQRSolver:
             timing=Timing(t_der, t_back, t_roll, total),
             status=status,
             stop_reason=reason,
+            start=start,
         )
 
     def _gains_at(
