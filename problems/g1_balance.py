@@ -62,6 +62,13 @@ def main(argv: list[str] | None = None) -> int:
         default=True,
         help="bisect the largest forward push (0.1 s, no noise)",
     )
+    parser.add_argument(
+        "--push-scan-step",
+        type=float,
+        default=None,
+        help="--largest-push: try this force and its multiples up to the first failure, "
+        "then bisect (N); default: bisection alone",
+    )
     parser.add_argument("--workers", type=int, default=1, help="worker processes")
     args = parser.parse_args(argv)
     try:
@@ -76,6 +83,7 @@ def main(argv: list[str] | None = None) -> int:
             weight_fraction=0.2,
             max_force_weights=5,
             largest_push=args.largest_push,
+            scan_step=args.push_scan_step,
             settle=4.0,
             rest_speed=0.05,
         )

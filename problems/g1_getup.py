@@ -5,7 +5,7 @@ A thin wrapper of ``mpcbox compare g1_getup`` (:class:`~mpcbox.tasks.humanoid.g1
 1000): one seed of 5 s, success when the torso is up within the 5 s and held for the last
 0.5 s. Needs the robot: ``pip install "mpcbox[menagerie]"`` or ``MENAGERIE_ROOT`` pointing at
 an offline copy (without it the script names what is missing and returns 2). With an NVIDIA
-GPU MPPI runs its tuned config on MuJoCo Warp (in the real-time loop on an H200: 51 of 60
+GPU MPPI runs its tuned config on MuJoCo Warp (in the real-time loop on an H200: 70 of 80
 held-out runs, ``docs/results/sampling_gpu.md``); without one it runs with a handful of
 samples, which shows the loop but does not get the G1 up.
 

@@ -61,6 +61,13 @@ def main(
         default=True,
         help="bisect the largest forward push (0.1 s, no noise)",
     )
+    parser.add_argument(
+        "--push-scan-step",
+        type=float,
+        default=None,
+        help="--largest-push: try this force and its multiples up to the first failure, "
+        "then bisect (N); default: bisection alone",
+    )
     parser.add_argument("--workers", type=int, default=1, help="worker processes")
     args = parser.parse_args(argv)
     try:
@@ -73,6 +80,7 @@ def main(
             weight_fraction=0.3,
             max_force_weights=20,
             largest_push=args.largest_push,
+            scan_step=args.push_scan_step,
         )
         result = compare(
             problem,

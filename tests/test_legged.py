@@ -425,6 +425,11 @@ def test_balance_suite_pushes_the_root_with_a_fraction_of_the_weight(quad) -> No
     assert push.body == quad.root and tuple(push.force) == (suite.force, 0.0, 0.0)
     (test,) = suite.push_tests
     assert test.body == quad.root and test.max_force == pytest.approx(5 * weight)
+    assert test.scan_step is None
+    scanned = balance_suite(
+        quad, duration=3.0, weight_fraction=0.3, max_force_weights=5, scan_step=25.0
+    )
+    assert scanned.push_tests[0].scan_step == 25.0
     given = balance_suite(quad, duration=1.0, weight_fraction=0.3, max_force_weights=5, force=42)
     assert (
         given.force == 42.0
@@ -442,6 +447,8 @@ def test_balance_suite_needs_a_root_body_and_names_bad_options(quad) -> None:
         balance_suite(PendulumSwingup(), duration=1.0, weight_fraction=0.3, max_force_weights=5)
     with pytest.raises(InvalidArgumentError, match="duration"):
         balance_suite(quad, duration=0.0, weight_fraction=0.3, max_force_weights=5)
+    with pytest.raises(InvalidArgumentError, match="scan_step"):
+        balance_suite(quad, duration=1.0, weight_fraction=0.3, max_force_weights=5, scan_step=-1)
 
 
 def test_model_source_prefixes_bare_menagerie_names_only() -> None:

@@ -38,6 +38,7 @@ def balance_suite(
     settle: float = 2.0,
     tolerance: float = 5.0,
     rest_speed: float | None = None,
+    scan_step: float | None = None,
 ) -> BalanceSuite:
     """Noise alone, noise with a forward push on the root body, and the largest such push.
 
@@ -60,6 +61,9 @@ def balance_suite(
         rest_speed: A test push counts as survived only when the root's centre of mass
             ends slower than this (m/s; :class:`~mpcbox.comparison.scenario.PushTest`);
             ``None``: staying up is enough.
+        scan_step: Try this force and its multiples up to the first failure before
+            bisecting (N; :class:`~mpcbox.comparison.scenario.PushTest`); ``None``:
+            bisection alone.
 
     Raises:
         InvalidArgumentError: If ``problem`` has no root body or an option is out of range.
@@ -92,6 +96,7 @@ def balance_suite(
                 tolerance=tolerance,
                 max_force=positive("max_force_weights", max_force_weights) * weight,
                 rest_speed=rest_speed,
+                scan_step=scan_step,
             )
         )
     return BalanceSuite(scenarios, tests, float(force))
