@@ -13,6 +13,7 @@ from mpcbox.comparison.plots import plot_comparison
 from mpcbox.comparison.report import Comparison
 from mpcbox.comparison.runner import compare
 from mpcbox.comparison.scenario import PushTest, Scenario
+from mpcbox.controllers.base import Controller
 from mpcbox.controllers.lqr import LQR
 from mpcbox.errors import InvalidArgumentError, UnknownNameError
 from mpcbox.sim.disturbances import ModelMismatch, Push
@@ -394,3 +395,45 @@ def test_cli_push_scan_step_walks_the_force_grid_before_bisecting(tmp_path, caps
     assert len(limits) == 2, row
     for limit in limits:
         assert limit >= 25.0 and limit % 25.0 == 0.0, limits
+
+
+class _StallsEverySolve(Controller):
+    """Holds zero control; every call is a solve that kept its warm start."""
+
+    name = "stalling"
+
+    def __init__(self, problem) -> None:
+        self.nu, self.stalled = problem.nu, 0
+
+    def reset(self) -> None:
+        self.stalled = 0
+
+    def __call__(self, state, time):
+        self.stalled += 1
+        self.last_call = "solve"
+        return np.zeros(self.nu)
+
+    @property
+    def stats(self):
+        return {"fallbacks": 0.0, "stalled": float(self.stalled)}
+
+
+def test_stalls_get_a_column_only_when_a_controller_stalled():
+    def stalling(problem):
+        return _StallsEverySolve(problem)
+
+    stalling.name = "stalling"
+    kw = dict(seeds=1, workers=1, progress=False)
+    result = compare(
+        "pendulum_swingup", ["lqr", stalling], Scenario(duration=0.05, noise_scale=0.0), **kw
+    )
+    lqr, stalled = result.rows()
+    solves = sum(r.metrics.solve_ticks for r in result.runs if r.controller == "stalling")
+    assert solves >= 5 and stalled.stalls == solves and stalled.stall_rate == 1.0
+    assert lqr.stalls == 0
+    header, *rows = result.to_markdown().splitlines()
+    assert header.rstrip(" |").endswith("stalled")
+    assert rows[-1].rstrip(" |").endswith(f"{solves} (100%)")
+    assert result.to_csv().splitlines()[0].endswith("fallbacks,fallback_rate,stalls,stall_rate")
+    plain = compare("pendulum_swingup", ["lqr"], Scenario(duration=0.05, noise_scale=0.0), **kw)
+    assert "stalled" not in plain.to_markdown() and "stalls" not in plain.to_csv()

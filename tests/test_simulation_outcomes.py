@@ -196,3 +196,38 @@ def test_rollout_that_diverges_on_its_first_step_is_marked_non_finite():
     assert np.all(np.isnan(rollout.states[:, 1:]))
     calm = problem.rollout(problem.reference_state(), np.zeros((1, 3, 1)))
     assert np.all(np.isfinite(calm.states))
+
+
+class Stalling(Degrading):
+    """Reports a stall (a solve that kept its warm start) on every solve."""
+
+    def __init__(self) -> None:
+        super().__init__(0.0)
+        self.stalled = 0
+
+    def reset(self) -> None:
+        super().reset()
+        self.stalled = 0
+
+    def __call__(self, state, time):
+        ctrl = super().__call__(state, time)
+        if self.last_call == "solve":
+            self.stalled += 1
+        return ctrl
+
+    @property
+    def stats(self):
+        return {"fallbacks": 0.0, "stalled": float(self.stalled)}
+
+
+def test_stalls_are_counted_per_run_and_are_not_failures():
+    controller, problem = Stalling(), mpcbox.Problem(PENDULUM)
+    first = mpcbox.simulate(problem, controller, 0.1)
+    # 25 solves (every other call), each a stall; held calls cannot stall.
+    assert first.metrics.stalls == first.metrics.solve_ticks == 25
+    assert first.metrics.outcome == "success"
+    assert first.metrics.fallbacks == 0
+    controller.reset = lambda: None  # counters that are never cleared
+    second = mpcbox.simulate(problem, controller, 0.1)
+    assert second.metrics.stalls == first.metrics.stalls
+    assert mpcbox.simulate(problem, Degrading(0.0), 0.1).metrics.stalls == 0

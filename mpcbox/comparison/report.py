@@ -95,6 +95,9 @@ class Row(NamedTuple):
         kept_up: Real-time scenarios (``Scenario.realtime``): the share of runs whose
             planner kept up (p99 tick within the period, :attr:`~mpcbox.Metrics.kept_up`);
             ``None`` for lock-step runs.
+        stalls: Solves that kept their warm start (:attr:`~mpcbox.Metrics.stalls`), summed
+            over runs.
+        stall_rate: ``stalls`` over the online solves of all runs.
     """
 
     scenario: str
@@ -115,6 +118,8 @@ class Row(NamedTuple):
     fallbacks: int
     fallback_rate: float
     kept_up: float | None = None
+    stalls: int = 0
+    stall_rate: float = 0.0
 
 
 @dataclass
@@ -201,6 +206,9 @@ class Comparison:
                         fallbacks=int(sum(m.fallbacks for m in metrics)),
                         fallback_rate=sum(m.fallbacks for m in metrics) / max(calls, 1),
                         kept_up=_kept_up(metrics),
+                        stalls=int(sum(m.stalls for m in metrics)),
+                        stall_rate=sum(m.stalls for m in metrics)
+                        / max(sum(m.solve_ticks for m in metrics), 1),
                     )
                 )
         return rows
@@ -211,12 +219,19 @@ class Comparison:
             labels += [k for k in limits if k not in labels]
         return labels
 
+    def _stalled(self) -> bool:
+        """Whether any run's controller stalled (then the tables get a "stalled" column)."""
+        return any(r.metrics.stalls for r in self.runs)
+
     def _realtime(self) -> bool:
         """Whether any run was real-time (then the tables get a "kept up" column)."""
         return any(r.metrics.kept_up is not None for r in self.runs)
 
     def _table(self) -> tuple[list[str], list[list[str]]]:
         realtime = self._realtime()
+        rows = self.rows()
+        # Only when some controller stalled (iLQR-MPC replans that kept their warm start).
+        stalled = self._stalled()
         labels = self._push_labels()
         columns = self._measure_columns()
         header = [
@@ -235,9 +250,10 @@ class Comparison:
             *(["kept up"] if realtime else []),
             "real-time factor",
             "fallbacks",
+            *(["stalled"] if stalled else []),
         ]
         body = []
-        for row in self.rows():
+        for row in rows:
             pushes = []
             for k in labels:
                 force = row.largest_push.get(k)
@@ -259,6 +275,7 @@ class Comparison:
                     *([_share(row.kept_up)] if realtime else []),
                     f"{row.realtime_factor:.1f}",
                     f"{row.fallbacks} ({100 * row.fallback_rate:.0f}%)",
+                    *([f"{row.stalls} ({100 * row.stall_rate:.0f}%)"] if stalled else []),
                 ]
             )
         return header, body
@@ -273,17 +290,23 @@ class Comparison:
     def to_csv(self, path: str | Path | None = None) -> str:
         """The rows as CSV with full precision; also written to ``path`` when given.
 
-        Columns: the fields of :class:`Row`, with ``measures`` spread to one column per task
-        measure and summary (e.g. ``com_deviation_rms_cm, tilt_rms_deg``), ``largest_push``
-        to one ``largest_push_<label>`` column per push test, and ``outcomes`` written as
-        ``"<count> <outcome>; ..."``.
+        Columns: the fields of :class:`Row` (``kept_up`` only with real-time runs, the
+        stall counts only when a controller stalled), with ``measures`` spread to one
+        column per task measure and summary (e.g. ``com_deviation_rms_cm, tilt_rms_deg``),
+        ``largest_push`` to one ``largest_push_<label>`` column per push test, and
+        ``outcomes`` written as ``"<count> <outcome>; ..."``.
         """
         measures = [m.display_key(s) for m, s in self._measure_columns()]
         labels = self._push_labels()
         pushes = [f"largest_push_{k}" for k in labels]
         buffer = io.StringIO()
         writer = csv.writer(buffer, lineterminator="\n")
-        fields = [f for f in Row._fields if f != "kept_up" or self._realtime()]
+        realtime, stalled = self._realtime(), self._stalled()
+        fields = [
+            f
+            for f in Row._fields
+            if (f != "kept_up" or realtime) and (f not in ("stalls", "stall_rate") or stalled)
+        ]
         header: list[str] = []
         for name in fields:
             header += {"measures": measures, "largest_push": pushes}.get(name, [name])

@@ -278,6 +278,7 @@ def simulate_realtime(
         fail_time=fail_time,
         wall=wall,
         fallbacks0=fallbacks0,
+        stalls0=run.stalls0,
         degraded_limit=degraded_limit,
         period_s=period,
         pushes=pushes,

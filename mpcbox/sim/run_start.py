@@ -41,6 +41,8 @@ class RunStart(NamedTuple):
         duration: Simulated time (s), checked.
         degraded_limit: Checked ``degraded_limit``.
         stop_on_failure: Checked ``stop_on_failure``.
+        stalls0: The controller's stall counter (``stats["stalled"]``) after its
+            ``reset()``.
     """
 
     model: mujoco.MjModel
@@ -56,6 +58,7 @@ class RunStart(NamedTuple):
     duration: float
     degraded_limit: float
     stop_on_failure: bool
+    stalls0: float = 0.0
 
 
 def start_run(
@@ -134,6 +137,7 @@ def start_run(
     if hasattr(controller, "reset"):
         controller.reset()
     fallbacks0 = controller_fallbacks(controller)
+    stalls0 = controller_count(controller, "stalled")
     return RunStart(
         model,
         data,
@@ -148,15 +152,21 @@ def start_run(
         duration,
         degraded_limit,
         stop_on_failure,
+        stalls0,
     )
 
 
-def controller_fallbacks(controller: Controller) -> float:
-    """The controller's fallback counter (0 when it keeps none)."""
+def controller_count(controller: Controller, key: str) -> float:
+    """The controller's ``stats[key]`` counter (0 when it keeps none)."""
     try:
-        return float((getattr(controller, "stats", {}) or {}).get("fallbacks", 0.0))
+        return float((getattr(controller, "stats", {}) or {}).get(key, 0.0))
     except Exception:  # a broken stats property must not end the run
         return 0.0
 
 
-__all__ = ["RunStart", "controller_fallbacks", "start_run"]
+def controller_fallbacks(controller: Controller) -> float:
+    """The controller's fallback counter (0 when it keeps none)."""
+    return controller_count(controller, "fallbacks")
+
+
+__all__ = ["RunStart", "controller_count", "controller_fallbacks", "start_run"]

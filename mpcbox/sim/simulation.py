@@ -23,7 +23,7 @@ from mpcbox.errors import MpcboxError, PeriodWarning
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.divergence import DivergenceMonitor
 from mpcbox.sim.measures import Measure
-from mpcbox.sim.run_start import controller_fallbacks, start_run
+from mpcbox.sim.run_start import controller_count, controller_fallbacks, start_run
 from mpcbox.sim.viewer import Viewer
 from mpcbox.sim.viewer_choice import as_viewer
 from mpcbox.validation import (
@@ -59,6 +59,10 @@ class Metrics(NamedTuple):
         realtime_factor: Simulated seconds per wall-clock second (controller included).
         fallbacks: Controller fallbacks (failed solves, divergences) in this run, from the
             change of its ``stats["fallbacks"]``.
+        stalls: Solves that found no step improving on their warm start and kept it (an
+            iLQR replan that keeps the last feedback law), from the change of the
+            controller's ``stats["stalled"]``; 0 for a controller that counts none. Not
+            failures, but a controller that stalls on most solves adds little to its law.
         measures: Summaries of the task's measures over the run, by
             :meth:`~mpcbox.sim.measures.Measure.key` (e.g. ``"tilt_rms_deg"``), in their
             units; empty when the task declares none.
@@ -94,6 +98,7 @@ class Metrics(NamedTuple):
     offline_ms: float = 0.0
     period_s: float = 0.0
     kept_up: bool | None = None
+    stalls: int = 0
 
 
 @dataclass
@@ -317,6 +322,7 @@ def simulate(
         fail_time=fail_time,
         wall=wall,
         fallbacks0=fallbacks0,
+        stalls0=run.stalls0,
         degraded_limit=degraded_limit,
         period_s=float(getattr(controller, "replan_period", None) or every * dt),
         pushes=pushes,
@@ -349,6 +355,7 @@ def finish_run(
     noise: ActuatorNoise | None,
     seed: int,
     kept_up: bool | None = None,
+    stalls0: float = 0.0,
 ) -> SimulationResult:
     """The :class:`SimulationResult` of a finished loop (shared by :func:`simulate` and the
     real-time loop, :mod:`mpcbox.sim.realtime`).
@@ -375,6 +382,7 @@ def finish_run(
         noise: The actuator noise.
         seed: The noise seed.
         kept_up: Real-time runs: whether the planner kept up (:attr:`Metrics.kept_up`).
+        stalls0: The controller's stall counter before the loop.
     """
     n = times.shape[0]
     series = {m.name: samples[i] for i, m in enumerate(measures)}
@@ -383,6 +391,7 @@ def finish_run(
         summaries.update(measure.summarize(series[measure.name], times))
     stats = dict(getattr(controller, "stats", {}) or {})
     fallbacks = max(0, round(controller_fallbacks(controller) - fallbacks0))
+    stalls = max(0, round(controller_count(controller, "stalled") - stalls0))
     # The share is of the calls that solved: held calls (feedback between solves) cannot
     # fall back and would dilute it.
     ncalls = len(calls["solve"]) + len(calls["offline"]) or sum(len(v) for v in calls.values())
@@ -416,6 +425,7 @@ def finish_run(
         offline_ms=float(sum(calls["offline"]) * 1e3),
         period_s=period_s,
         kept_up=kept_up,
+        stalls=stalls,
     )
     return SimulationResult(
         problem=problem.name,
