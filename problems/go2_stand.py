@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from mpcbox.cli.compare_parser import add_push_scan_step
 from mpcbox.comparison.balance_suite import balance_suite
 from mpcbox.comparison.runner import compare
 from mpcbox.core.menagerie import model_source
@@ -61,13 +62,7 @@ def main(
         default=True,
         help="bisect the largest forward push (0.1 s, no noise)",
     )
-    parser.add_argument(
-        "--push-scan-step",
-        type=float,
-        default=None,
-        help="--largest-push: try this force and its multiples up to the first failure, "
-        "then bisect (N); default: bisection alone",
-    )
+    add_push_scan_step(parser)
     parser.add_argument("--workers", type=int, default=1, help="worker processes")
     args = parser.parse_args(argv)
     try:

@@ -67,6 +67,19 @@ def _flag(name: str) -> str:
     return "--" + name.replace("_", "-")
 
 
+def add_push_scan_step(parser: argparse.ArgumentParser, default: float | None = None) -> None:
+    """Add ``--push-scan-step`` (N): the largest-push search first tries that force and its
+    multiples up to the first failure, then bisects (``PushTest.scan_step``)."""
+    parser.add_argument(
+        "--push-scan-step",
+        type=float,
+        default=default,
+        help="--largest-push: before bisecting, try this force and its multiples up to the "
+        "first failure (N), so that a survival region that is not one interval is not "
+        "skipped (default: bisection only)",
+    )
+
+
 def build_parser(task: str | None = None, *, prog: str | None = None, **defaults: Any):
     """The argument parser of a comparison, with the task's options when ``task`` is given.
 
@@ -146,14 +159,7 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
         default=d["push_rest_speed"],
         help="--largest-push: a push counts only if the pushed body ends slower (m/s)",
     )
-    add(
-        "--push-scan-step",
-        type=float,
-        default=d["push_scan_step"],
-        help="--largest-push: before bisecting, try this force and its multiples up to the "
-        "first failure (N), so that a survival region that is not one interval is not "
-        "skipped (default: bisection only)",
-    )
+    add_push_scan_step(parser, d["push_scan_step"])
     add(
         "--set",
         action="append",
@@ -199,4 +205,4 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
     return parser
 
 
-__all__ = ["DEFAULTS", "build_parser", "task_parameters"]
+__all__ = ["DEFAULTS", "add_push_scan_step", "build_parser", "task_parameters"]
