@@ -192,10 +192,14 @@ def _largest_push(
     from mpcbox.comparison.push_limits import largest_push
     from mpcbox.comparison.scenario import PushTest
 
-    options = {} if rest_speed is None else {"rest_speed": rest_speed}
-    if scan_step is not None:
-        options["scan_step"] = scan_step
-    test = PushTest(body=problem.root, tolerance=5.0, max_force=1500.0, settle=settle, **options)
+    test = PushTest(
+        body=problem.root,
+        tolerance=5.0,
+        max_force=1500.0,
+        settle=settle,
+        rest_speed=rest_speed,
+        scan_step=scan_step,
+    )
     try:
         limit = largest_push(problem, name, test, controller_options=controller_options or None)
     except Exception as exc:

@@ -36,6 +36,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np
 from json_report import SANDBOX, finish  # benchmarks/ is not a package
 
+from mpcbox.cli.compare_parser import add_push_scan_step
 from mpcbox.comparison.report import Comparison
 from mpcbox.comparison.runner import compare
 from mpcbox.comparison.scenario import PushTest, Scenario
@@ -89,13 +90,7 @@ def add_push_options(parser: argparse.ArgumentParser, settle: float = 2.0) -> No
         default=None,
         help="a survived push must also end with the root slower than this (m/s)",
     )
-    parser.add_argument(
-        "--push-scan-step",
-        type=float,
-        default=None,
-        help="walk up in steps of this (N) to the first failure, then bisect below it "
-        "(PushTest.scan_step; default: bisect the whole range)",
-    )
+    add_push_scan_step(parser)
 
 
 def push_record(args: argparse.Namespace) -> dict:
