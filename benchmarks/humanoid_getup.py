@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 import mpcbox
+from mpcbox.cli.checks import lookahead_option
 from mpcbox.registry import task_class
 from mpcbox.sim.realtime import simulate_realtime
 
@@ -124,7 +125,9 @@ def first_up(problem, time, states) -> float:
     return float("nan")
 
 
-def run(problem, name, ctrl_opts, hand, seed, duration, backend, loop="realtime") -> dict:
+def run(
+    problem, name, ctrl_opts, hand, seed, duration, backend, loop="realtime", lookahead=None
+) -> dict:
     ctrl = build(problem, name, ctrl_opts, hand, seed, backend)
     init = problem.initial_state()
     if seed:
@@ -133,7 +136,14 @@ def run(problem, name, ctrl_opts, hand, seed, duration, backend, loop="realtime"
     if loop == "lockstep":
         res = mpcbox.simulate(problem, ctrl, duration, initial_state=init, stop_on_failure=False)
     else:
-        res = simulate_realtime(problem, ctrl, duration, initial_state=init, stop_on_failure=False)
+        res = simulate_realtime(
+            problem,
+            ctrl,
+            duration,
+            initial_state=init,
+            stop_on_failure=False,
+            lookahead=lookahead,
+        )
     heights = problem.torso_heights(res.states)
     dt = float(np.median(np.diff(res.time))) if len(res.time) > 1 else 0.1
     rt = getattr(res, "realtime", None)
@@ -157,6 +167,7 @@ def run(problem, name, ctrl_opts, hand, seed, duration, backend, loop="realtime"
         "switch_times_s": getattr(ctrl, "switch_times", None),
         "torso_every_0.1s": [round(float(z), 3) for z in heights[:: max(1, round(0.1 / dt))]],
         "prime_ms": rt.prime_ms if rt else None,
+        "lookahead_mean_s": rt.lookahead_mean_s if rt else None,
     }
 
 
@@ -184,9 +195,15 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=5.0)
     parser.add_argument("--backend", default="warp")
     parser.add_argument("--loop", choices=("realtime", "lockstep"), default="realtime")
+    parser.add_argument(
+        "--lookahead",
+        default=None,
+        help="real-time loop: plan from the state predicted this far ahead (s) or 'auto'",
+    )
     parser.add_argument("--gpu", default=None)
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
+    lookahead = lookahead_option(args.lookahead)
     report: dict = {
         "command": "python benchmarks/humanoid_getup.py " + " ".join(sys.argv[1:]),
         "task": args.task,
@@ -194,6 +211,7 @@ def main() -> None:
         "platform": platform.platform(),
         "backend": args.backend,
         "loop": args.loop,
+        "lookahead": args.lookahead,
         "duration_s": args.duration,
         "screen": {},
     }
@@ -225,6 +243,7 @@ def main() -> None:
                             args.duration,
                             args.backend,
                             args.loop,
+                            lookahead,
                         )
                     )
                 except Exception as exc:
@@ -248,7 +267,17 @@ def main() -> None:
         first = args.final_first_seed
         for seed in range(first, first + args.final_seeds):
             rows.append(
-                run(problem, name, ctrl_kw, hand, seed, args.duration, args.backend, args.loop)
+                run(
+                    problem,
+                    name,
+                    ctrl_kw,
+                    hand,
+                    seed,
+                    args.duration,
+                    args.backend,
+                    args.loop,
+                    lookahead,
+                )
             )
             print(json.dumps({"final": rows[-1]}), flush=True)
             report["final"] = {"variant": vname, "controller": name, "runs": rows}

@@ -55,6 +55,9 @@ def check_arguments(args: argparse.Namespace) -> None:
         value = getattr(args, flag[2:].replace("-", "_"), None)
         if value is not None:
             _finite(flag, value, low=0.0)
+    lookahead = lookahead_option(getattr(args, "lookahead", None))
+    if lookahead is not None and not args.realtime:
+        raise InvalidArgumentError("--lookahead needs --realtime")
     for part in str(args.noise).split(","):
         if not part.strip():
             continue
@@ -117,3 +120,21 @@ def script_main(run: Callable[[list[str] | None], int], argv: list[str] | None) 
     except MpcboxError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+
+
+def lookahead_option(text: str | None) -> float | str | None:
+    """``--lookahead``'s value: ``None``, ``"auto"`` or seconds ``>= 0``.
+
+    Raises:
+        InvalidArgumentError: For anything else, naming the flag.
+    """
+    if text is None or text == "auto":
+        return text
+    try:
+        seconds = float(text)
+    except ValueError:
+        raise InvalidArgumentError(
+            f"--lookahead must be 'auto' or seconds >= 0, got {text!r}"
+        ) from None
+    _finite("--lookahead", seconds, low=0.0, strict=False)
+    return seconds

@@ -27,7 +27,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from mpcbox.cli.checks import check_arguments, check_options, check_output_folder
+from mpcbox.cli.checks import (
+    check_arguments,
+    check_options,
+    check_output_folder,
+    lookahead_option,
+)
 from mpcbox.cli.compare_parser import build_parser, task_parameters
 from mpcbox.errors import InvalidArgumentError, MpcboxError, UnknownNameError
 
@@ -84,6 +89,7 @@ def scenarios_from_args(args: argparse.Namespace):
         mismatch=mismatch,
         realtime=args.realtime,
         speed=args.speed,
+        lookahead=lookahead_option(args.lookahead),
     )
 
 

@@ -17,6 +17,7 @@ DEFAULTS: dict[str, Any] = {
     "duration": 10.0,
     "realtime": False,
     "speed": 1.0,
+    "lookahead": None,
     "noise": None,
     "push": 0.0,
     "push_time": 2.0,
@@ -120,6 +121,12 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
         "table reports whether each planner kept up (use --workers 1)",
     )
     add("--speed", type=float, default=d["speed"], help="real time: sim seconds per wall second")
+    add(
+        "--lookahead",
+        default=d["lookahead"],
+        help="real time: plan from the state predicted this many seconds ahead, or 'auto' "
+        "(the recent median tick time); default: from the observed state",
+    )
     add(
         "--noise",
         default=d["noise"] if d["noise"] is not None else _default_noise(task),

@@ -12,6 +12,7 @@ from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError
 from mpcbox.sim.disturbances import MAX_FORCE, ActuatorNoise, ModelMismatch, Push
+from mpcbox.sim.lookahead import check_lookahead
 from mpcbox.sim.realtime import simulate_realtime
 from mpcbox.sim.simulation import SimulationResult, simulate
 from mpcbox.validation import (
@@ -66,6 +67,9 @@ class Scenario:
             planner, and the table reports whether each planner kept up. Latency depends on
             the machine's load: run real-time comparisons serially (``workers=1``).
         speed: Simulated seconds per wall-clock second of a real-time run.
+        lookahead: Latency compensation of a real-time run (:mod:`mpcbox.sim.lookahead`):
+            ``None`` plans from the observed state, ``"auto"`` or seconds from the state
+            predicted that far ahead. Only with :attr:`realtime`.
     """
 
     name: str = ""
@@ -76,11 +80,17 @@ class Scenario:
     mismatch: ModelMismatch | None = None
     realtime: bool = False
     speed: float = 1.0
+    lookahead: float | str | None = None
 
     def __post_init__(self) -> None:
         string("name", self.name)
         boolean("realtime", self.realtime)
         positive("speed", self.speed)
+        object.__setattr__(self, "lookahead", check_lookahead(self.lookahead))
+        if self.lookahead is not None and not self.realtime:
+            raise InvalidArgumentError(
+                "lookahead needs realtime=True (a lock-step run has no latency to compensate)"
+            )
         positive("duration", self.duration)
         _check_noise_scale(self.noise_scale)
         if isinstance(self.pushes, (str, bytes)) or not isinstance(self.pushes, Sequence):
@@ -113,6 +123,9 @@ class Scenario:
                 parts.append(f"{body} mass x{value:g}")
         if self.realtime:
             parts.append("real time" + ("" if self.speed == 1.0 else f" x{self.speed:g}"))
+            if self.lookahead is not None:
+                ahead = self.lookahead
+                parts.append(f"lookahead {ahead if isinstance(ahead, str) else f'{ahead:g} s'}")
         return " ".join(parts)
 
     @property
@@ -149,7 +162,7 @@ class Scenario:
         """
         loop, extra = simulate, {}
         if self.realtime:
-            loop, extra = simulate_realtime, {"speed": self.speed}
+            loop, extra = simulate_realtime, {"speed": self.speed, "lookahead": self.lookahead}
         return loop(
             problem,
             controller,

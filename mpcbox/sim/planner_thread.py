@@ -17,6 +17,7 @@ import numpy as np
 
 from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
+from mpcbox.sim.lookahead import Lookahead
 from mpcbox.sim.simulation import _error_text
 
 
@@ -51,41 +52,71 @@ class PlannerThread:
             a feedback law when its ``policy()`` returns one (iLQR-MPC).
         period: Simulated seconds between tick starts.
         max_ticks: Bound on the ticks of one run (the loop is bounded).
+        lookahead: Latency compensation (:mod:`mpcbox.sim.lookahead`): ``None`` plans from
+            the observed state; ``"auto"`` or seconds plan from the state predicted that far
+            ahead, and the world keeps the previous plan until the new one's start.
+        speed: Simulated seconds per wall-clock second (for ``lookahead="auto"``).
 
     Attributes:
-        latencies: Wall time of each tick published in the run (s).
+        latencies: Wall time of each tick published in the run, the prediction included (s).
+        lookaheads: Simulated time each of those ticks planned ahead of its observed
+            state (s; zeros without ``lookahead``).
         kinds: ``Controller.last_call`` of each of those ticks.
         error: ``"controller error: ..."`` once the controller raised or returned an
             invalid control, else ``None``.
     """
 
     def __init__(
-        self, problem: Problem, controller: Controller, *, period: float, max_ticks: int
+        self,
+        problem: Problem,
+        controller: Controller,
+        *,
+        period: float,
+        max_ticks: int,
+        lookahead: float | str | None = None,
+        speed: float = 1.0,
     ) -> None:
         self.problem = problem
         self.controller = controller
         self.period = float(period)
         self.max_ticks = int(max_ticks)
+        self.lookahead = (
+            None
+            if lookahead is None
+            else Lookahead(problem, lookahead, period=self.period, speed=speed)
+        )
         self.latencies: list[float] = []
+        self.lookaheads: list[float] = []
         self.kinds: list[str] = []
         self.error: str | None = None
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._new_state = threading.Event()
-        self._state: tuple[np.ndarray, float] | None = None
-        self._plan = Plan(0.0, problem.clip_ctrl(problem.ctrl_ref.copy()), None)
+        self._state: tuple[np.ndarray, float, Plan] | None = None
+        # Published plans, oldest first: one without a lookahead; with it, also those not
+        # yet in force (planned from a predicted state) and the one in force before them.
+        self._plans = [Plan(0.0, problem.clip_ctrl(problem.ctrl_ref.copy()), None)]
         self._thread: threading.Thread | None = None
         self._next_time = -np.inf
 
     # ------------------------------------------------------------------ world side
-    def observe(self, state: np.ndarray, time: float) -> None:
-        """Record the latest state ``(nstate,)`` at simulated ``time``."""
+    def observe(self, state: np.ndarray, time: float) -> Plan:
+        """Record the latest state ``(nstate,)`` at simulated ``time``; returns the plan in
+        force at ``time``, for the world's :meth:`control` of that step (so that a tick
+        predicting ahead from this state knows which plan the world applies at it, even
+        when it publishes a new one in between)."""
         with self._lock:
-            self._state = (state.copy(), float(time))
+            plan = self._select(float(time))
+            self._state = (state.copy(), float(time), plan)
         self._new_state.set()
+        return plan
 
-    def control(self, time: float, state: np.ndarray | None = None) -> np.ndarray:
-        """The latest plan's control at simulated ``time`` ``(nu,)``.
+    def control(
+        self, time: float, state: np.ndarray | None = None, plan: Plan | None = None
+    ) -> np.ndarray:
+        """The control at simulated ``time`` ``(nu,)`` of ``plan`` (default: the plan in
+        force at ``time``: the latest, or the one before it while the latest, planned from a
+        predicted state, has not started).
 
         For a controller with a catch (a sampling controller's ``catch``, see
         :mod:`mpcbox.controllers.sampling.catch`) and the world's ``state`` ``(nstate,)``,
@@ -96,14 +127,23 @@ class PlannerThread:
             caught = catch.control(state)
             if caught is not None:
                 return caught
-        with self._lock:
-            plan = self._plan
+        if plan is None:
+            with self._lock:
+                plan = self._select(float(time))
         if plan.policy is not None and state is not None:
             return self.problem.clip_ctrl(plan.policy(state, float(time)))
         if plan.knots is None or plan.spline is None:
             return plan.ctrl
         offset = float(time) - plan.time
         return self.problem.clip_ctrl(plan.spline.evaluate(plan.knots, [offset])[0])
+
+    def _select(self, time: float) -> Plan:
+        """The plan in force at ``time``: the latest published one that has started (the
+        oldest kept when none has). Call with the lock held."""
+        for plan in reversed(self._plans):
+            if plan.time <= time + 1e-12:
+                return plan
+        return self._plans[0]
 
     def prime(self, state: np.ndarray, time: float) -> float:
         """Solve one tick before the clock starts; returns its wall time (s).
@@ -144,11 +184,17 @@ class PlannerThread:
 
     # ------------------------------------------------------------------ planner side
     def _loop(self) -> None:
+        try:
+            self._ticks()
+        except Exception as exc:  # a fault of the loop itself (never silent): recorded too
+            self.error = _error_text(exc)
+
+    def _ticks(self) -> None:
         for _ in range(self.max_ticks):
             while not self._stop.is_set() and self.error is None:
                 self._new_state.clear()
                 with self._lock:
-                    state, time = self._state  # type: ignore[misc]
+                    state, time, seen = self._state  # type: ignore[misc]
                 if time >= self._next_time - 1e-12:
                     break
                 self._new_state.wait(0.05)
@@ -156,7 +202,11 @@ class PlannerThread:
                 return
             self._next_time = time + self.period
             start = _time.perf_counter()
+            ahead = 0.0
             try:
+                if self.lookahead is not None:
+                    state, predicted = self._predict(state, time, seen)
+                    ahead, time = predicted - time, predicted
                 out = self.controller(state, time)
             except Exception as exc:  # recorded; the world ends the run
                 self.error = _error_text(exc)
@@ -165,7 +215,20 @@ class PlannerThread:
             if not self._publish(out, time):
                 return
             self.latencies.append(seconds)
+            self.lookaheads.append(ahead)
             self.kinds.append(str(getattr(self.controller, "last_call", "solve")))
+
+    def _predict(self, state: np.ndarray, time: float, seen: Plan) -> tuple[np.ndarray, float]:
+        """The state and time the next plan starts from (:attr:`lookahead`'s prediction
+        under the controls the world applies meanwhile: ``seen``, the plan in force when
+        ``state`` was observed, at ``time``, then the plans in force)."""
+        assert self.lookahead is not None
+
+        def control(t: float, x: np.ndarray) -> np.ndarray:
+            return self.control(t, x, seen if t == time else None)
+
+        want = self.lookahead.seconds(self.latencies)
+        return self.lookahead.predict(state, time, want, control)
 
     def _publish(self, out: object, time: float) -> bool:
         """Publish the controller's output; record an error and return False if invalid."""
@@ -189,5 +252,13 @@ class PlannerThread:
         policy = policy() if callable(policy) else None
         plan = Plan(time, ctrl.copy(), knots, spline, policy)
         with self._lock:
-            self._plan = plan
+            if self.lookahead is None:
+                self._plans = [plan]
+            else:
+                # Keep the plan in force at the latest observed time and all later ones.
+                seen = self._state[1] if self._state is not None else -np.inf
+                self._plans.append(plan)
+                in_force = self._select(seen)
+                start = next(i for i, p in enumerate(self._plans) if p is in_force)
+                del self._plans[:start]
         return True

@@ -29,6 +29,12 @@ the plan starts from is when the plan takes over). A tick is *over the period* w
 :math:`a_i > p` (the controller's ``period``, or the simulation step without one), and the
 planner *kept up* when the 99th percentile of :math:`a_i` is at most :math:`p`.
 
+With ``lookahead`` (:mod:`mpcbox.sim.lookahead`) each tick plans from the state predicted
+:math:`L` seconds ahead under the previous plan, and the world switches to the new plan at
+:math:`t_s + L`: a plan then starts about when it is published instead of :math:`a_i` late.
+The state age and "kept up" are measured as without it (a tick's wall time, prediction
+included, against the period).
+
 Outcomes are those of :func:`simulate`; an exception raised in the planner thread ends the
 run as ``"controller error"`` with the trajectory up to that point. The planner thread is
 always joined before returning (also when the world raises).
@@ -52,6 +58,7 @@ from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.divergence import DivergenceMonitor
+from mpcbox.sim.lookahead import check_lookahead
 from mpcbox.sim.planner_thread import PlannerThread
 from mpcbox.sim.run_start import start_run
 from mpcbox.sim.simulation import SimulationResult, finish_run
@@ -84,6 +91,9 @@ class RealtimeStats(NamedTuple):
         world_lag_s: Largest lag of the world behind its wall-clock schedule (s of wall
             time); near zero when the simulation itself keeps up with ``speed``.
         prime_ms: Wall time of the priming tick before the clock started (ms; 0 without).
+        lookahead_s: Simulated time each tick planned ahead of its observed state
+            ``(ticks,)`` (s; zeros without ``lookahead``).
+        lookahead_mean_s: Mean of ``lookahead_s`` (0 without ticks).
     """
 
     ticks: int
@@ -101,6 +111,8 @@ class RealtimeStats(NamedTuple):
     wall_time_s: float
     world_lag_s: float
     prime_ms: float
+    lookahead_s: np.ndarray = np.zeros(0)
+    lookahead_mean_s: float = 0.0
 
 
 @dataclass
@@ -130,6 +142,7 @@ def simulate_realtime(
     speed: float = 1.0,
     prime: bool = True,
     viewer: Viewer | str | Path | None = None,
+    lookahead: float | str | None = None,
 ) -> RealtimeResult:
     """Simulate ``problem.model`` in real time with ``controller`` planning concurrently.
 
@@ -156,12 +169,16 @@ def simulate_realtime(
         viewer: Show the run while it goes, as for :func:`~mpcbox.sim.simulation.simulate`;
             the world thread draws (a frame's rendering time is world time, seen as
             ``world_lag_s`` when it falls behind), reading the planner's latest traces.
+        lookahead: Latency compensation (:mod:`mpcbox.sim.lookahead`): ``None`` (default)
+            plans from the observed state; seconds ``>= 0`` or ``"auto"`` (the recent
+            median tick time) plan from the state predicted that far ahead.
 
     Returns:
         A :class:`RealtimeResult`; ``metrics.kept_up`` repeats ``realtime.kept_up``.
     """
     speed = positive("speed", speed)
     prime = boolean("prime", prime)
+    lookahead = check_lookahead(lookahead)
     view = as_viewer(viewer)
     run = start_run(
         problem,
@@ -192,7 +209,9 @@ def simulate_realtime(
     outcome = "success"
     fail_time = duration
     monitor = DivergenceMonitor(data)
-    planner = PlannerThread(problem, controller, period=period, max_ticks=steps + 2)
+    planner = PlannerThread(
+        problem, controller, period=period, max_ticks=steps + 2, lookahead=lookahead, speed=speed
+    )
     if view is not None:
         view.start(problem, controller, model, data)
     prime_s = planner.prime(state0, float(data.time)) if prime else 0.0
@@ -220,7 +239,7 @@ def simulate_realtime(
                 lag = max(lag, -early)
             times[k] = now
             states[k] = problem.get_state(data)
-            planner.observe(states[k], now)
+            plan = planner.observe(states[k], now)
             for i, measure in enumerate(measures):
                 samples[i, k] = measure.sample(model, data)
             if failure is None:
@@ -240,7 +259,7 @@ def simulate_realtime(
                 break
             if view is not None:
                 view.step(data)
-            data.ctrl[:] = problem.clip_ctrl(planner.control(now, states[k]) + noise_seq[k])
+            data.ctrl[:] = problem.clip_ctrl(planner.control(now, states[k], plan) + noise_seq[k])
             ctrls[k] = data.ctrl
             data.xfrc_applied[:] = 0.0
             for push, bid in zip(pushes, push_ids):
@@ -305,6 +324,7 @@ def _stats(
     ticks = int(latency.size)
     over = int(np.sum(age > period))
     p99 = float(np.percentile(age, 99)) if ticks else math.inf
+    ahead = np.asarray(planner.lookaheads, dtype=np.float64)
     return RealtimeStats(
         ticks=ticks,
         latency_ms=latency * 1e3,
@@ -321,4 +341,6 @@ def _stats(
         wall_time_s=float(wall),
         world_lag_s=float(lag),
         prime_ms=prime_s * 1e3,
+        lookahead_s=ahead,
+        lookahead_mean_s=float(ahead.mean()) if ticks else 0.0,
     )

@@ -1,0 +1,168 @@
+"""Latency compensation in the real-time loop (mpcbox.sim.lookahead) on the CPU."""
+
+from __future__ import annotations
+
+import time
+
+import mujoco
+import numpy as np
+import pytest
+
+import mpcbox
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError
+from mpcbox.sim.lookahead import Lookahead, check_lookahead
+from mpcbox.sim.planner_thread import PlannerThread
+from mpcbox.sim.realtime import simulate_realtime
+from mpcbox.tasks.swingup import CartpoleSwingup
+
+
+class Recorder(mpcbox.Controller):
+    """Sleeps ``delay`` s, records the (state, time) it was asked to plan from and returns a
+    control that changes at every call (so the world's switch between plans matters)."""
+
+    def __init__(self, problem, delay, period):
+        self.problem, self.delay, self.period = problem, delay, period
+        self.seen: list[tuple[np.ndarray, float]] = []
+
+    def reset(self):
+        self.seen = []
+
+    def __call__(self, state, time_):
+        self.seen.append((state.copy(), float(time_)))
+        time.sleep(self.delay)
+        return np.array([0.8 * np.sin(1.3 * len(self.seen))])
+
+
+@pytest.fixture(scope="module")
+def problem():
+    return CartpoleSwingup()
+
+
+@pytest.mark.parametrize(("lookahead", "delay"), [(0.04, 0.03), ("auto", 0.03), (0.08, 0.005)])
+def test_each_tick_plans_from_the_state_the_world_reaches_at_the_plans_start(
+    problem, lookahead, delay
+):
+    """Without disturbances the prediction under the previous plans is exactly the world's
+    state when the new plan takes over, at any latency: the world keeps each plan until a
+    later one starts, as the prediction assumed (with a lookahead of several ticks, several
+    published plans wait for their start)."""
+    ctrl = Recorder(problem, delay, 0.02)
+    res = simulate_realtime(problem, ctrl, 0.8, lookahead=lookahead, stop_on_failure=False)
+    rt = res.realtime
+    dt = problem.model.opt.timestep
+    assert rt.ticks >= 5
+    assert rt.lookahead_s.shape == (rt.ticks,)
+    if lookahead == "auto":  # the period before any tick was timed, then the tick times
+        assert rt.lookahead_s[0] == pytest.approx(0.02)
+        later = rt.lookahead_s[3:]
+        assert np.all(later >= 0.02) and np.all(later <= 0.1)
+    else:
+        np.testing.assert_allclose(rt.lookahead_s, round(lookahead / dt) * dt)
+    assert rt.lookahead_mean_s == pytest.approx(rt.lookahead_s.mean())
+    checked = 0
+    for state, t in ctrl.seen[1:]:  # the first call is the prime, from the initial state
+        k = int(np.argmin(np.abs(res.time - t)))
+        if abs(res.time[k] - t) > 1e-9:
+            continue  # planned beyond the end of the run
+        np.testing.assert_allclose(state, res.states[k], atol=1e-6)
+        checked += 1
+    assert checked >= 5
+    # Without the lookahead the planner gets observed states (at the world's times), which
+    # the world has left by publication.
+    plain = Recorder(problem, 0.03, 0.02)
+    simulate_realtime(problem, plain, 0.3, stop_on_failure=False)
+    assert all(abs(t / dt - round(t / dt)) < 1e-6 for _, t in plain.seen)
+
+
+def test_the_world_keeps_the_previous_plan_until_the_new_one_starts(problem):
+    ctrl = Recorder(problem, 0.0, 0.02)
+    planner = PlannerThread(problem, ctrl, period=0.02, max_ticks=1, lookahead=0.05)
+    planner.prime(problem.initial_state(), 0.0)  # plan 1 at t = 0
+    first = planner.control(0.01)
+    planner._publish(np.array([0.5]), 0.05)  # a plan from the state predicted at 0.05
+    np.testing.assert_array_equal(planner.control(0.03), first)
+    np.testing.assert_array_equal(planner.control(0.05), [0.5])
+    np.testing.assert_array_equal(planner.control(0.2), [0.5])
+    # Without a lookahead the latest plan is used at once.
+    now = PlannerThread(problem, ctrl, period=0.02, max_ticks=1)
+    now.prime(problem.initial_state(), 0.0)
+    now._publish(np.array([0.5]), 0.05)
+    np.testing.assert_array_equal(now.control(0.03), [0.5])
+
+
+def test_prediction_steps_the_task_model_under_the_given_control(problem):
+    look = Lookahead(problem, 0.05, period=0.02, speed=1.0)
+    state = problem.initial_state()
+    state[problem.nq] = 0.3
+    pred, t = look.predict(state, 1.0, 0.05, lambda _t, _x: np.array([0.4]))
+    data = mujoco.MjData(problem.model)
+    problem.set_state(data, state)
+    for _ in range(5):
+        data.ctrl[:] = 0.4
+        mujoco.mj_step(problem.model, data)
+    np.testing.assert_allclose(pred, problem.get_state(data), atol=1e-12)
+    assert t == pytest.approx(1.05)
+    same, t0 = look.predict(state, 1.0, 0.004, lambda _t, _x: np.array([0.4]))  # < dt/2
+    assert same is state and t0 == 1.0
+    # A prediction that is not finite leaves the observed state.
+    back, tb = look.predict(state, 1.0, 0.05, lambda _t, _x: np.array([np.nan]))
+    assert back is state and tb == 1.0
+
+
+@pytest.mark.parametrize(
+    ("value", "error", "text"),
+    [
+        (-0.1, InvalidArgumentError, "lookahead"),
+        ("fast", InvalidArgumentError, "'auto'"),
+        (True, InvalidTypeError, "lookahead"),
+        ([0.1], InvalidTypeError, "lookahead"),
+        (float("inf"), InvalidArgumentError, "finite"),
+    ],
+)
+def test_bad_lookahead_is_rejected_by_name(problem, value, error, text):
+    with pytest.raises(error, match=text):
+        check_lookahead(value)
+    with pytest.raises(error, match=text):
+        simulate_realtime(problem, Recorder(problem, 0.0, 0.05), 0.1, lookahead=value)
+
+
+def test_scenarios_pass_the_lookahead_to_real_time_runs_only(problem):
+    scenario = mpcbox.Scenario(duration=0.3, noise_scale=0.0, realtime=True, lookahead=0.05)
+    assert "lookahead 0.05 s" in scenario.label
+    res = scenario.run(problem, Recorder(problem, 0.0, 0.05), seed=0)
+    np.testing.assert_allclose(res.realtime.lookahead_s, 0.05)
+    with pytest.raises(InvalidArgumentError, match="realtime"):
+        mpcbox.Scenario(duration=0.3, lookahead="auto")
+    with pytest.raises(InvalidArgumentError, match="lookahead"):
+        mpcbox.Scenario(duration=0.3, realtime=True, lookahead="later")
+
+
+def test_lookahead_zero_and_none_plan_from_the_observed_state(problem):
+    assert check_lookahead(None) is None and check_lookahead(0) == 0.0
+    ctrl = Recorder(problem, 0.0, 0.05)
+    res = simulate_realtime(problem, ctrl, 0.3, lookahead=0.0, stop_on_failure=False)
+    assert np.all(res.realtime.lookahead_s == 0.0)
+    res = simulate_realtime(problem, Recorder(problem, 0.0, 0.05), 0.3, stop_on_failure=False)
+    assert res.realtime.lookahead_mean_s == 0.0
+
+
+def test_a_sampling_controller_plans_ahead_over_several_pending_plans(problem):
+    """Spline plans (arrays of knots) waiting for their start: a lookahead of several
+    periods keeps several published plans; the run goes on without a controller error."""
+    ctrl = mpcbox.make_controller(
+        "ps", problem, num_samples=8, horizon=0.4, num_knots=4, period=0.02
+    )
+    res = simulate_realtime(problem, ctrl, 0.5, lookahead=0.08, stop_on_failure=False)
+    assert res.metrics.outcome in ("success", "goal missed"), res.failure
+    assert res.realtime.ticks >= 5
+    np.testing.assert_allclose(res.realtime.lookahead_s, 0.08)
+
+
+def test_a_fault_of_the_planner_loop_ends_the_run_as_a_controller_error(problem, monkeypatch):
+    def broken(*_args, **_kwargs):
+        raise RuntimeError("publication broke")
+
+    monkeypatch.setattr(PlannerThread, "_publish", broken)
+    res = simulate_realtime(problem, Recorder(problem, 0.0, 0.05), 0.5, prime=False)
+    assert res.metrics.outcome == "controller error"
+    assert "publication broke" in res.failure
