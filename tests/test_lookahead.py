@@ -33,20 +33,33 @@ class Recorder(mpcbox.Controller):
         return np.array([0.8 * np.sin(1.3 * len(self.seen))])
 
 
+class NeverCatches:
+    """A catch that never engages: the prediction then goes step by step (feedback)."""
+
+    def control(self, state):
+        return None
+
+
 @pytest.fixture(scope="module")
 def problem():
     return CartpoleSwingup()
 
 
-@pytest.mark.parametrize(("lookahead", "delay"), [(0.04, 0.03), ("auto", 0.03), (0.08, 0.005)])
+@pytest.mark.parametrize(
+    ("lookahead", "delay", "feedback"),
+    [(0.04, 0.03, False), ("auto", 0.03, False), (0.08, 0.005, False), (0.04, 0.03, True)],
+)
 def test_each_tick_plans_from_the_state_the_world_reaches_at_the_plans_start(
-    problem, lookahead, delay
+    problem, lookahead, delay, feedback
 ):
     """Without disturbances the prediction under the previous plans is exactly the world's
     state when the new plan takes over, at any latency: the world keeps each plan until a
     later one starts, as the prediction assumed (with a lookahead of several ticks, several
-    published plans wait for their start)."""
+    published plans wait for their start). Open-loop plans are rolled out in one call; with
+    a catch, the prediction steps the feedback."""
     ctrl = Recorder(problem, delay, 0.02)
+    if feedback:
+        ctrl.catch = NeverCatches()
     res = simulate_realtime(problem, ctrl, 0.8, lookahead=lookahead, stop_on_failure=False)
     rt = res.realtime
     dt = problem.model.opt.timestep
@@ -92,9 +105,10 @@ def test_the_world_keeps_the_previous_plan_until_the_new_one_starts(problem):
 
 def test_prediction_steps_the_task_model_under_the_given_control(problem):
     look = Lookahead(problem, 0.05, period=0.02, speed=1.0)
+    assert look.steps(0.05) == 5 and look.steps(0.004) == 0 and look.steps(0.016) == 2
     state = problem.initial_state()
     state[problem.nq] = 0.3
-    pred, t = look.predict(state, 1.0, 0.05, lambda _t, _x: np.array([0.4]))
+    pred, t = look.predict(state, 1.0, 5, lambda _t, _x: np.array([0.4]))
     data = mujoco.MjData(problem.model)
     problem.set_state(data, state)
     for _ in range(5):
@@ -102,11 +116,21 @@ def test_prediction_steps_the_task_model_under_the_given_control(problem):
         mujoco.mj_step(problem.model, data)
     np.testing.assert_allclose(pred, problem.get_state(data), atol=1e-12)
     assert t == pytest.approx(1.05)
-    same, t0 = look.predict(state, 1.0, 0.004, lambda _t, _x: np.array([0.4]))  # < dt/2
+    same, t0 = look.predict(state, 1.0, 0, lambda _t, _x: np.array([0.4]))
     assert same is state and t0 == 1.0
-    # A prediction that is not finite leaves the observed state.
-    back, tb = look.predict(state, 1.0, 0.05, lambda _t, _x: np.array([np.nan]))
+    # Controls known in advance: one rollout call, the same states as step by step.
+    ctrls = np.linspace(-0.5, 0.5, 7)[:, None]
+    feed, tf = look.predict(state, 1.0, 7, lambda t_, _x: ctrls[round((t_ - 1.0) / 0.01)])
+    roll, tr = look.predict_open_loop(state, 1.0, ctrls)
+    np.testing.assert_allclose(roll, feed, atol=1e-12)
+    assert tr == pytest.approx(tf) == pytest.approx(1.07)
+    # A prediction that diverges (MuJoCo's reset) leaves the observed state.
+    back, tb = look.predict(state, 1.0, 5, lambda _t, _x: np.array([np.nan]))
     assert back is state and tb == 1.0
+    wild = state.copy()
+    wild[problem.nq :] = 1e12  # beyond MuJoCo's limit: it resets on the first step
+    back, tb = look.predict_open_loop(wild, 1.0, ctrls)
+    assert back is wild and tb == 1.0
 
 
 @pytest.mark.parametrize(

@@ -32,6 +32,7 @@ from collections.abc import Callable, Sequence
 import mujoco
 import numpy as np
 
+from mpcbox.core.mujoco_warnings import captured_warnings
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError
 from mpcbox.sim.divergence import DivergenceMonitor
@@ -100,30 +101,30 @@ class Lookahead:
             return self.period
         return self.speed * float(np.median(latencies[-AUTO_WINDOW:]))
 
+    def steps(self, seconds: float) -> int:
+        """Model steps of a lookahead of ``seconds``: ``round(seconds / dt)``."""
+        return max(0, round(seconds / self.dt))
+
     def predict(
         self,
         state: np.ndarray,
         time: float,
-        seconds: float,
+        steps: int,
         control: Callable[[float, np.ndarray], np.ndarray],
     ) -> tuple[np.ndarray, float]:
-        """Step the model ``round(seconds / dt)`` times from ``state`` ``(nstate,)`` at
-        ``time`` under ``control(time, state) -> ctrl (nu,)``.
+        """Step the model ``steps`` times from ``state`` ``(nstate,)`` at ``time`` under the
+        feedback ``control(time, state) -> ctrl (nu,)``.
 
         Returns:
-            The predicted state ``(nstate,)`` and its time ``time + n dt``; ``state`` and
-            ``time`` unchanged when ``n = 0`` or when the prediction diverged (MuJoCo's
-            warnings or a non-finite state, :class:`~mpcbox.sim.divergence.DivergenceMonitor`:
-            the planner then plans from what it saw, and the world's own checks report a
-            divergence that happens there).
+            The predicted state ``(nstate,)`` and its time ``time + steps dt``; ``state``
+            and ``time`` unchanged when ``steps = 0`` or when the prediction diverged
+            (MuJoCo's warnings or a non-finite state,
+            :class:`~mpcbox.sim.divergence.DivergenceMonitor`: the planner then plans from
+            what it saw, and the world's own checks report a divergence that happens there).
         """
-        steps = round(seconds / self.dt)
         if steps <= 0:
             return state, time
-        data = self.data
-        self.problem.set_state(data, state)
-        data.time = time
-        data.xfrc_applied[:] = 0.0
+        data = self._start(state, time)
         monitor = DivergenceMonitor(data)
         for _ in range(steps):
             data.ctrl[:] = control(float(data.time), self.problem.get_state(data))
@@ -132,3 +133,35 @@ class Lookahead:
             if monitor.after_step() is not None:
                 return state, time
         return self.problem.get_state(data), time + steps * self.dt
+
+    def predict_open_loop(
+        self, state: np.ndarray, time: float, ctrls: np.ndarray
+    ) -> tuple[np.ndarray, float]:
+        """:meth:`predict` under controls known in advance ``(steps, nu)``, in one
+        :func:`mujoco.rollout.rollout` call (no Python per step, and the GIL is released
+        while it runs, so the world's thread is not held up). Same returns."""
+        from mujoco import rollout as mj_rollout
+
+        steps = len(ctrls)
+        if steps <= 0:
+            return state, time
+        data = self._start(state, time)
+        spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        init = np.empty(mujoco.mj_stateSize(self.model, spec))
+        mujoco.mj_getState(self.model, data, init, spec)
+        with captured_warnings():
+            out, _ = mj_rollout.rollout(self.model, data, init[None], ctrls[None], nstep=steps)
+        final = out[0, -1]
+        # A reset by MuJoCo (divergence) sets the time back; the full state starts with it.
+        if not (np.all(np.isfinite(final)) and final[0] > time + (steps - 0.5) * self.dt):
+            return state, time
+        mujoco.mj_setState(self.model, data, final, spec)
+        return self.problem.get_state(data), time + steps * self.dt
+
+    def _start(self, state: np.ndarray, time: float) -> mujoco.MjData:
+        """This object's data at ``state`` and ``time``, without applied forces."""
+        data = self.data
+        self.problem.set_state(data, state)
+        data.time = time
+        data.xfrc_applied[:] = 0.0
+        return data

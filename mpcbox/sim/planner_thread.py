@@ -221,14 +221,32 @@ class PlannerThread:
     def _predict(self, state: np.ndarray, time: float, seen: Plan) -> tuple[np.ndarray, float]:
         """The state and time the next plan starts from (:attr:`lookahead`'s prediction
         under the controls the world applies meanwhile: ``seen``, the plan in force when
-        ``state`` was observed, at ``time``, then the plans in force)."""
+        ``state`` was observed, at ``time``, then the plans in force). Open-loop plans
+        (splines and held controls, no catch) are evaluated in advance and rolled out in
+        one call; feedback laws step by step."""
         assert self.lookahead is not None
+        steps = self.lookahead.steps(self.lookahead.seconds(self.latencies))
+        times = time + self.lookahead.dt * np.arange(steps)
+        with self._lock:
+            plans = [seen] + [self._select(float(t)) for t in times[1:]]
+        if getattr(self.controller, "catch", None) is None and all(p.policy is None for p in plans):
+            ctrls = np.empty((steps, self.problem.nu))
+            for i, plan in enumerate(plans):
+                if i and plan is plans[i - 1]:
+                    continue
+                j = i + 1
+                while j < steps and plans[j] is plan:
+                    j += 1
+                if plan.knots is None or plan.spline is None:
+                    ctrls[i:j] = plan.ctrl
+                else:
+                    ctrls[i:j] = plan.spline.evaluate(plan.knots, times[i:j] - plan.time)
+            return self.lookahead.predict_open_loop(state, time, self.problem.clip_ctrl(ctrls))
 
         def control(t: float, x: np.ndarray) -> np.ndarray:
             return self.control(t, x, seen if t == time else None)
 
-        want = self.lookahead.seconds(self.latencies)
-        return self.lookahead.predict(state, time, want, control)
+        return self.lookahead.predict(state, time, steps, control)
 
     def _publish(self, out: object, time: float) -> bool:
         """Publish the controller's output; record an error and return False if invalid."""
