@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 import mpcbox
+from mpcbox.cli.checks import lookahead_option
 from mpcbox.comparison.records import cpu_name, gpu_names
 from mpcbox.sim.realtime import simulate_realtime
 from mpcbox.tasks.legged.walk import QuadrupedWalk
@@ -68,7 +69,10 @@ def run(problem: QuadrupedWalk, ctrl, seed: int, args) -> tuple[dict, dict]:
     common = dict(noise=noise, seed=seed, initial_state=init)
     start = time.perf_counter()
     if args.loop == "realtime":
-        res = simulate_realtime(problem, ctrl, args.duration, speed=args.speed, **common)
+        ahead = lookahead_option(args.lookahead)
+        res = simulate_realtime(
+            problem, ctrl, args.duration, speed=args.speed, lookahead=ahead, **common
+        )
     else:
         res = mpcbox.simulate(problem, ctrl, args.duration, **common)
     wall = time.perf_counter() - start
@@ -141,6 +145,9 @@ def main() -> None:
     parser.add_argument("--noise-scale", type=float, default=1.0)
     parser.add_argument("--start-perturbation", type=float, default=0.02)
     parser.add_argument("--speed", type=float, default=1.0)
+    parser.add_argument(
+        "--lookahead", default=None, help="real-time loop: seconds or 'auto' (default: none)"
+    )
     parser.add_argument("--threads", type=int, default=None, help="CPU rollout threads")
     parser.add_argument("--machine", default=None, help="default: CPU model and core count")
     parser.add_argument("--note", default="")

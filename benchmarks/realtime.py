@@ -29,12 +29,14 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import sys
 from pathlib import Path
 
 import numpy as np
 from quadruped_walk import parse_set
 
 import mpcbox
+from mpcbox.cli.checks import lookahead_option
 from mpcbox.comparison.records import gpu_names
 from mpcbox.registry import task_class
 from mpcbox.sim.disturbances import ModelMismatch, Push
@@ -52,6 +54,9 @@ def main() -> None:
     parser.add_argument("--num-samples", type=int, default=None)
     parser.add_argument("--period", type=float, default=None)
     parser.add_argument("--speed", type=float, default=1.0)
+    parser.add_argument(
+        "--lookahead", default=None, help="real-time loop: seconds or 'auto' (default: none)"
+    )
     parser.add_argument(
         "--set",
         default="",
@@ -93,6 +98,8 @@ def main() -> None:
         "seeds": args.seeds,
         "period_s": args.period,
         "speed": args.speed,
+        "lookahead": args.lookahead,
+        "command": "python benchmarks/realtime.py " + " ".join(sys.argv[1:]),
         "first_seed": args.first_seed,
         "noise_scale": args.noise_scale,
         "push": dict(zip(("force_n", "start_s", "duration_s"), push_spec)) if push_spec else None,
@@ -143,6 +150,7 @@ def main() -> None:
                         args.duration,
                         initial_state=init,
                         speed=args.speed,
+                        lookahead=lookahead_option(args.lookahead),
                         **disturb,
                     )
                 row = {
@@ -158,6 +166,7 @@ def main() -> None:
                         kept_up=rt.kept_up,
                         ticks=rt.ticks,
                         over_period_share=rt.over_period_share,
+                        lookahead_mean_s=rt.lookahead_mean_s,
                         state_age_mean_ms=rt.state_age_mean_s * 1e3,
                         world_lag_ms=rt.world_lag_s * 1e3,
                         sim_over_wall=rt.sim_time_s / rt.wall_time_s,
