@@ -58,6 +58,12 @@ def main() -> None:
         "--lookahead", default=None, help="real-time loop: seconds or 'auto' (default: none)"
     )
     parser.add_argument(
+        "--delay",
+        type=float,
+        default=None,
+        help="real-time loop: a simulated latency (s) instead of the wall clock",
+    )
+    parser.add_argument(
         "--set",
         default="",
         help="config fields for every controller, e.g. planning_timestep=0.015,horizon=0.48",
@@ -99,6 +105,7 @@ def main() -> None:
         "period_s": args.period,
         "speed": args.speed,
         "lookahead": args.lookahead,
+        "delay_s": args.delay,
         "command": "python benchmarks/realtime.py " + " ".join(sys.argv[1:]),
         "first_seed": args.first_seed,
         "noise_scale": args.noise_scale,
@@ -151,6 +158,7 @@ def main() -> None:
                         initial_state=init,
                         speed=args.speed,
                         lookahead=lookahead_option(args.lookahead),
+                        delay=args.delay,
                         **disturb,
                     )
                 row = {

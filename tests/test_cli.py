@@ -43,6 +43,8 @@ def test_options_lists_a_controllers_config_with_defaults(capsys) -> None:
         (["compare", "pendulum_swingup", "--lookahead", "auto"], "--lookahead needs --realtime"),
         (["compare", "pendulum_swingup", "--realtime", "--lookahead", "-1"], "--lookahead"),
         (["compare", "pendulum_swingup", "--realtime", "--lookahead", "soon"], "'auto'"),
+        (["compare", "pendulum_swingup", "--delay", "0.03"], "--delay needs --realtime"),
+        (["compare", "pendulum_swingup", "--realtime", "--delay", "-1"], "--delay"),
         (["compare", "pendulum_swingup", "--noise", "x"], "--noise"),
         (["compare", "pendulum_swingup", "--controllers", "nope"], "nope"),
         (["compare", "no_such_task"], "no_such_task"),

@@ -159,6 +159,14 @@ def test_scenarios_pass_the_lookahead_to_real_time_runs_only(problem):
         mpcbox.Scenario(duration=0.3, lookahead="auto")
     with pytest.raises(InvalidArgumentError, match="lookahead"):
         mpcbox.Scenario(duration=0.3, realtime=True, lookahead="later")
+    delayed = mpcbox.Scenario(duration=0.3, noise_scale=0.0, realtime=True, delay=0.03)
+    assert "delay 0.03 s" in delayed.label
+    res = delayed.run(problem, Recorder(problem, 0.0, 0.05), seed=0)
+    assert res.realtime.delay_s == 0.03
+    with pytest.raises(InvalidArgumentError, match="delay"):
+        mpcbox.Scenario(duration=0.3, delay=0.03)
+    with pytest.raises(InvalidArgumentError, match="delay"):
+        mpcbox.Scenario(duration=0.3, realtime=True, delay=-1.0)
 
 
 def test_lookahead_zero_and_none_plan_from_the_observed_state(problem):
@@ -190,3 +198,53 @@ def test_a_fault_of_the_planner_loop_ends_the_run_as_a_controller_error(problem,
     res = simulate_realtime(problem, Recorder(problem, 0.0, 0.05), 0.5, prime=False)
     assert res.metrics.outcome == "controller error"
     assert "publication broke" in res.failure
+
+
+@pytest.mark.parametrize("delay", [0.03, 0.05, 0.015])
+def test_a_simulated_delay_applies_each_plan_exactly_delay_later(problem, delay):
+    """Without the wall clock: tick i plans from the state at t_i and its plan reaches the
+    world at t_i + delay; one planner, so ticks start max(period, delay) apart."""
+    ctrl = Recorder(problem, 0.0, 0.02)
+    res = simulate_realtime(problem, ctrl, 0.5, delay=delay, stop_on_failure=False)
+    rt = res.realtime
+    assert rt.delay_s == delay and rt.ticks == len(ctrl.seen) - 1
+    np.testing.assert_allclose(rt.state_age_s, delay)
+    over = delay > 0.02  # the state age against the 0.02 s period
+    assert rt.kept_up is not over and rt.over_period == (rt.ticks if over else 0)
+    starts = np.array([t for _, t in ctrl.seen])
+    # The primed tick at 0 (in force at once, as a robot waits for its first plan), the
+    # next a period later, then one every max(period, delay).
+    gaps = max(0.02, delay) * np.arange(len(starts) - 1)
+    np.testing.assert_allclose(starts, np.concatenate([[0.0], 0.02 + gaps]), atol=1e-9)
+    values = [np.array([0.8 * np.sin(1.3 * (i + 1))]) for i in range(len(starts))]
+    for k, t in enumerate(res.time[:-1]):
+        arrived = [i for i, s in enumerate(starts) if i == 0 or s + delay <= t + 1e-9]
+        np.testing.assert_allclose(res.ctrls[k], values[max(arrived)], atol=1e-12)
+
+
+def test_a_simulated_delay_is_reproducible_and_compensated_exactly(problem):
+    runs = []
+    for _ in range(2):
+        ctrl = Recorder(problem, 0.0, 0.02)
+        res = simulate_realtime(
+            problem, ctrl, 0.6, delay=0.05, lookahead="auto", stop_on_failure=False
+        )
+        runs.append((res, ctrl))
+    (first, ctrl), (second, _) = runs
+    np.testing.assert_array_equal(first.states, second.states)
+    np.testing.assert_allclose(first.realtime.lookahead_s, 0.05)
+    checked = 0
+    for state, t in ctrl.seen[1:]:  # each plan starts from the world's state at its start
+        k = int(np.argmin(np.abs(first.time - t)))
+        if abs(first.time[k] - t) < 1e-9:
+            np.testing.assert_allclose(state, first.states[k], atol=1e-6)
+            checked += 1
+    assert checked >= 8
+
+
+@pytest.mark.parametrize(
+    ("value", "error"), [(-0.01, InvalidArgumentError), ("soon", InvalidTypeError)]
+)
+def test_bad_delay_is_rejected_by_name(problem, value, error):
+    with pytest.raises(error, match="delay"):
+        simulate_realtime(problem, Recorder(problem, 0.0, 0.05), 0.1, delay=value)

@@ -58,6 +58,11 @@ def check_arguments(args: argparse.Namespace) -> None:
     lookahead = lookahead_option(getattr(args, "lookahead", None))
     if lookahead is not None and not args.realtime:
         raise InvalidArgumentError("--lookahead needs --realtime")
+    delay = getattr(args, "delay", None)
+    if delay is not None:
+        if not args.realtime:
+            raise InvalidArgumentError("--delay needs --realtime")
+        _finite("--delay", delay, low=0.0, strict=False)
     for part in str(args.noise).split(","):
         if not part.strip():
             continue

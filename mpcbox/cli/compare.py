@@ -90,6 +90,7 @@ def scenarios_from_args(args: argparse.Namespace):
         realtime=args.realtime,
         speed=args.speed,
         lookahead=lookahead_option(args.lookahead),
+        delay=args.delay,
     )
 
 

@@ -18,6 +18,7 @@ DEFAULTS: dict[str, Any] = {
     "realtime": False,
     "speed": 1.0,
     "lookahead": None,
+    "delay": None,
     "noise": None,
     "push": 0.0,
     "push_time": 2.0,
@@ -126,6 +127,12 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
         default=d["lookahead"],
         help="real time: plan from the state predicted this many seconds ahead, or 'auto' "
         "(the recent median tick time); default: from the observed state",
+    )
+    add(
+        "--delay",
+        type=float,
+        default=d["delay"],
+        help="real time: a simulated latency (s) instead of the wall clock: reproducible",
     )
     add(
         "--noise",

@@ -18,6 +18,7 @@ from mpcbox.sim.simulation import SimulationResult, simulate
 from mpcbox.validation import (
     boolean,
     checked_options,
+    finite,
     finite_array,
     instance,
     non_negative,
@@ -70,6 +71,9 @@ class Scenario:
         lookahead: Latency compensation of a real-time run (:mod:`mpcbox.sim.lookahead`):
             ``None`` plans from the observed state, ``"auto"`` or seconds from the state
             predicted that far ahead. Only with :attr:`realtime`.
+        delay: A simulated latency (s) for a real-time run instead of the wall clock
+            (``simulate_realtime``'s ``delay``: reproducible on any machine). Only with
+            :attr:`realtime`.
     """
 
     name: str = ""
@@ -81,6 +85,7 @@ class Scenario:
     realtime: bool = False
     speed: float = 1.0
     lookahead: float | str | None = None
+    delay: float | None = None
 
     def __post_init__(self) -> None:
         string("name", self.name)
@@ -91,6 +96,11 @@ class Scenario:
             raise InvalidArgumentError(
                 "lookahead needs realtime=True (a lock-step run has no latency to compensate)"
             )
+        if self.delay is not None:
+            if not self.realtime:
+                raise InvalidArgumentError("delay needs realtime=True")
+            finite("delay", self.delay)
+            non_negative("delay", self.delay)
         positive("duration", self.duration)
         _check_noise_scale(self.noise_scale)
         if isinstance(self.pushes, (str, bytes)) or not isinstance(self.pushes, Sequence):
@@ -123,6 +133,8 @@ class Scenario:
                 parts.append(f"{body} mass x{value:g}")
         if self.realtime:
             parts.append("real time" + ("" if self.speed == 1.0 else f" x{self.speed:g}"))
+            if self.delay is not None:
+                parts.append(f"delay {self.delay:g} s")
             if self.lookahead is not None:
                 ahead = self.lookahead
                 parts.append(f"lookahead {ahead if isinstance(ahead, str) else f'{ahead:g} s'}")
@@ -162,7 +174,8 @@ class Scenario:
         """
         loop, extra = simulate, {}
         if self.realtime:
-            loop, extra = simulate_realtime, {"speed": self.speed, "lookahead": self.lookahead}
+            loop = simulate_realtime
+            extra = {"speed": self.speed, "lookahead": self.lookahead, "delay": self.delay}
         return loop(
             problem,
             controller,

@@ -33,6 +33,8 @@ class Plan(NamedTuple):
         policy: The controller's feedback law of this plan, ``policy(state, time) -> ctrl``
             (iLQR-MPC's :class:`~mpcbox.controllers.ilqr.policy.FeedbackPolicy`), or
             ``None``.
+        visible: Simulated time from which the world may use it (a simulated ``delay``;
+            ``-inf``: at once).
     """
 
     time: float
@@ -40,6 +42,7 @@ class Plan(NamedTuple):
     knots: np.ndarray | None
     spline: Any = None
     policy: Any = None
+    visible: float = -np.inf
 
 
 class PlannerThread:
@@ -56,6 +59,12 @@ class PlannerThread:
             the observed state; ``"auto"`` or seconds plan from the state predicted that far
             ahead, and the world keeps the previous plan until the new one's start.
         speed: Simulated seconds per wall-clock second (for ``lookahead="auto"``).
+        delay: A simulated latency (s): no thread; the world calls :meth:`tick_inline`
+            after each :meth:`observe`, each tick takes ``delay`` simulated seconds (its plan
+            becomes visible to the world then) and the next one starts when it is done or
+            ``period`` after it started, whichever is later, as one planner thread whose
+            ticks take ``delay / speed`` wall seconds would (``lookahead="auto"`` then
+            predicts ``delay`` ahead).
 
     Attributes:
         latencies: Wall time of each tick published in the run, the prediction included (s).
@@ -75,11 +84,15 @@ class PlannerThread:
         max_ticks: int,
         lookahead: float | str | None = None,
         speed: float = 1.0,
+        delay: float | None = None,
     ) -> None:
         self.problem = problem
         self.controller = controller
         self.period = float(period)
         self.max_ticks = int(max_ticks)
+        self.delay = None if delay is None else float(delay)
+        if lookahead == "auto" and self.delay is not None:
+            lookahead = self.delay
         self.lookahead = (
             None
             if lookahead is None
@@ -93,8 +106,9 @@ class PlannerThread:
         self._stop = threading.Event()
         self._new_state = threading.Event()
         self._state: tuple[np.ndarray, float, Plan] | None = None
-        # Published plans, oldest first: one without a lookahead; with it, also those not
-        # yet in force (planned from a predicted state) and the one in force before them.
+        # Published plans, oldest first: one without a lookahead or delay; with them, also
+        # those not yet in force (planned from a predicted state, or not yet visible) and
+        # the one in force before them.
         self._plans = [Plan(0.0, problem.clip_ctrl(problem.ctrl_ref.copy()), None)]
         self._thread: threading.Thread | None = None
         self._next_time = -np.inf
@@ -138,10 +152,10 @@ class PlannerThread:
         return self.problem.clip_ctrl(plan.spline.evaluate(plan.knots, [offset])[0])
 
     def _select(self, time: float) -> Plan:
-        """The plan in force at ``time``: the latest published one that has started (the
-        oldest kept when none has). Call with the lock held."""
+        """The plan in force at ``time``: the latest published one that has started and is
+        visible (the oldest kept when none is). Call with the lock held."""
         for plan in reversed(self._plans):
-            if plan.time <= time + 1e-12:
+            if plan.time <= time + 1e-12 and plan.visible <= time + 1e-12:
                 return plan
         return self._plans[0]
 
@@ -175,6 +189,24 @@ class PlannerThread:
             self._thread.join()
             self._thread = None
 
+    def tick_inline(self) -> None:
+        """With a simulated ``delay``: run a tick now if one is due at the latest observed
+        time (the world waits for it), its plan visible ``delay`` later. A fault is recorded
+        in :attr:`error`."""
+        state, time, seen = self._state  # type: ignore[misc]
+        if self.error is not None or time < self._next_time - 1e-12:
+            return
+        if len(self.latencies) >= self.max_ticks:
+            return
+        # One planner, as in the threaded loop: the next tick starts when this one is done
+        # or a period after it started, whichever is later.
+        delay = float(self.delay or 0.0)
+        self._next_time = time + max(self.period, delay)
+        try:
+            self._tick(state, time, seen, visible=time + delay)
+        except Exception as exc:  # recorded; the world ends the run
+            self.error = _error_text(exc)
+
     def calls(self) -> dict[str, list[float]]:
         """Tick durations (s) by ``last_call`` kind (``"solve"``, ``"hold"``, ``"offline"``)."""
         out: dict[str, list[float]] = {"solve": [], "hold": [], "offline": []}
@@ -201,19 +233,24 @@ class PlannerThread:
             if self._stop.is_set() or self.error is not None:
                 return
             self._next_time = time + self.period
-            start = _time.perf_counter()
-            ahead = 0.0
             try:
-                if self.lookahead is not None:
-                    state, predicted = self._predict(state, time, seen)
-                    ahead, time = predicted - time, predicted
-                out = self.controller(state, time)
+                self._tick(state, time, seen)
             except Exception as exc:  # recorded; the world ends the run
                 self.error = _error_text(exc)
+            if self.error is not None:
                 return
-            seconds = _time.perf_counter() - start
-            if not self._publish(out, time):
-                return
+
+    def _tick(self, state: np.ndarray, time: float, seen: Plan, visible: float = -np.inf) -> None:
+        """One tick from ``state`` observed at ``time``: predict (with a lookahead), plan,
+        publish; records its wall time. An invalid control is recorded in :attr:`error`."""
+        start = _time.perf_counter()
+        ahead = 0.0
+        if self.lookahead is not None:
+            state, predicted = self._predict(state, time, seen)
+            ahead, time = predicted - time, predicted
+        out = self.controller(state, time)
+        seconds = _time.perf_counter() - start
+        if self._publish(out, time, visible):
             self.latencies.append(seconds)
             self.lookaheads.append(ahead)
             self.kinds.append(str(getattr(self.controller, "last_call", "solve")))
@@ -248,7 +285,7 @@ class PlannerThread:
 
         return self.lookahead.predict(state, time, steps, control)
 
-    def _publish(self, out: object, time: float) -> bool:
+    def _publish(self, out: object, time: float, visible: float = -np.inf) -> bool:
         """Publish the controller's output; record an error and return False if invalid."""
         ctrl = np.asarray(out, dtype=np.float64)
         if ctrl.shape != (self.problem.nu,) or not np.all(np.isfinite(ctrl)):
@@ -268,9 +305,9 @@ class PlannerThread:
             knots = np.array(knots, copy=True)
         policy = getattr(self.controller, "policy", None)
         policy = policy() if callable(policy) else None
-        plan = Plan(time, ctrl.copy(), knots, spline, policy)
+        plan = Plan(time, ctrl.copy(), knots, spline, policy, visible)
         with self._lock:
-            if self.lookahead is None:
+            if self.lookahead is None and self.delay is None:
                 self._plans = [plan]
             else:
                 # Keep the plan in force at the latest observed time and all later ones.

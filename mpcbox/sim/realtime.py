@@ -35,6 +35,11 @@ With ``lookahead`` (:mod:`mpcbox.sim.lookahead`) each tick plans from the state 
 The state age and "kept up" are measured as without it (a tick's wall time, prediction
 included, against the period).
 
+With ``delay`` the world runs without the wall clock: it waits for each tick, as
+:func:`simulate` does, each tick takes ``delay`` simulated seconds and the next one starts
+when it is done (or a period after it started), so the same latency gives the same run on
+any machine.
+
 Outcomes are those of :func:`simulate`; an exception raised in the planner thread ends the
 run as ``"controller error"`` with the trajectory up to that point. The planner thread is
 always joined before returning (also when the world raises).
@@ -56,6 +61,7 @@ import numpy as np
 
 from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
+from mpcbox.errors import InvalidArgumentError
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.divergence import DivergenceMonitor
 from mpcbox.sim.lookahead import check_lookahead
@@ -64,7 +70,7 @@ from mpcbox.sim.run_start import start_run
 from mpcbox.sim.simulation import SimulationResult, finish_run
 from mpcbox.sim.viewer import Viewer
 from mpcbox.sim.viewer_choice import as_viewer
-from mpcbox.validation import boolean, checked_keywords, positive
+from mpcbox.validation import boolean, checked_keywords, non_negative, positive
 
 #: Python's thread switch interval during a real-time run (s).
 GIL_SWITCH_INTERVAL_S = 5e-4
@@ -94,6 +100,7 @@ class RealtimeStats(NamedTuple):
         lookahead_s: Simulated time each tick planned ahead of its observed state
             ``(ticks,)`` (s; zeros without ``lookahead``).
         lookahead_mean_s: Mean of ``lookahead_s`` (0 without ticks).
+        delay_s: The simulated latency of the run (``delay``), or ``None`` (wall clock).
     """
 
     ticks: int
@@ -113,6 +120,7 @@ class RealtimeStats(NamedTuple):
     prime_ms: float
     lookahead_s: np.ndarray = np.zeros(0)
     lookahead_mean_s: float = 0.0
+    delay_s: float | None = None
 
 
 @dataclass
@@ -143,6 +151,7 @@ def simulate_realtime(
     prime: bool = True,
     viewer: Viewer | str | Path | None = None,
     lookahead: float | str | None = None,
+    delay: float | None = None,
 ) -> RealtimeResult:
     """Simulate ``problem.model`` in real time with ``controller`` planning concurrently.
 
@@ -172,6 +181,15 @@ def simulate_realtime(
         lookahead: Latency compensation (:mod:`mpcbox.sim.lookahead`): ``None`` (default)
             plans from the observed state; seconds ``>= 0`` or ``"auto"`` (the recent
             median tick time) plan from the state predicted that far ahead.
+        delay: A simulated latency (s, ``>= 0``) instead of the wall clock: the world waits
+            for each tick as in :func:`~mpcbox.sim.simulation.simulate`, every tick takes
+            ``delay`` simulated seconds (its plan takes effect then; the previous plan runs
+            meanwhile) and the next tick starts when it is done or one period after it
+            started, whichever is later: the wall-clock loop with every tick taking
+            ``delay / speed`` seconds, but deterministic and independent of the machine,
+            so latency can be studied and compensated (``lookahead="auto"`` predicts
+            ``delay`` ahead) reproducibly. ``speed`` then has no effect, and the state age
+            of every tick is ``delay``.
 
     Returns:
         A :class:`RealtimeResult`; ``metrics.kept_up`` repeats ``realtime.kept_up``.
@@ -179,6 +197,10 @@ def simulate_realtime(
     speed = positive("speed", speed)
     prime = boolean("prime", prime)
     lookahead = check_lookahead(lookahead)
+    if delay is not None:
+        delay = non_negative("delay", delay)
+        if not math.isfinite(delay):
+            raise InvalidArgumentError(f"delay must be finite, got {delay}")
     view = as_viewer(viewer)
     run = start_run(
         problem,
@@ -210,7 +232,13 @@ def simulate_realtime(
     fail_time = duration
     monitor = DivergenceMonitor(data)
     planner = PlannerThread(
-        problem, controller, period=period, max_ticks=steps + 2, lookahead=lookahead, speed=speed
+        problem,
+        controller,
+        period=period,
+        max_ticks=steps + 2,
+        lookahead=lookahead,
+        speed=speed,
+        delay=delay,
     )
     if view is not None:
         view.start(problem, controller, model, data)
@@ -228,18 +256,22 @@ def simulate_realtime(
     gc.freeze()
     wall0 = _time.perf_counter()
     try:
-        planner.start(state0, float(data.time))
+        if delay is None:
+            planner.start(state0, float(data.time))
         for k in range(steps + 1):
             now = float(data.time)
-            target = wall0 + (now - sim0) / speed
-            early = target - _time.perf_counter()
-            if early > 0:
-                _time.sleep(early)
-            else:
-                lag = max(lag, -early)
+            if delay is None:  # a simulated latency runs without the wall clock
+                early = wall0 + (now - sim0) / speed - _time.perf_counter()
+                if early > 0:
+                    _time.sleep(early)
+                else:
+                    lag = max(lag, -early)
             times[k] = now
             states[k] = problem.get_state(data)
             plan = planner.observe(states[k], now)
+            if delay is not None:
+                planner.tick_inline()
+                plan = None  # the plan in force now, after this step's tick
             for i, measure in enumerate(measures):
                 samples[i, k] = measure.sample(model, data)
             if failure is None:
@@ -281,7 +313,7 @@ def simulate_realtime(
     calls = planner.calls()
     if prime:
         calls["offline"].append(prime_s)
-    stats = _stats(planner, period, speed, float(times[last]), wall, lag, prime_s)
+    stats = _stats(planner, period, speed, float(times[last]), wall, lag, prime_s, delay)
     res = finish_run(
         problem,
         controller,
@@ -317,10 +349,11 @@ def _stats(
     wall: float,
     lag: float,
     prime_s: float,
+    delay: float | None = None,
 ) -> RealtimeStats:
     """The :class:`RealtimeStats` of a finished run."""
     latency = np.asarray(planner.latencies, dtype=np.float64)
-    age = latency * speed
+    age = latency * speed if delay is None else np.full(latency.shape, delay)
     ticks = int(latency.size)
     over = int(np.sum(age > period))
     p99 = float(np.percentile(age, 99)) if ticks else math.inf
@@ -343,4 +376,5 @@ def _stats(
         prime_ms=prime_s * 1e3,
         lookahead_s=ahead,
         lookahead_mean_s=float(ahead.mean()) if ticks else 0.0,
+        delay_s=delay,
     )
