@@ -10,7 +10,9 @@ and latency per run, successes per loop::
     python benchmarks/realtime_feedback_law.py [--task humanoid_balance] [--seeds 0-2,100-109]
         [--loops held,law] [--set control_steps=2 --set horizon=12] [--push -115]
 
-``--loops lockstep`` adds the lock-step loop of :func:`mpcbox.simulate` (the world waits for
+``--delay D`` runs the held and law loops on a simulated latency of ``D`` seconds instead of
+the wall clock (reproducible), ``--lookahead auto`` (or seconds) plans from the predicted
+state. ``--loops lockstep`` adds the lock-step loop of :func:`mpcbox.simulate` (the world waits for
 every replan; its "latencies" are the replan ticks). ``--set KEY=VALUE`` (repeatable, VALUE a
 Python literal) overrides an option of the task's iLQR config in every loop. ``--push F`` adds
 a push of ``F`` newtons along x (negative: backward) on the task's root body at 2 s for 0.1 s;
@@ -31,6 +33,7 @@ from typing import Any
 import numpy as np
 
 import mpcbox
+from mpcbox.cli.checks import lookahead_option
 from mpcbox.cli.compare import default_push_body, parse_sets
 from mpcbox.comparison.robustness import end_speed
 from mpcbox.registry import make_controller, task_class
@@ -76,6 +79,10 @@ def main() -> None:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     parser.add_argument("--push", type=float, default=0.0, help="x force (N) at 2 s for 0.1 s")
     parser.add_argument(
+        "--delay", type=float, default=None, help="held/law: a simulated latency (s)"
+    )
+    parser.add_argument("--lookahead", default=None, help="held/law: seconds or 'auto'")
+    parser.add_argument(
         "--out", default=str(Path(__file__).parent / "results/realtime_feedback_law.json")
     )
     args = parser.parse_args()
@@ -103,7 +110,14 @@ def main() -> None:
                 run = mpcbox.simulate(problem, controller, args.duration, **common)
             else:
                 inner = HeldControl(controller) if loop == "held control" else controller
-                run = mpcbox.simulate_realtime(problem, inner, args.duration, **common)
+                run = mpcbox.simulate_realtime(
+                    problem,
+                    inner,
+                    args.duration,
+                    delay=args.delay,
+                    lookahead=lookahead_option(args.lookahead),
+                    **common,
+                )
             rt = run.realtime if loop != "lock-step" else None
             row = {
                 "seed": seed,
