@@ -248,3 +248,19 @@ def test_a_simulated_delay_is_reproducible_and_compensated_exactly(problem):
 def test_bad_delay_is_rejected_by_name(problem, value, error):
     with pytest.raises(error, match="delay"):
         simulate_realtime(problem, Recorder(problem, 0.0, 0.05), 0.1, delay=value)
+
+
+class Shrinking(Recorder):
+    """Slow ticks first, then fast ones: ``lookahead="auto"`` shrinks."""
+
+    def __call__(self, state, time_):
+        self.delay = 0.045 if len(self.seen) < 6 else 0.002
+        return super().__call__(state, time_)
+
+
+def test_plans_start_at_least_a_period_apart_when_the_lookahead_shrinks(problem):
+    ctrl = Shrinking(problem, 0.0, 0.02)
+    simulate_realtime(problem, ctrl, 0.8, lookahead="auto", stop_on_failure=False)
+    starts = np.array([t for _, t in ctrl.seen])
+    assert len(starts) > 12
+    assert np.all(np.diff(starts) >= 0.02 - 1e-9)

@@ -112,6 +112,7 @@ class PlannerThread:
         self._plans = [Plan(0.0, problem.clip_ctrl(problem.ctrl_ref.copy()), None)]
         self._thread: threading.Thread | None = None
         self._next_time = -np.inf
+        self._last_start = -np.inf  # start time of the latest plan published
 
     # ------------------------------------------------------------------ world side
     def observe(self, state: np.ndarray, time: float) -> Plan:
@@ -262,7 +263,14 @@ class PlannerThread:
         (splines and held controls, no catch) are evaluated in advance and rolled out in
         one call; feedback laws step by step."""
         assert self.lookahead is not None
-        steps = self.lookahead.steps(self.lookahead.seconds(self.latencies))
+        want = self.lookahead.seconds(self.latencies)
+        # Plans start at least a period apart, as the ticks do: a lookahead that shrank
+        # (``"auto"`` after faster ticks) must not hand the controller a time less than a
+        # period after its last one (iLQR-MPC would skip the replan as not yet due).
+        want = max(want, self._last_start + self.period - time)
+        steps = self.lookahead.steps(want)
+        if steps and time + self.lookahead.dt * steps < self._last_start + self.period - 1e-9:
+            steps += 1  # rounded down below the spacing
         times = time + self.lookahead.dt * np.arange(steps)
         with self._lock:
             plans = [seen] + [self._select(float(t)) for t in times[1:]]
@@ -306,6 +314,7 @@ class PlannerThread:
         policy = getattr(self.controller, "policy", None)
         policy = policy() if callable(policy) else None
         plan = Plan(time, ctrl.copy(), knots, spline, policy, visible)
+        self._last_start = time
         with self._lock:
             if self.lookahead is None and self.delay is None:
                 self._plans = [plan]
