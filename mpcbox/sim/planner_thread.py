@@ -269,7 +269,7 @@ class PlannerThread:
         # period after its last one (iLQR-MPC would skip the replan as not yet due).
         want = max(want, self._last_start + self.period - time)
         steps = self.lookahead.steps(want)
-        if steps and time + self.lookahead.dt * steps < self._last_start + self.period - 1e-9:
+        if time + self.lookahead.dt * steps < self._last_start + self.period - 1e-9:
             steps += 1  # rounded down below the spacing
         times = time + self.lookahead.dt * np.arange(steps)
         with self._lock:
