@@ -203,7 +203,12 @@ def main() -> None:
     parser.add_argument("--gpu", default=None)
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
-    lookahead = lookahead_option(args.lookahead)
+    loop_options = {
+        "duration": args.duration,
+        "backend": args.backend,
+        "loop": args.loop,
+        "lookahead": lookahead_option(args.lookahead),
+    }
     report: dict = {
         "command": "python benchmarks/humanoid_getup.py " + " ".join(sys.argv[1:]),
         "task": args.task,
@@ -233,19 +238,7 @@ def main() -> None:
             rows = []
             for seed in range(args.first_seed, args.first_seed + args.seeds):
                 try:
-                    rows.append(
-                        run(
-                            problem,
-                            name,
-                            ctrl_kw,
-                            hand,
-                            seed,
-                            args.duration,
-                            args.backend,
-                            args.loop,
-                            lookahead,
-                        )
-                    )
+                    rows.append(run(problem, name, ctrl_kw, hand, seed, **loop_options))
                 except Exception as exc:
                     failed = {"seed": seed, "error": repr(exc), "outcome": "error"}
                     failed.update(max_torso_m=0.0, kept_up=False, tick_p99_ms=np.nan)
@@ -266,19 +259,7 @@ def main() -> None:
         rows = []
         first = args.final_first_seed
         for seed in range(first, first + args.final_seeds):
-            rows.append(
-                run(
-                    problem,
-                    name,
-                    ctrl_kw,
-                    hand,
-                    seed,
-                    args.duration,
-                    args.backend,
-                    args.loop,
-                    lookahead,
-                )
-            )
+            rows.append(run(problem, name, ctrl_kw, hand, seed, **loop_options))
             print(json.dumps({"final": rows[-1]}), flush=True)
             report["final"] = {"variant": vname, "controller": name, "runs": rows}
             report["final"].update(task_options=task_kw, controller_options=ctrl_kw)

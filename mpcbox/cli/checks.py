@@ -66,13 +66,8 @@ def check_arguments(args: argparse.Namespace) -> None:
     for part in str(args.noise).split(","):
         if not part.strip():
             continue
-        try:
-            value = float(part)
-        except ValueError:
-            raise InvalidArgumentError(
-                f"--noise must be numbers separated by commas, got {args.noise!r}"
-            ) from None
-        _finite("--noise", value, low=0.0, strict=False)
+        message = f"--noise must be numbers separated by commas, got {args.noise!r}"
+        _finite("--noise", _to_float(part, message), low=0.0, strict=False)
     resolve_model(args)
 
 
@@ -135,11 +130,14 @@ def lookahead_option(text: str | None) -> float | str | None:
     """
     if text is None or text == "auto":
         return text
-    try:
-        seconds = float(text)
-    except ValueError:
-        raise InvalidArgumentError(
-            f"--lookahead must be 'auto' or seconds >= 0, got {text!r}"
-        ) from None
+    seconds = _to_float(text, f"--lookahead must be 'auto' or seconds >= 0, got {text!r}")
     _finite("--lookahead", seconds, low=0.0, strict=False)
     return seconds
+
+
+def _to_float(text: str, message: str) -> float:
+    """``float(text)``, or :class:`InvalidArgumentError` with ``message``."""
+    try:
+        return float(text)
+    except ValueError:
+        raise InvalidArgumentError(message) from None
