@@ -252,6 +252,19 @@ def test_compare_realtime_reports_kept_up(capsys, tmp_path):
     assert 0.0 <= groups[0]["kept_up_mean"] <= 1.0
 
 
+def test_compare_realtime_with_a_simulated_delay_and_lookahead(capsys, tmp_path):
+    import json
+
+    argv = ["compare", "pendulum_swingup", "--controllers", "lqr", "--seeds", "1"]
+    argv += ["--duration", "0.3", "--workers", "1", "--no-plots", "--no-progress"]
+    argv += ["--realtime", "--delay", "0.03", "--lookahead", "auto", "--out", str(tmp_path)]
+    code, out, err = run(capsys, *argv)
+    assert code == 0, err
+    assert "delay 0.03 s" in out and "lookahead auto" in out, out
+    groups = json.loads((tmp_path / "groups.json").read_text())
+    assert groups[0]["kept_up_mean"] == 0.0  # a 30 ms state age against LQR's 10 ms step
+
+
 def test_set_values_are_python_literals_or_json_words() -> None:
     from mpcbox.cli.compare import parse_sets
 
