@@ -69,9 +69,8 @@ def run(problem: QuadrupedWalk, ctrl, seed: int, args) -> tuple[dict, dict]:
     common = dict(noise=noise, seed=seed, initial_state=init)
     start = time.perf_counter()
     if args.loop == "realtime":
-        ahead = lookahead_option(args.lookahead)
         res = simulate_realtime(
-            problem, ctrl, args.duration, speed=args.speed, lookahead=ahead, **common
+            problem, ctrl, args.duration, speed=args.speed, lookahead=args.lookahead, **common
         )
     else:
         res = mpcbox.simulate(problem, ctrl, args.duration, **common)
@@ -153,6 +152,7 @@ def main() -> None:
     parser.add_argument("--note", default="")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
+    args.lookahead = lookahead_option(args.lookahead)  # checked before any run
 
     model = None if args.model == "dm_control" else args.model
     task_options = parse_set(args.task_set)

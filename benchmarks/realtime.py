@@ -87,6 +87,7 @@ def main() -> None:
     parser.add_argument("--machine", default="2-core sandbox CPU, shared")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
+    lookahead = lookahead_option(args.lookahead)
 
     problem = task_class(args.task)(**parse_set(args.task_set))
     noise = problem.noise(args.noise_scale) if args.noise_scale is not None else None
@@ -157,7 +158,7 @@ def main() -> None:
                         args.duration,
                         initial_state=init,
                         speed=args.speed,
-                        lookahead=lookahead_option(args.lookahead),
+                        lookahead=lookahead,
                         delay=args.delay,
                         **disturb,
                     )

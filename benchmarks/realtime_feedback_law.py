@@ -86,6 +86,7 @@ def main() -> None:
         "--out", default=str(Path(__file__).parent / "results/realtime_feedback_law.json")
     )
     args = parser.parse_args()
+    lookahead = lookahead_option(args.lookahead)
     names = {"held": "held control", "law": "feedback law", "lockstep": "lock-step"}
     if set(args.loops.split(",")) - set(names):
         parser.error("--loops: choose from held, law, lockstep")
@@ -115,7 +116,7 @@ def main() -> None:
                     inner,
                     args.duration,
                     delay=args.delay,
-                    lookahead=lookahead_option(args.lookahead),
+                    lookahead=lookahead,
                     **common,
                 )
             rt = run.realtime if loop != "lock-step" else None

@@ -18,7 +18,6 @@ from mpcbox.sim.simulation import SimulationResult, simulate
 from mpcbox.validation import (
     boolean,
     checked_options,
-    finite,
     finite_array,
     instance,
     non_negative,
@@ -99,7 +98,6 @@ class Scenario:
         if self.delay is not None:
             if not self.realtime:
                 raise InvalidArgumentError("delay needs realtime=True")
-            finite("delay", self.delay)
             non_negative("delay", self.delay)
         positive("duration", self.duration)
         _check_noise_scale(self.noise_scale)

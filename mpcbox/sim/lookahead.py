@@ -26,7 +26,6 @@ a plan starts about when it is published.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 
 import mujoco
@@ -64,10 +63,7 @@ def check_lookahead(value: object) -> float | str | None:
         raise InvalidTypeError(
             f"lookahead must be None, 'auto' or seconds >= 0, got {type(value).__name__}"
         )
-    seconds = non_negative("lookahead", value)
-    if not math.isfinite(seconds):
-        raise InvalidArgumentError(f"lookahead must be finite, got {seconds}")
-    return seconds
+    return non_negative("lookahead", value)
 
 
 class Lookahead:

@@ -61,7 +61,6 @@ import numpy as np
 
 from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.divergence import DivergenceMonitor
 from mpcbox.sim.lookahead import check_lookahead
@@ -199,8 +198,6 @@ def simulate_realtime(
     lookahead = check_lookahead(lookahead)
     if delay is not None:
         delay = non_negative("delay", delay)
-        if not math.isfinite(delay):
-            raise InvalidArgumentError(f"delay must be finite, got {delay}")
     view = as_viewer(viewer)
     run = start_run(
         problem,
