@@ -17,7 +17,10 @@ every replan; its "latencies" are the replan ticks). ``--set KEY=VALUE`` (repeat
 Python literal) overrides an option of the task's iLQR config in every loop. ``--push F`` adds
 a push of ``F`` newtons along x (negative: backward) on the task's root body at 2 s for 0.1 s;
 each run reports that body's speed at its end (``root_speed_end_m_s``), to tell a robot at
-rest from one still moving.
+rest from one still moving. Legged tasks also report each stance foot's pitch every 0.2 s
+(``feet_pitch_deg_every_0.2s``, degrees, negative: toes up), and the largest backward pitch
+(``feet_pitch_min_deg``): a foot rocked back onto its heel, which the reference-linearized
+planner models as flat on the ground.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import mujoco
 import numpy as np
 
 import mpcbox
@@ -57,6 +61,22 @@ class HeldControl:
         if name == "policy":
             raise AttributeError(name)
         return getattr(self.inner, name)
+
+
+def feet_pitch(problem: Any, run: Any, every: float = 0.2) -> list[list[float]] | None:
+    """Each stance foot's pitch (deg, about its body's y axis in the world; negative: toes
+    up) every ``every`` s of ``run``, or ``None`` for a task without stance feet."""
+    feet = getattr(problem, "feet", None)
+    if not feet:
+        return None
+    data = mujoco.MjData(problem.model)
+    out = []
+    for t in np.arange(0.0, float(run.time[-1]) + 1e-9, every):
+        problem.set_state(data, run.states[min(np.searchsorted(run.time, t), len(run.time) - 1)])
+        mujoco.mj_kinematics(problem.model, data)
+        pitch = [np.degrees(np.arcsin(np.clip(-data.xmat[f.body][6], -1, 1))) for f in feet]
+        out.append([round(float(p), 1) for p in pitch])
+    return out
 
 
 def seed_list(text: str) -> list[int]:
@@ -131,8 +151,14 @@ def main() -> None:
                 "planner_period_s": rt.period_s if rt else controller.replan_period,
                 "kept_up": rt.kept_up if rt else None,
                 "ticks": rt.ticks if rt else int(controller.stats["replans"]),
+                "replans": int(controller.stats["replans"]),
+                "stalled": int(controller.stats["stalled"]),
                 "root_speed_end_m_s": end_speed(problem, run, push_body),
             }
+            pitch = feet_pitch(problem, run)
+            if pitch is not None:
+                row["feet_pitch_min_deg"] = min(min(p) for p in pitch)
+                row["feet_pitch_deg_every_0.2s"] = pitch
             rows.append(row)
             print(json.dumps(jsonable(row)), file=sys.stderr)
     summary = {}

@@ -139,8 +139,8 @@ class ModelWarning(UserWarning):
 
 
 class PeriodWarning(UserWarning):
-    """A controller's period is not a whole number of simulation steps, so it is called at
-    the nearest whole number instead (the message gives both)."""
+    """A controller's period, or a simulated latency, is not a whole number of simulation
+    steps, so it runs at a whole number instead (the message gives both)."""
 
 
 class MujocoError(MpcboxError, RuntimeError):

@@ -16,17 +16,26 @@ from __future__ import annotations
 import argparse
 import sys
 
+from mpcbox.cli.checks import script_main
 from mpcbox.tasks.grasp import FRICTION_LEVELS, KINDS, run_trials, success_table
+from mpcbox.validation import integer, positive_int
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the comparison (``argv`` defaults to the command line)."""
+    """Run the comparison (``argv`` defaults to the command line); a bad argument prints
+    its named error and returns 2."""
+    return script_main(_run, argv)
+
+
+def _run(argv: list[str] | None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--level", default="low", choices=list(FRICTION_LEVELS))
     parser.add_argument("--trials", type=int, default=9)
     parser.add_argument("--kind", default=None, choices=list(KINDS))
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
+    positive_int("--trials", args.trials)
+    integer("--seed", args.seed, minimum=0)  # NumPy seeds
 
     kinds = None if args.kind is None else [args.kind]
     records = run_trials(args.level, args.trials, seed=args.seed, kinds=kinds)

@@ -45,6 +45,7 @@ from mpcbox.errors import SolverError
 from mpcbox.registry import make_controller
 from mpcbox.tasks.reach import ArmReach
 from mpcbox.tasks.reach_measures import arrival
+from mpcbox.validation import positive, positive_int
 
 #: The Panda's default target offset from its start (m): 40 cm sideways and down.
 PANDA_OFFSET = np.array([0.0, 0.3, -0.2646])
@@ -159,6 +160,9 @@ def _run(argv: list[str] | None) -> int:
         "--skip", nargs="*", default=[], choices=["offline", "ilqr", "mppi", "lqr", "realtime"]
     )
     args = parser.parse_args(argv)
+    positive("--duration", args.duration)  # before any solve: a named error, exit 2
+    positive("--offline-horizon", args.offline_horizon)
+    positive_int("--offline-iterations", args.offline_iterations)
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MissingMeshWarning)

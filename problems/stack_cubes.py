@@ -20,19 +20,28 @@ import argparse
 import sys
 
 import mpcbox
+from mpcbox.cli.checks import script_main
 from mpcbox.sim.trajectory import save_trajectory, trajectory_from_result
 from mpcbox.tasks.manipulation.pick_place import PickPlaceTiming, stacking_controller
 from mpcbox.tasks.manipulation.stacking import StackCubes
+from mpcbox.validation import integer, positive_int
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the trials (``argv`` defaults to the command line)."""
+    """Run the trials (``argv`` defaults to the command line); a bad argument prints its
+    named error and returns 2."""
+    return script_main(_run, argv)
+
+
+def _run(argv: list[str] | None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--arm", default="aloha", choices=["aloha", "panda"])
     parser.add_argument("--trials", type=int, default=5)
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--save", default=None, help="save the first trial as PATH.csv/.json")
     args = parser.parse_args(argv)
+    positive_int("--trials", args.trials)
+    integer("--first-seed", args.first_seed, minimum=0)  # NumPy seeds
     problem = StackCubes(args.arm, threads=1)
     controller = stacking_controller(problem)
     duration = PickPlaceTiming().total

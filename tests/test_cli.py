@@ -45,6 +45,16 @@ def test_options_lists_a_controllers_config_with_defaults(capsys) -> None:
         (["compare", "pendulum_swingup", "--realtime", "--lookahead", "soon"], "'auto'"),
         (["compare", "pendulum_swingup", "--delay", "0.03"], "--delay needs --realtime"),
         (["compare", "pendulum_swingup", "--realtime", "--delay", "-1"], "--delay"),
+        (["compare", "pendulum_swingup", "--speed", "2"], "--speed needs --realtime"),
+        (["compare", "pendulum_swingup", "--realtime", "--speed", "0"], "--speed must be > 0"),
+        (
+            ["compare", "pendulum_swingup", "--realtime", "--delay", "0.03", "--speed", "2"],
+            "--speed has no effect with --delay",
+        ),
+        (
+            ["compare", "pendulum_swingup", "--realtime", "--largest-push"],
+            "--largest-push searches in lock-step",
+        ),
         (["compare", "pendulum_swingup", "--noise", "x"], "--noise"),
         (["compare", "pendulum_swingup", "--controllers", "nope"], "nope"),
         (["compare", "no_such_task"], "no_such_task"),

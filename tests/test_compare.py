@@ -251,11 +251,14 @@ def test_cli_end_to_end(tmp_path, capsys):
 def test_task_script_entry_point(tmp_path, capsys):
     argv = ["--duration", "0.3", "--workers", "1", "--no-progress", "--no-plots"]
     argv += ["--controllers", "lqr,ilqr"]
-    argv += ["--out", str(tmp_path), "--balance-cost", "500"]
+    argv += ["--out", str(tmp_path), "--balance-cost", "500", "--push-time", "0.1"]
     assert run_task_script("humanoid_balance", argv, seeds=1, push=10.0) == 0
     stdout = capsys.readouterr().out
     assert "balance_cost=500.0" in stdout
-    assert "| noise x1 push 10N@2s | lqr | 1 | 100% |" in stdout
+    assert "| noise x1 push 10N@0.1s | lqr | 1 | 100% |" in stdout
+    # A push that would start after the 0.3 s run is refused, not reported as survived.
+    late = [a for a in argv if a not in ("--push-time", "0.1")]
+    assert run_task_script("humanoid_balance", late, seeds=1, push=10.0) == 2
     with pytest.raises(UnknownNameError, match="seeds"):
         run_task_script("humanoid_balance", [], seedz=1)
 

@@ -159,3 +159,17 @@ def test_a_start_past_a_joint_limit_with_the_other_jaw_in_the_way_still_gets_an_
         reached = reach_posture(model, start, frame="hand", position=target)
         assert reached.position_error < 1e-3 and reached.collisions == ()
         assert model.jnt_range[2, 0] <= reached.qpos[2] <= model.jnt_range[2, 1] + 1e-3
+
+
+def test_an_unnamed_tip_is_named_as_the_problem_rather_than_looked_up():
+    """The arm's tip found by the tree is a body without a name: the error says so (it
+    once invented 'body N' and then failed to find it, an error about a name no one wrote)."""
+    xml = """
+    <mujoco><worldbody><body name="upper"><joint name="shoulder" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.02"/>
+      <body pos="0 0 0.3"><joint name="elbow" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.02"/></body>
+    </body></worldbody>
+    <actuator><motor joint="shoulder"/><motor joint="elbow"/></actuator></mujoco>"""
+    with pytest.raises(InvalidArgumentError, match=r"tip is body 2, which has no name"):
+        end_effector(mujoco.MjModel.from_xml_string(xml))

@@ -108,3 +108,30 @@ def test_a_bad_dry_friction_choice_names_the_valid_ones():
 
     with pytest.raises(InvalidArgumentError, match=r"dry_friction.*drop.*keep"):
         Problem(WHEEL.format(friction=1.0), dry_friction="smooth")
+
+
+def test_a_planner_can_drop_dry_friction_from_its_own_copy_of_the_problem():
+    """``Problem.with_dry_friction`` changes the copy's derivatives only; ``ILQR(...,
+    dry_friction="drop")`` plans on such a copy (its LQR terminal value included) and leaves
+    the user's Problem, which the simulation steps, as it was."""
+    from mpcbox import ILQR, Problem
+    from mpcbox.errors import InvalidArgumentError
+
+    kept = Problem(WHEEL.format(friction=1.0), threads=1)
+    x, u = kept.reference_state(), np.zeros(1)
+    dropped = kept.with_dry_friction("drop")
+    assert dropped is not kept and dropped.dry_friction == "drop"
+    assert dropped.linearize(x, u).B[1, 0] == pytest.approx(kept.dt / INERTIA, rel=1e-6)
+    assert abs(kept.linearize(x, u).B[1, 0]) < 0.5 * kept.dt / INERTIA  # unchanged
+    assert kept.with_dry_friction("keep") is kept
+    with pytest.raises(InvalidArgumentError, match=r"dry_friction.*drop.*keep"):
+        kept.with_dry_friction("smooth")
+
+    for choice, exact in (("drop", True), ("keep", False), (None, False)):
+        ilqr = ILQR(kept, horizon=5, dry_friction=choice, terminal_value="lqr")
+        assert ilqr.problem.dry_friction == (choice or "keep")
+        b = ilqr.problem.linearize(x, u).B[1, 0]
+        assert (b == pytest.approx(kept.dt / INERTIA, rel=1e-6)) == exact
+    assert kept.dry_friction == "keep"
+    with pytest.raises(InvalidArgumentError, match=r"dry_friction.*keep.*drop"):
+        ILQR(kept, horizon=5, dry_friction="slip")

@@ -325,3 +325,27 @@ def test_lqr_refuses_a_non_finite_state_rather_than_returning_nan():
     bad[0] = np.nan
     with pytest.raises(mpcbox.DivergenceError, match="state"):
         lqr(bad, 0.0)
+
+
+@pytest.mark.parametrize(
+    ("script", "args", "named"),
+    [
+        ("grasp_hold", ["--trials", "0"], "--trials"),
+        ("grasp_hold", ["--seed", "-1"], "--seed"),
+        ("stack_cubes", ["--trials", "-3"], "--trials"),
+        ("stack_cubes", ["--first-seed", "-1"], "--first-seed"),
+        ("panda_reach", ["--offline-horizon", "nan"], "--offline-horizon"),
+        ("panda_reach", ["--duration", "-1"], "--duration"),
+    ],
+)
+def test_problem_scripts_name_a_bad_number_and_exit_2(problem_script, capsys, script, args, named):
+    """Checked before anything is built (these once raised NumPy's errors, or printed
+    "0/-3 stacked" and exited 0)."""
+    assert problem_script(script).main(args) == 2
+    assert f"error: {named}" in capsys.readouterr().err
+
+
+def test_compare_refuses_a_push_that_starts_after_the_run(tmp_path, capsys):
+    args = ["compare", "pendulum_swingup", "--push", "3", "--push-time", "2", "--duration", "1"]
+    assert cli_main([*args, "--out", str(tmp_path)]) == 2
+    assert "--push-time (2 s) must be before the end of the run" in capsys.readouterr().err

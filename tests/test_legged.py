@@ -368,8 +368,11 @@ def test_g1_ilqr_mpc_feedback_is_the_lqr_gain_despite_joint_friction(g1_two_feet
 
     problem = g1_two_feet
     assert np.all(problem.model.dof_frictionloss[6:] > 0)
-    lqr = mpcbox.LQR(problem)
     ilqr = mpcbox.make_controller("ilqr", problem)
+    # The G1's preset differences the model without the friction (stop 49): the gain is
+    # the LQR gain of the copy it plans on.
+    assert ilqr.problem.dry_friction == "drop" and problem.dry_friction == "keep"
+    lqr = mpcbox.LQR(problem.with_dry_friction("drop"))
     x0 = problem.reference_state()
     x0[7:36] += 0.01 * np.random.default_rng(0).standard_normal(29)
     ilqr(x0, 0.0)
@@ -430,13 +433,16 @@ def test_balance_suite_pushes_the_root_with_a_fraction_of_the_weight(quad) -> No
         quad, duration=3.0, weight_fraction=0.3, max_force_weights=5, scan_step=25.0
     )
     assert scanned.push_tests[0].scan_step == 25.0
-    given = balance_suite(quad, duration=1.0, weight_fraction=0.3, max_force_weights=5, force=42)
+    given = balance_suite(quad, duration=2.0, weight_fraction=0.3, max_force_weights=5, force=42)
     assert (
         given.force == 42.0
         and not balance_suite(
-            quad, duration=1.0, weight_fraction=0.3, max_force_weights=5, largest_push=False
+            quad, duration=2.0, weight_fraction=0.3, max_force_weights=5, largest_push=False
         ).push_tests
     )
+    # A push that would start at the end of the run never acts: refused, not "survived".
+    with pytest.raises(InvalidArgumentError, match=r"duration \(1 s\) must be longer"):
+        balance_suite(quad, duration=1.0, weight_fraction=0.3, max_force_weights=5)
 
 
 def test_balance_suite_needs_a_root_body_and_names_bad_options(quad) -> None:
@@ -448,7 +454,7 @@ def test_balance_suite_needs_a_root_body_and_names_bad_options(quad) -> None:
     with pytest.raises(InvalidArgumentError, match="duration"):
         balance_suite(quad, duration=0.0, weight_fraction=0.3, max_force_weights=5)
     with pytest.raises(InvalidArgumentError, match="scan_step"):
-        balance_suite(quad, duration=1.0, weight_fraction=0.3, max_force_weights=5, scan_step=-1)
+        balance_suite(quad, duration=2.0, weight_fraction=0.3, max_force_weights=5, scan_step=-1)
 
 
 def test_model_source_prefixes_bare_menagerie_names_only() -> None:
@@ -458,6 +464,16 @@ def test_model_source_prefixes_bare_menagerie_names_only() -> None:
     assert model_source("menagerie:unitree_go2") == "menagerie:unitree_go2"
     assert model_source("robots/g1.xml") == "robots/g1.xml"
     assert model_source("scene.xml") == "scene.xml"
+    assert model_source("SCENE.XML") == "SCENE.XML"
+
+
+def test_model_source_reads_an_existing_file_as_a_path(tmp_path, monkeypatch) -> None:
+    from mpcbox.core.menagerie import model_source
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "robot.mjcf").write_text("<mujoco/>")
+    assert model_source("robot.mjcf") == "robot.mjcf"  # a file, whatever its extension
+    assert model_source("robot") == "menagerie:robot"
 
 
 def test_the_cost_is_stationary_at_the_equilibrium_unless_asked_otherwise() -> None:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import mpcbox
-from mpcbox.errors import InvalidArgumentError, InvalidTypeError
+from mpcbox.errors import InvalidArgumentError, InvalidTypeError, PeriodWarning
 from mpcbox.sim.lookahead import Lookahead, check_lookahead
 from mpcbox.sim.planner_thread import PlannerThread
 from mpcbox.sim.realtime import simulate_realtime
@@ -105,7 +105,9 @@ def test_the_world_keeps_the_previous_plan_until_the_new_one_starts(problem):
 
 def test_prediction_steps_the_task_model_under_the_given_control(problem):
     look = Lookahead(problem, 0.05, period=0.02, speed=1.0)
-    assert look.steps(0.05) == 5 and look.steps(0.004) == 0 and look.steps(0.016) == 2
+    # Rounded up: a plan takes effect at the first world step at or after its start.
+    assert look.steps(0.05) == 5 and look.steps(0.0) == 0
+    assert look.steps(0.004) == 1 and look.steps(0.016) == 2 and look.steps(0.011) == 2
     state = problem.initial_state()
     state[problem.nq] = 0.3
     pred, t = look.predict(state, 1.0, 5, lambda _t, _x: np.array([0.4]))
@@ -200,14 +202,19 @@ def test_a_fault_of_the_planner_loop_ends_the_run_as_a_controller_error(problem,
     assert "publication broke" in res.failure
 
 
-@pytest.mark.parametrize("delay", [0.03, 0.05, 0.015])
-def test_a_simulated_delay_applies_each_plan_exactly_delay_later(problem, delay):
+@pytest.mark.parametrize(("asked", "delay"), [(0.03, 0.03), (0.05, 0.05), (0.015, 0.02)])
+def test_a_simulated_delay_applies_each_plan_exactly_delay_later(problem, asked, delay):
     """Without the wall clock: tick i plans from the state at t_i and its plan reaches the
-    world at t_i + delay; one planner, so ticks start max(period, delay) apart."""
+    world at t_i + delay; one planner, so ticks start max(period, delay) apart. A delay
+    between two world steps (0.01 s here) acts as the next step, and the run says so."""
     ctrl = Recorder(problem, 0.0, 0.02)
-    res = simulate_realtime(problem, ctrl, 0.5, delay=delay, stop_on_failure=False)
+    if asked == delay:
+        res = simulate_realtime(problem, ctrl, 0.5, delay=asked, stop_on_failure=False)
+    else:
+        with pytest.warns(PeriodWarning, match=r"delay=0.015 s .* latency is 0.02 s"):
+            res = simulate_realtime(problem, ctrl, 0.5, delay=asked, stop_on_failure=False)
     rt = res.realtime
-    assert rt.delay_s == delay and rt.ticks == len(ctrl.seen) - 1
+    assert rt.delay_s == pytest.approx(delay) and rt.ticks == len(ctrl.seen) - 1
     np.testing.assert_allclose(rt.state_age_s, delay)
     over = delay > 0.02  # the state age against the 0.02 s period
     assert rt.kept_up is not over and rt.over_period == (rt.ticks if over else 0)
@@ -216,6 +223,8 @@ def test_a_simulated_delay_applies_each_plan_exactly_delay_later(problem, delay)
     # next a period later, then one every max(period, delay).
     gaps = max(0.02, delay) * np.arange(len(starts) - 1)
     np.testing.assert_allclose(starts, np.concatenate([[0.0], 0.02 + gaps]), atol=1e-9)
+    # No tick whose plan would take effect only at the run's end (never applied).
+    assert np.all(starts[1:] + delay < res.time[-1] - 1e-9)
     values = [np.array([0.8 * np.sin(1.3 * (i + 1))]) for i in range(len(starts))]
     for k, t in enumerate(res.time[:-1]):
         arrived = [i for i, s in enumerate(starts) if i == 0 or s + delay <= t + 1e-9]
@@ -264,3 +273,82 @@ def test_plans_start_at_least_a_period_apart_when_the_lookahead_shrinks(problem)
     starts = np.array([t for _, t in ctrl.seen])
     assert len(starts) > 12
     assert np.all(np.diff(starts) >= 0.02 - 1e-9)
+
+
+class Spy:
+    """Records the (state, time) a controller is asked to plan from; everything else (its
+    ``policy``, ``period``, ``reset``) is the controller's."""
+
+    def __init__(self, inner):
+        self.inner = inner
+        self.seen: list[tuple[np.ndarray, float]] = []
+
+    def __call__(self, state, time_):
+        self.seen.append((state.copy(), float(time_)))
+        return self.inner(state, time_)
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)
+
+
+@pytest.mark.parametrize(
+    ("steps", "lookahead", "delay"), [(3, 0.05, 0.02), (4, 0.1, 0.03), (3, 0.07, 0.05)]
+)
+def test_a_feedback_law_held_within_knots_is_predicted_as_the_world_runs_it(
+    problem, steps, lookahead, delay
+):
+    """iLQR-MPC with knots of several steps holds each knot's control, which its law
+    computes at the knot's first step. The prediction evaluates the plans' laws over several
+    knots; it must use copies of its own, starting from the world's law as the world holds
+    it at the observed time (mid-knot too), or the world holds a control computed at a
+    predicted state (the prediction one computed at the world's). Without disturbances every
+    plan then starts from the world's state at its start. The cart-pole starts off upright,
+    where the laws' controls stay within their bounds (clipped controls would hide it)."""
+    ilqr = mpcbox.ILQR(problem, horizon=12, control_steps=steps, replan_period=0.02)
+    spy = Spy(ilqr)
+    start = problem.reference_state()
+    start[1] += 0.15
+    start[3] += 0.3
+    res = simulate_realtime(
+        problem,
+        spy,
+        0.6,
+        delay=delay,
+        lookahead=lookahead,
+        initial_state=start,
+        stop_on_failure=False,
+    )
+    assert np.abs(res.ctrls).max() < 1.0  # within the cart's force bound
+    checked = 0
+    for state, t in spy.seen[1:]:
+        k = int(np.argmin(np.abs(res.time - t)))
+        if abs(res.time[k] - t) < 1e-9:
+            np.testing.assert_allclose(state, res.states[k], atol=1e-9)
+            checked += 1
+    assert checked >= 10
+
+
+def test_a_lookahead_longer_than_the_run_is_refused_and_auto_is_capped(problem):
+    with pytest.raises(InvalidArgumentError, match=r"lookahead must be at most .*0.3 s"):
+        simulate_realtime(problem, Recorder(problem, 0.0, 0.05), 0.3, lookahead=1e9)
+    look = Lookahead(problem, "auto", period=0.02, speed=1.0, limit=0.3)
+    assert look.seconds([]) == pytest.approx(0.02)
+    assert look.seconds([50.0, 60.0]) == pytest.approx(0.3)  # a slow tick, capped
+
+
+def test_speed_has_no_meaning_with_a_simulated_delay(problem):
+    with pytest.raises(InvalidArgumentError, match=r"speed=2 has no effect with delay"):
+        simulate_realtime(problem, Recorder(problem, 0.0, 0.05), 0.1, delay=0.02, speed=2.0)
+    with pytest.raises(InvalidArgumentError, match="speed has no effect with delay"):
+        mpcbox.Scenario(realtime=True, delay=0.02, speed=2.0)
+    with pytest.raises(InvalidArgumentError, match="speed needs realtime"):
+        mpcbox.Scenario(speed=2.0)
+
+
+def test_scenario_keeps_plain_floats_that_hash_and_print_alike():
+    one = mpcbox.Scenario(realtime=True, delay=np.array(0.03), lookahead=-0.0)
+    two = mpcbox.Scenario(realtime=True, delay=0.03, lookahead=0.0)
+    assert one == two and hash(one) == hash(two)
+    assert type(one.delay) is float and "lookahead 0 s" in one.label and "-0" not in one.label
+    sped = mpcbox.Scenario(realtime=True, speed=np.float32(2.0))
+    assert type(sped.speed) is float and hash(sped) == hash(mpcbox.Scenario(realtime=True, speed=2))

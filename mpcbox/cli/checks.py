@@ -48,6 +48,11 @@ def check_arguments(args: argparse.Namespace) -> None:
     _finite("--push", args.push, low=0.0, strict=False)
     _finite("--push-time", args.push_time, low=0.0, strict=False)
     _finite("--push-duration", args.push_duration, low=0.0)
+    if args.push and args.push_time >= args.duration:
+        raise InvalidArgumentError(
+            f"--push-time ({args.push_time:g} s) must be before the end of the run "
+            f"(--duration {args.duration:g} s): the push would never be applied"
+        )
     _finite("--mass-scale", args.mass_scale, low=0.0)
     _finite("--friction-scale", args.friction_scale, low=0.0)
     _finite("--push-tolerance", args.push_tolerance, low=MIN_PUSH_TOLERANCE, strict=False)
@@ -63,6 +68,20 @@ def check_arguments(args: argparse.Namespace) -> None:
         if not args.realtime:
             raise InvalidArgumentError("--delay needs --realtime")
         _finite("--delay", delay, low=0.0, strict=False)
+    speed = getattr(args, "speed", 1.0)
+    _finite("--speed", speed, low=0.0)
+    if speed != 1.0 and not getattr(args, "realtime", False):
+        raise InvalidArgumentError("--speed needs --realtime (a lock-step run has no clock)")
+    if speed != 1.0 and delay is not None:
+        raise InvalidArgumentError(
+            "--speed has no effect with --delay (the world waits for each tick): leave it at 1"
+        )
+    if getattr(args, "largest_push", False) and getattr(args, "realtime", False):
+        raise InvalidArgumentError(
+            "--largest-push searches in lock-step (the world waits for the controller), so "
+            "it cannot be combined with --realtime: run it without --realtime, or give a "
+            "fixed --push in real time"
+        )
     for part in str(args.noise).split(","):
         if not part.strip():
             continue

@@ -66,7 +66,9 @@ def balance_suite(
             bisection alone.
 
     Raises:
-        InvalidArgumentError: If ``problem`` has no root body or an option is out of range.
+        InvalidArgumentError: If ``problem`` has no root body, an option is out of range,
+            or the push would start at or after the end of the run (``start >=
+            duration``): its scenario would read as a push survived.
     """
     root = getattr(problem, "root", None)
     root_id = getattr(problem, "root_id", None)
@@ -76,6 +78,11 @@ def balance_suite(
             f"tasks have); got a {type(problem).__name__}"
         )
     duration = positive("duration", duration)
+    if non_negative("start", start) >= duration:
+        raise InvalidArgumentError(
+            f"duration ({duration:g} s) must be longer than the push's start ({start:g} s): "
+            "a push that never acts would read as survived"
+        )
     weight = float(problem.model.body_subtreemass[root_id]) * 9.81
     force = non_negative("force", force) or round(
         positive("weight_fraction", weight_fraction) * weight

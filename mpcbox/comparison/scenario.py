@@ -89,8 +89,14 @@ class Scenario:
     def __post_init__(self) -> None:
         string("name", self.name)
         boolean("realtime", self.realtime)
-        positive("speed", self.speed)
-        object.__setattr__(self, "lookahead", check_lookahead(self.lookahead))
+        # Plain floats (-0.0 as 0.0), so that scenarios hash and print alike.
+        object.__setattr__(self, "speed", positive("speed", self.speed) + 0.0)
+        if self.speed != 1.0 and not self.realtime:
+            raise InvalidArgumentError("speed needs realtime=True (a lock-step run has no clock)")
+        lookahead = check_lookahead(self.lookahead)
+        if lookahead is not None and lookahead != "auto":
+            lookahead = float(lookahead) + 0.0
+        object.__setattr__(self, "lookahead", lookahead)
         if self.lookahead is not None and not self.realtime:
             raise InvalidArgumentError(
                 "lookahead needs realtime=True (a lock-step run has no latency to compensate)"
@@ -98,7 +104,12 @@ class Scenario:
         if self.delay is not None:
             if not self.realtime:
                 raise InvalidArgumentError("delay needs realtime=True")
-            non_negative("delay", self.delay)
+            object.__setattr__(self, "delay", float(non_negative("delay", self.delay)) + 0.0)
+            if self.speed != 1.0:
+                raise InvalidArgumentError(
+                    "speed has no effect with delay (the world waits for each tick): "
+                    "leave it at 1.0"
+                )
         positive("duration", self.duration)
         _check_noise_scale(self.noise_scale)
         if isinstance(self.pushes, (str, bytes)) or not isinstance(self.pushes, Sequence):

@@ -93,7 +93,13 @@ def end_effector(model: mujoco.MjModel) -> str:
             f"frame: the model has several arm tips {candidates}; name the end effector "
             "with frame=..."
         )
-    return _body_name(model, _tip(model, tips[0]))
+    tip = _tip(model, tips[0])
+    if not model.body(tip).name:
+        raise InvalidArgumentError(
+            f"frame: the arm's tip is body {tip}, which has no name; name it in the MJCF (or "
+            "add a site there) and pass frame=..."
+        )
+    return _body_name(model, tip)
 
 
 __all__ = ["ATTACHMENT_SITE", "end_effector"]

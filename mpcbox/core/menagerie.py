@@ -31,9 +31,15 @@ PREFIX = "menagerie:"
 
 def model_source(model: str) -> str:
     """A command-line model argument as a model source: a bare Menagerie name
-    (``"unitree_g1"``) becomes ``"menagerie:unitree_g1"``; an MJCF path (containing ``/`` or
-    ending in ``.xml``) or an already prefixed name stays as given."""
-    if model.startswith(PREFIX) or "/" in model or model.endswith(".xml"):
+    (``"unitree_g1"``) becomes ``"menagerie:unitree_g1"``; an MJCF path (an existing file,
+    or a name containing ``/`` or ending in ``.xml`` in any case) or an already prefixed
+    name stays as given."""
+    if (
+        model.startswith(PREFIX)
+        or "/" in model
+        or model.lower().endswith(".xml")
+        or Path(model).is_file()
+    ):
         return model
     return PREFIX + model
 

@@ -102,11 +102,9 @@ class Problem(ProblemCosts):
             from, or ``"keep"`` them (:mod:`~mpcbox.core.parent_contacts`; both warn; the
             pairs excluded are in ``excluded_contacts``).
         dry_friction: ``"keep"`` (default) differentiates the joints' and tendons' dry
-            friction (``frictionloss``), which at rest sticks and hides the controls' effect
-            (on Menagerie's G1 and Go2 ``B`` is ten times smaller with it); ``"drop"``
-            linearizes a copy without it (``mjDSBL_FRICTIONLOSS``), the derivative of a
-            joint that slips: :class:`~mpcbox.tasks.reach.ArmReach` drops it, the standing
-            tasks keep it (dropped, Talos fell). Simulation and rollouts keep it either way.
+            friction, which at rest sticks (``B`` ten times smaller on the G1); ``"drop"``
+            a copy without it, as a joint that slips (``ArmReach`` drops it; the standing
+            tasks keep it: dropped, Talos fell). Simulation and rollouts keep it.
         threads: Threads for batched linearization (default: all cores).
         name: Label used in tables.
 
@@ -434,13 +432,8 @@ class Problem(ProblemCosts):
         )
 
     def with_planning_timestep(self, timestep: float) -> Problem:
-        """A shallow copy whose planning model takes steps of ``timestep`` seconds.
-
-        The copy shares the simulation model, the cost and the references; the planning model
-        (``opt.timestep`` changed, same sensors) and the scratch data are its own.
-
-        Args:
-            timestep: Planning timestep (s).
+        """A shallow copy whose planning model (its own, same sensors) takes steps of
+        ``timestep`` seconds; it shares the simulation model, the cost and the references.
 
         Raises:
             PlanningDivergenceError: If the model diverges at ``timestep``
@@ -451,6 +444,18 @@ class Problem(ProblemCosts):
         clone.planning_model.opt.timestep = positive("timestep", timestep)
         clone.dynamics = clone.make_dynamics(clone.planning_model)
         check_planning_step(clone)
+        return clone
+
+    def with_dry_friction(self, dry_friction: str) -> Problem:
+        """A shallow copy whose linearizations keep (``"keep"``) or leave out (``"drop"``)
+        dry friction, sharing everything else (e.g. ``ILQRConfig(dry_friction="drop")``);
+        ``self`` when that is its choice already. Raises InvalidArgumentError otherwise."""
+        choice = one_of("dry_friction", dry_friction, DRY_FRICTION)
+        if choice == self.dry_friction:
+            return self
+        clone = copy.copy(self)
+        clone.dry_friction = choice
+        clone.dynamics = clone.make_dynamics(clone.planning_model)
         return clone
 
     def with_cost(self, cost: Cost) -> Problem:

@@ -21,11 +21,13 @@ pushes, contact changes within :math:`L`) is what remains.
 
 ``lookahead="auto"`` takes :math:`L` as ``speed`` times the median wall time of the last
 :data:`AUTO_WINDOW` ticks (the controller's ``period`` before the first tick was timed), so
-a plan starts about when it is published.
+a plan starts about when it is published. A plan takes effect at the first world step at or
+after its start, so :math:`L` is rounded up to whole model steps.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
 import mujoco
@@ -75,15 +77,24 @@ class Lookahead:
         lookahead: ``"auto"`` or seconds ``>= 0`` of simulated time.
         period: The controller's period (s): the ``"auto"`` guess before any tick was timed.
         speed: Simulated seconds per wall-clock second of the run.
+        limit: The longest lookahead (s; the run's duration): ``"auto"``'s estimate is
+            capped there, so a slow tick cannot ask for an endless prediction.
     """
 
     def __init__(
-        self, problem: Problem, lookahead: float | str, *, period: float, speed: float
+        self,
+        problem: Problem,
+        lookahead: float | str,
+        *,
+        period: float,
+        speed: float,
+        limit: float = np.inf,
     ) -> None:
         self.problem = problem
         self.lookahead = check_lookahead(lookahead)
         self.period = float(period)
         self.speed = float(speed)
+        self.limit = float(limit)
         self.model = problem.model
         self.data = mujoco.MjData(self.model)
         self.dt = float(self.model.opt.timestep)
@@ -92,14 +103,16 @@ class Lookahead:
         """The lookahead of the next tick (s of simulated time), given the wall times (s)
         of the ticks so far."""
         if self.lookahead != "auto":
-            return float(self.lookahead)  # type: ignore[arg-type]
+            return min(float(self.lookahead), self.limit)  # type: ignore[arg-type]
         if not latencies:
-            return self.period
-        return self.speed * float(np.median(latencies[-AUTO_WINDOW:]))
+            return min(self.period, self.limit)
+        return min(self.speed * float(np.median(latencies[-AUTO_WINDOW:])), self.limit)
 
     def steps(self, seconds: float) -> int:
-        """Model steps of a lookahead of ``seconds``: ``round(seconds / dt)``."""
-        return max(0, round(seconds / self.dt))
+        """Model steps of a lookahead of ``seconds``, rounded up (a plan takes effect at the
+        first step at or after its start): ``ceil(seconds / dt)``, to within 1e-6 of a
+        step."""
+        return max(0, math.ceil(seconds / self.dt - 1e-6))
 
     def predict(
         self,

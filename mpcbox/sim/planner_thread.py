@@ -9,6 +9,7 @@ publishes an immutable plan.
 
 from __future__ import annotations
 
+import copy
 import threading
 import time as _time
 from typing import Any, NamedTuple
@@ -65,6 +66,8 @@ class PlannerThread:
             ``period`` after it started, whichever is later, as one planner thread whose
             ticks take ``delay / speed`` wall seconds would (``lookahead="auto"`` then
             predicts ``delay`` ahead).
+        end: The run's last simulated time (s): ``"auto"`` lookaheads are capped at it, and
+            with ``delay`` no tick starts whose plan would take effect only at or after it.
 
     Attributes:
         latencies: Wall time of each tick published in the run, the prediction included (s).
@@ -85,18 +88,20 @@ class PlannerThread:
         lookahead: float | str | None = None,
         speed: float = 1.0,
         delay: float | None = None,
+        end: float = np.inf,
     ) -> None:
         self.problem = problem
         self.controller = controller
         self.period = float(period)
         self.max_ticks = int(max_ticks)
         self.delay = None if delay is None else float(delay)
+        self.end = float(end)
         if lookahead == "auto" and self.delay is not None:
             lookahead = self.delay
         self.lookahead = (
             None
             if lookahead is None
-            else Lookahead(problem, lookahead, period=self.period, speed=speed)
+            else Lookahead(problem, lookahead, period=self.period, speed=speed, limit=end)
         )
         self.latencies: list[float] = []
         self.lookaheads: list[float] = []
@@ -105,7 +110,9 @@ class PlannerThread:
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._new_state = threading.Event()
-        self._state: tuple[np.ndarray, float, Plan] | None = None
+        # The latest observed state, its time, the plan in force then and (with a lookahead)
+        # a snapshot of that plan's feedback law as the world holds it at that time.
+        self._state: tuple[np.ndarray, float, Plan, Any] | None = None
         # Published plans, oldest first: one without a lookahead or delay; with them, also
         # those not yet in force (planned from a predicted state, or not yet visible) and
         # the one in force before them.
@@ -122,12 +129,21 @@ class PlannerThread:
         when it publishes a new one in between)."""
         with self._lock:
             plan = self._select(float(time))
-            self._state = (state.copy(), float(time), plan)
+            # A law may hold its control within a knot: the prediction continues from the
+            # world's copy as it is now, not from one that the world goes on calling.
+            law = None
+            if self.lookahead is not None and plan.policy is not None:
+                law = copy.copy(plan.policy)
+            self._state = (state.copy(), float(time), plan, law)
         self._new_state.set()
         return plan
 
     def control(
-        self, time: float, state: np.ndarray | None = None, plan: Plan | None = None
+        self,
+        time: float,
+        state: np.ndarray | None = None,
+        plan: Plan | None = None,
+        own: dict[int, Any] | None = None,
     ) -> np.ndarray:
         """The control at simulated ``time`` ``(nu,)`` of ``plan`` (default: the plan in
         force at ``time``: the latest, or the one before it while the latest, planned from a
@@ -136,6 +152,9 @@ class PlannerThread:
         For a controller with a catch (a sampling controller's ``catch``, see
         :mod:`mpcbox.controllers.sampling.catch`) and the world's ``state`` ``(nstate,)``,
         the catch's feedback wherever it engages, as in the controller's own calls.
+        ``own`` holds a caller's own copies of the plans' feedback laws, by plan (the
+        prediction's: a law may hold its control within a knot, so the world's copy must
+        not be evaluated at predicted states).
         """
         catch = getattr(self.controller, "catch", None)
         if catch is not None and state is not None:
@@ -146,7 +165,12 @@ class PlannerThread:
             with self._lock:
                 plan = self._select(float(time))
         if plan.policy is not None and state is not None:
-            return self.problem.clip_ctrl(plan.policy(state, float(time)))
+            policy = plan.policy
+            if own is not None:
+                if id(plan) not in own:
+                    own[id(plan)] = copy.copy(policy)
+                policy = own[id(plan)]
+            return self.problem.clip_ctrl(policy(state, float(time)))
         if plan.knots is None or plan.spline is None:
             return plan.ctrl
         offset = float(time) - plan.time
@@ -194,17 +218,19 @@ class PlannerThread:
         """With a simulated ``delay``: run a tick now if one is due at the latest observed
         time (the world waits for it), its plan visible ``delay`` later. A fault is recorded
         in :attr:`error`."""
-        state, time, seen = self._state  # type: ignore[misc]
+        state, time, seen, law = self._state  # type: ignore[misc]
         if self.error is not None or time < self._next_time - 1e-12:
             return
         if len(self.latencies) >= self.max_ticks:
             return
+        delay = float(self.delay or 0.0)
+        if time + delay >= self.end - 1e-9:
+            return  # its plan would take effect at the run's end or later: never applied
         # One planner, as in the threaded loop: the next tick starts when this one is done
         # or a period after it started, whichever is later.
-        delay = float(self.delay or 0.0)
         self._next_time = time + max(self.period, delay)
         try:
-            self._tick(state, time, seen, visible=time + delay)
+            self._tick(state, time, seen, law, visible=time + delay)
         except Exception as exc:  # recorded; the world ends the run
             self.error = _error_text(exc)
 
@@ -227,7 +253,7 @@ class PlannerThread:
             while not self._stop.is_set() and self.error is None:
                 self._new_state.clear()
                 with self._lock:
-                    state, time, seen = self._state  # type: ignore[misc]
+                    state, time, seen, law = self._state  # type: ignore[misc]
                 if time >= self._next_time - 1e-12:
                     break
                 self._new_state.wait(0.05)
@@ -235,19 +261,21 @@ class PlannerThread:
                 return
             self._next_time = time + self.period
             try:
-                self._tick(state, time, seen)
+                self._tick(state, time, seen, law)
             except Exception as exc:  # recorded; the world ends the run
                 self.error = _error_text(exc)
             if self.error is not None:
                 return
 
-    def _tick(self, state: np.ndarray, time: float, seen: Plan, visible: float = -np.inf) -> None:
+    def _tick(
+        self, state: np.ndarray, time: float, seen: Plan, law: Any, visible: float = -np.inf
+    ) -> None:
         """One tick from ``state`` observed at ``time``: predict (with a lookahead), plan,
         publish; records its wall time. An invalid control is recorded in :attr:`error`."""
         start = _time.perf_counter()
         ahead = 0.0
         if self.lookahead is not None:
-            state, predicted = self._predict(state, time, seen)
+            state, predicted = self._predict(state, time, seen, law)
             ahead, time = predicted - time, predicted
         out = self.controller(state, time)
         seconds = _time.perf_counter() - start
@@ -256,7 +284,9 @@ class PlannerThread:
             self.lookaheads.append(ahead)
             self.kinds.append(str(getattr(self.controller, "last_call", "solve")))
 
-    def _predict(self, state: np.ndarray, time: float, seen: Plan) -> tuple[np.ndarray, float]:
+    def _predict(
+        self, state: np.ndarray, time: float, seen: Plan, law: Any = None
+    ) -> tuple[np.ndarray, float]:
         """The state and time the next plan starts from (:attr:`lookahead`'s prediction
         under the controls the world applies meanwhile: ``seen``, the plan in force when
         ``state`` was observed, at ``time``, then the plans in force). Open-loop plans
@@ -288,8 +318,12 @@ class PlannerThread:
                     ctrls[i:j] = plan.spline.evaluate(plan.knots, times[i:j] - plan.time)
             return self.lookahead.predict_open_loop(state, time, self.problem.clip_ctrl(ctrls))
 
+        # The prediction's own copies of the laws (a law may hold its control within a
+        # knot): of ``seen``'s as the world held it at ``time``, and of later plans'.
+        own: dict[int, Any] = {} if law is None else {id(seen): law}
+
         def control(t: float, x: np.ndarray) -> np.ndarray:
-            return self.control(t, x, seen if t == time else None)
+            return self.control(t, x, seen if t == time else None, own)
 
         return self.lookahead.predict(state, time, steps, control)
 
@@ -313,6 +347,8 @@ class PlannerThread:
             knots = np.array(knots, copy=True)
         policy = getattr(self.controller, "policy", None)
         policy = policy() if callable(policy) else None
+        if policy is not None:  # the world's own copy (the controller keeps calling its own)
+            policy = copy.copy(policy)
         plan = Plan(time, ctrl.copy(), knots, spline, policy, visible)
         self._last_start = time
         with self._lock:

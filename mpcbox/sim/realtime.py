@@ -51,6 +51,7 @@ import gc
 import math
 import sys
 import time as _time
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -61,6 +62,7 @@ import numpy as np
 
 from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
+from mpcbox.errors import InvalidArgumentError, PeriodWarning
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.divergence import DivergenceMonitor
 from mpcbox.sim.lookahead import check_lookahead
@@ -134,6 +136,24 @@ class RealtimeResult(SimulationResult):
 
 
 @checked_keywords
+def whole_steps_delay(delay: float, dt: float) -> float:
+    """The latency a simulated ``delay`` (s) has on a world stepping ``dt`` (s): a plan
+    takes effect at the first step at or after it is ready, so ``delay`` rounded up to whole
+    steps (to within 1e-6 of a step); a :class:`~mpcbox.errors.PeriodWarning` says so when
+    that changes it."""
+    steps = max(0, math.ceil(delay / dt - 1e-6))
+    whole = steps * dt
+    if abs(whole - delay) > 1e-6 * dt:
+        warnings.warn(
+            f"delay={delay:g} s is not a whole number of simulation steps ({dt:g} s): a "
+            f"plan takes effect at a step, so the run's latency is {whole:g} s",
+            PeriodWarning,
+            stacklevel=3,
+        )
+        return whole
+    return float(delay)
+
+
 def simulate_realtime(
     problem: Problem,
     controller: Controller,
@@ -178,8 +198,9 @@ def simulate_realtime(
             the world thread draws (a frame's rendering time is world time, seen as
             ``world_lag_s`` when it falls behind), reading the planner's latest traces.
         lookahead: Latency compensation (:mod:`mpcbox.sim.lookahead`): ``None`` (default)
-            plans from the observed state; seconds ``>= 0`` or ``"auto"`` (the recent
-            median tick time) plan from the state predicted that far ahead.
+            plans from the observed state; seconds (``>= 0``, at most ``duration``) or
+            ``"auto"`` (the recent median tick time, capped at ``duration``) plan from the
+            state predicted that far ahead, rounded up to whole simulation steps.
         delay: A simulated latency (s, ``>= 0``) instead of the wall clock: the world waits
             for each tick as in :func:`~mpcbox.sim.simulation.simulate`, every tick takes
             ``delay`` simulated seconds (its plan takes effect then; the previous plan runs
@@ -187,8 +208,11 @@ def simulate_realtime(
             started, whichever is later: the wall-clock loop with every tick taking
             ``delay / speed`` seconds, but deterministic and independent of the machine,
             so latency can be studied and compensated (``lookahead="auto"`` predicts
-            ``delay`` ahead) reproducibly. ``speed`` then has no effect, and the state age
-            of every tick is ``delay``.
+            ``delay`` ahead) reproducibly. ``speed`` then has no effect (it must stay 1),
+            and the state age of every tick is ``delay``, rounded up to whole simulation
+            steps (a plan takes effect at a step; a :class:`~mpcbox.errors.PeriodWarning`
+            says when that changes it). No tick starts whose plan would take effect only at
+            the run's end.
 
     Returns:
         A :class:`RealtimeResult`; ``metrics.kept_up`` repeats ``realtime.kept_up``.
@@ -198,6 +222,11 @@ def simulate_realtime(
     lookahead = check_lookahead(lookahead)
     if delay is not None:
         delay = non_negative("delay", delay)
+        if speed != 1.0:
+            raise InvalidArgumentError(
+                f"speed={speed:g} has no effect with delay (the world waits for each tick): "
+                "leave speed at 1.0"
+            )
     view = as_viewer(viewer)
     run = start_run(
         problem,
@@ -215,6 +244,13 @@ def simulate_realtime(
     pushes, push_ids, measures, noise_seq = run.pushes, run.push_ids, run.measures, run.noise
     duration, degraded_limit = run.duration, run.degraded_limit
     stop_on_failure, fallbacks0 = run.stop_on_failure, run.fallbacks0
+    if isinstance(lookahead, float) and lookahead > duration:
+        raise InvalidArgumentError(
+            f"lookahead must be at most the run's duration ({duration:g} s), got {lookahead:g} "
+            "s: no plan would take effect"
+        )
+    if delay is not None:
+        delay = whole_steps_delay(delay, dt)
     period = getattr(controller, "period", None)
     if period is None and callable(getattr(controller, "policy", None)):
         period = getattr(controller, "replan_period", None)  # the world runs the feedback
@@ -236,6 +272,7 @@ def simulate_realtime(
         lookahead=lookahead,
         speed=speed,
         delay=delay,
+        end=float(data.time) + steps * dt,
     )
     if view is not None:
         view.start(problem, controller, model, data)

@@ -31,6 +31,7 @@ LineSearch = Literal["backtracking", "parallel"]
 TerminalValue = Literal["lqr"]
 DynamicsLinearization = Literal["trajectory", "reference"]
 CostHessian = Literal["trajectory", "reference"]
+DryFriction = Literal["keep", "drop"]
 #: Valid values of :attr:`ILQRConfig.line_search`.
 LINE_SEARCHES: tuple[str, ...] = ("backtracking", "parallel")
 #: Valid values of :attr:`ILQRConfig.terminal_value` besides ``None``.
@@ -39,6 +40,8 @@ TERMINAL_VALUES: tuple[str, ...] = ("lqr",)
 LINEARIZATIONS: tuple[str, ...] = ("trajectory", "reference")
 #: Valid values of :attr:`ILQRConfig.cost_hessian`.
 COST_HESSIANS: tuple[str, ...] = ("trajectory", "reference")
+#: Valid values of :attr:`ILQRConfig.dry_friction` besides ``None``.
+DRY_FRICTIONS: tuple[str, ...] = ("keep", "drop")
 
 
 @checked_options
@@ -179,6 +182,15 @@ class ILQRConfig:
             products at every knot where no control is clamped. The solver keeps them
             whenever the dynamics are linearized at the reference and the Hessians repeat,
             whichever this option is.
+        dry_friction: Differentiate the joints' dry friction (``"keep"``) or a copy of the
+            model without it (``"drop"``, the derivative of a joint that slips:
+            :meth:`~mpcbox.Problem.with_dry_friction`) in the dynamics Jacobians and the
+            ``terminal_value``; ``None``: the Problem's choice. The rollouts keep the
+            friction either way. At rest a stuck joint hides the controls' effect (``B`` ten
+            times smaller on the G1); :class:`~mpcbox.tasks.legged.biped.BipedStand` drops
+            it for the Menagerie G1's iLQR-MPC, whose feet then recover from rocking onto
+            their heels after a hop (not for every robot: PAL's Talos falls with it;
+            :data:`~mpcbox.tasks.legged.biped.MENAGERIE_BIPED_ILQR`).
 
     Raises:
         InvalidArgumentError: Naming the field, if a value is out of range.
@@ -216,6 +228,7 @@ class ILQRConfig:
     terminal_value: TerminalValue | None = None
     linearization: DynamicsLinearization = "trajectory"
     cost_hessian: CostHessian = "trajectory"
+    dry_friction: DryFriction | None = None
 
     def __post_init__(self) -> None:
         def put(name: str, value: object) -> None:
@@ -269,6 +282,8 @@ class ILQRConfig:
             one_of("terminal_value", self.terminal_value, TERMINAL_VALUES)
         one_of("linearization", self.linearization, LINEARIZATIONS)
         one_of("cost_hessian", self.cost_hessian, COST_HESSIANS)
+        if self.dry_friction is not None:
+            one_of("dry_friction", self.dry_friction, DRY_FRICTIONS)
         for name in ("ctrl_low", "ctrl_high", "ctrls_init"):  # shapes: by the controller
             value = getattr(self, name)
             if value is not None:  # infinite bounds mean none; an initial guess is finite
@@ -301,10 +316,12 @@ class ILQRConfig:
 
 __all__ = [
     "COST_HESSIANS",
+    "DRY_FRICTIONS",
     "LINEARIZATIONS",
     "LINE_SEARCHES",
     "TERMINAL_VALUES",
     "CostHessian",
+    "DryFriction",
     "DynamicsLinearization",
     "ILQRConfig",
     "LineSearch",

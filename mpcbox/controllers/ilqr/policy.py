@@ -61,6 +61,9 @@ class FeedbackPolicy:
         self.plan_time, self.knot_dt, self.steps = float(plan_time), float(knot_dt), steps
         self.ctrl_low, self.ctrl_high = ctrl_low, ctrl_high
         self._deviation, self._add = deviation, add
+        # (knot, control) last computed with ``steps > 1``: state of the caller's
+        # execution of the plan, so each caller (the world, a prediction) needs its own
+        # copy (``copy.copy``; the arrays are only read).
         self._held: tuple[int, np.ndarray] | None = None
 
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:

@@ -90,6 +90,8 @@ class ILQRSolver:
             problem = problem.with_planning_timestep(cfg.planning_timestep)
         else:
             check_planning_step(problem)  # the copy above was checked when it was made
+        if cfg.dry_friction is not None:  # before the terminal value, which it changes
+            problem = problem.with_dry_friction(cfg.dry_friction)
         if cfg.terminal_value == "lqr":
             problem = with_lqr_terminal_value(problem)
         self.problem = problem

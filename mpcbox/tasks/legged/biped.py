@@ -29,15 +29,37 @@ MENAGERIE_BIPED_FEET: MappingProxyType[str, tuple[str, str]] = MappingProxyType(
     }
 )
 
+#: iLQR-MPC options of Menagerie bipeds that differ from :class:`BipedStand`'s, by robot
+#: name, each chosen by measurement. The G1 plans on Jacobians without its joints' dry
+#: friction (``ILQRConfig.dry_friction="drop"``): after a hop its feet rock back onto their
+#: heels, where the friction-aware Jacobians' replans stall and it falls backwards; without
+#: the friction it lands flat again. A 250 N push under noise with a simulated 14 ms
+#: latency, new seeds 400-409: 10/10 against 7/10 (4/10 with ``lookahead="auto"``, 10/10
+#: with it dropped); on the wall clock of 2 CPU cores 10/10 (7-9/10 in stop 48's runs); the
+#: largest forward push with the pelvis at rest 4 s later 271.9 N against 240.6 N. Not for
+#: every biped: PAL's Talos falls with it (0/3 under noise, both actuator versions), the
+#: Booster T1 and Apptronik Apollo recover 5-8 % smaller pushes, and robots without dry
+#: friction are unchanged (``benchmarks/results/ilqr_dry_friction_bipeds.json``;
+#: ``docs/results/stops.md``, stop 49).
+MENAGERIE_BIPED_ILQR: MappingProxyType[str, MappingProxyType[str, Any]] = MappingProxyType(
+    {"unitree_g1": MappingProxyType({"dry_friction": "drop"})}
+)
+
 #: Stances of :class:`BipedStand`.
 STANCES: tuple[str, ...] = ("two", "left", "right")
 
 
+def menagerie_robot(model: ModelSource) -> str | None:
+    """The robot name of a ``"menagerie:NAME[/entry]"`` source, else None."""
+    if isinstance(model, str) and model.startswith("menagerie:"):
+        return model.removeprefix("menagerie:").partition("/")[0]
+    return None
+
+
 def menagerie_biped_feet(model: ModelSource) -> tuple[str, str] | None:
     """The feet of a ``"menagerie:NAME"`` biped in :data:`MENAGERIE_BIPED_FEET`, else None."""
-    if isinstance(model, str) and model.startswith("menagerie:"):
-        return MENAGERIE_BIPED_FEET.get(model.removeprefix("menagerie:").partition("/")[0])
-    return None
+    robot = menagerie_robot(model)
+    return None if robot is None else MENAGERIE_BIPED_FEET.get(robot)
 
 
 class BipedStand(LeggedBalance):
@@ -159,6 +181,11 @@ class BipedStand(LeggedBalance):
         if feet is None:
             feet = menagerie_biped_feet(model)
         super().__init__(model, feet=feet, **kwargs)
+        ilqr = MENAGERIE_BIPED_ILQR.get(menagerie_robot(model) or "")
+        if ilqr:  # this robot's measured iLQR options (the class's configs stay shared)
+            configs = dict(type(self).controller_configs)
+            configs["ilqr"] = dataclasses.replace(configs["ilqr"], **ilqr)
+            self.controller_configs = MappingProxyType(configs)
 
     def standing_feet(
         self, model: mujoco.MjModel, qpos: np.ndarray, feet: Sequence[str] | str | None
