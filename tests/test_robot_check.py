@@ -141,3 +141,22 @@ def test_a_floating_robot_gets_the_legged_task_that_finds_its_feet(capsys) -> No
     out = " ".join(capsys.readouterr().out.split())  # the lines are wrapped
     assert "stands on 4 feet (body:toe_front_left" in out
     assert f"mpcbox compare quadruped_stand --model {quadruped}" in out
+
+
+def test_a_posture_that_falls_open_loop_is_a_note_not_ok() -> None:
+    """A pole on a driven cart, kept at a tilt no actuator can hold: it falls without
+    feedback. That is no instability of the model (no MuJoCo warning), but not "ok" either:
+    a fuzz run found Cassie's 79 cm fall graded "ok"."""
+    cartpole = """
+    <mujoco><option timestep="0.002"/><worldbody>
+      <body name="cart"><joint name="slide" type="slide" axis="1 0 0"/>
+        <geom type="box" size="0.1 0.05 0.05" mass="1"/>
+        <body name="pole"><joint name="hinge" axis="0 1 0"/>
+          <geom type="capsule" fromto="0 0 0 0 0 0.5" size="0.02" mass="0.2"/></body>
+      </body></worldbody>
+      <actuator><motor joint="slide" ctrlrange="-5 5"/></actuator>
+      <keyframe><key name="tilted" qpos="0 0.2"/></keyframe></mujoco>"""
+    level, text = topics(check_robot(cartpole, keyframe="tilted"))["open-loop hold"]
+    assert level == "note" and "not held without feedback" in text, text
+    held = topics(check_robot(pendulum(), keyframe="down"))["open-loop hold"]
+    assert held[0] == "ok"

@@ -145,6 +145,17 @@ def test_bad_files_and_problems_are_named(pendulum_run, tmp_path) -> None:
     with pytest.raises(InvalidArgumentError, match="columns"):
         load_trajectory(csv_path)
     json_path.write_text(json.dumps(meta))
+    # A CSV cut short (or only its header) no longer reads as the whole run.
+    lines = csv_path.read_text().splitlines(keepends=True)
+    csv_path.write_text("".join(lines[:5]))
+    with pytest.raises(
+        InvalidArgumentError, match=rf"has 4 rows, its JSON describes {meta['steps']}"
+    ):
+        load_trajectory(csv_path)
+    csv_path.write_text(lines[0])
+    with pytest.raises(InvalidArgumentError, match="has 0 rows"):
+        load_trajectory(csv_path)
+    csv_path.write_text("".join(lines))
     cartpole = task_class("cartpole_swingup")()
     with pytest.raises(InvalidArgumentError, match="nq"):
         replay(load_trajectory(csv_path), cartpole)

@@ -264,6 +264,11 @@ def _finer(model: mujoco.MjModel, qpos: np.ndarray, report: ServoRinging) -> str
     )
 
 
+#: Beyond these the open-loop hold is a note: the root moved (m), a joint drifted (rad or m).
+HOLD_ROOT_MOVE = 0.05
+HOLD_JOINT_DRIFT = 0.1
+
+
 def _hold(model: mujoco.MjModel, eq: Equilibrium, seconds: float) -> Finding:
     """Hold the equilibrium control open-loop for ``seconds``: warnings and drift."""
     with captured_warnings():  # read from data.warning below, not printed
@@ -295,9 +300,18 @@ def _held(model: mujoco.MjModel, eq: Equilibrium, seconds: float) -> Finding:
         adr = model.jnt_qposadr[model.body_jntadr[root]]
         moved = float(np.linalg.norm(data.qpos[adr : adr + 3] - start[adr : adr + 3]))
         text = f"root moved {100 * moved:.1f} cm in {seconds:g} s without feedback"
+        away = moved > HOLD_ROOT_MOVE
     else:
         moved = float(np.max(np.abs(drift))) if model.nv else 0.0
         text = f"joints drifted at most {moved:.3g} rad or m in {seconds:g} s without feedback"
+        away = moved > HOLD_JOINT_DRIFT
+    if away:  # a fall or drift is no instability of the model, but not "ok" either
+        return Finding(
+            "open-loop hold",
+            "note",
+            text + ": the posture is not held without feedback (as for a robot that must "
+            "balance); its controllers must hold it. No MuJoCo instability warning",
+        )
     return Finding("open-loop hold", "ok", text + "; no MuJoCo instability warning")
 
 

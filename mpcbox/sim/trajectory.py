@@ -387,9 +387,15 @@ def load_trajectory(path: str | Path) -> Trajectory:
         nq, nv, na, nu = (int(meta[k]) for k in ("nq", "nv", "na", "nu"))
         measures, sites = list(meta["measures"]), list(meta["sites"])
         width = 1 + nq + nv + na + nu + len(measures) + 3 * len(sites)
-        if table.shape[1] != width or len(header) != width:
+        if len(header) != width or (table.size and table.shape[1] != width):
             raise InvalidArgumentError(
-                f"{csv_path.name} has {table.shape[1]} columns, its JSON describes {width}"
+                f"{csv_path.name} has {len(header)} columns, its JSON describes {width}"
+            )
+        steps = meta.get("steps")
+        if steps is not None and len(table) != int(steps):
+            raise InvalidArgumentError(
+                f"{csv_path.name} has {len(table)} rows, its JSON describes {int(steps)} steps "
+                "(a truncated or edited file)"
             )
         cols = np.cumsum([1, nq + nv + na, nu, len(measures)])
         noise = meta["noise"]
