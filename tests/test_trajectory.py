@@ -148,12 +148,10 @@ def test_bad_files_and_problems_are_named(pendulum_run, tmp_path) -> None:
     # A CSV cut short (or only its header) no longer reads as the whole run.
     lines = csv_path.read_text().splitlines(keepends=True)
     csv_path.write_text("".join(lines[:5]))
-    with pytest.raises(
-        InvalidArgumentError, match=rf"has 4 rows, its JSON describes {meta['steps']}"
-    ):
+    with pytest.raises(InvalidArgumentError, match=rf"4 rows; .* and {meta['steps']} rows"):
         load_trajectory(csv_path)
     csv_path.write_text(lines[0])
-    with pytest.raises(InvalidArgumentError, match="has 0 rows"):
+    with pytest.raises(InvalidArgumentError, match="and 0 rows;"):
         load_trajectory(csv_path)
     csv_path.write_text("".join(lines))
     cartpole = task_class("cartpole_swingup")()

@@ -1,9 +1,9 @@
 r"""Saved closed-loop runs: :class:`Trajectory`, CSV + JSON files, and open-loop replay.
 
 A trajectory holds what a run did (``T`` recorded steps): times, states
-:math:`x_k = [q_k, v_k, a_k]`, the applied controls :math:`u_k` (actuator noise included),
-the task's measures, the world positions of the model's sites, and what is needed to run it
-again: the initial state, the pushes, the model mismatch, the noise seed.
+:math:`x_k = [q_k, v_k, a_k]`, the applied controls :math:`u_k` (noise included), the
+task's measures, the sites' world positions, and the initial state, pushes, mismatch and
+noise seed.
 
 :func:`save_trajectory` writes two files side by side:
 
@@ -13,9 +13,8 @@ again: the initial state, the pushes, the model mismatch, the noise seed.
 * ``NAME.json``: the metadata (problem, controller, task name and options, failure, seed,
   noise, pushes, mismatch, model sizes and timestep, joint, actuator and site names).
 
-:func:`replay` applies the saved controls open loop, :math:`x_{k+1} = f(x_k, u_k)` with the
-saved pushes, on the task's simulation model from the saved initial state; as the controls
-already hold the noise and MuJoCo is deterministic, it reaches the saved final state.
+:func:`replay` applies the saved controls (noise included) and pushes open loop from the
+saved initial state; MuJoCo being deterministic, it reaches the saved final state.
 """
 
 from __future__ import annotations
@@ -355,9 +354,8 @@ def save_trajectory(traj: Trajectory, path: str | Path) -> tuple[Path, Path]:
     return csv_path, json_path
 
 
-_SHARED = {"format", "version", "csv", "problem", "controller", "failure", "steps"}
-_SHARED |= {"final_time", "initial_state", "measures", "sites", "seed", "pushes"}
-_SHARED |= {"noise", "mismatch"}
+_SHARED = {"format", "version", "csv", "problem", "controller", "failure", "steps", "final_time"}
+_SHARED |= {"initial_state", "measures", "sites", "seed", "pushes", "noise", "mismatch"}
 
 
 @checked_keywords
@@ -368,7 +366,7 @@ def load_trajectory(path: str | Path) -> Trajectory:
         path: ``NAME.csv``, ``NAME.json`` or ``NAME``.
 
     Raises:
-        InvalidArgumentError: If a file is missing, unreadable or not an mpcbox trajectory.
+        InvalidArgumentError: If a file is missing, unreadable or not a whole mpcbox trajectory.
     """
     csv_path, json_path = trajectory_paths(path)
     try:
@@ -387,15 +385,11 @@ def load_trajectory(path: str | Path) -> Trajectory:
         nq, nv, na, nu = (int(meta[k]) for k in ("nq", "nv", "na", "nu"))
         measures, sites = list(meta["measures"]), list(meta["sites"])
         width = 1 + nq + nv + na + nu + len(measures) + 3 * len(sites)
-        if len(header) != width or (table.size and table.shape[1] != width):
+        rows, steps = len(table), int(meta.get("steps", len(table)))
+        if len(header) != width or (table.size and table.shape[1] != width) or rows != steps:
             raise InvalidArgumentError(
-                f"{csv_path.name} has {len(header)} columns, its JSON describes {width}"
-            )
-        steps = meta.get("steps")
-        if steps is not None and len(table) != int(steps):
-            raise InvalidArgumentError(
-                f"{csv_path.name} has {len(table)} rows, its JSON describes {int(steps)} steps "
-                "(a truncated or edited file)"
+                f"{csv_path.name} has {len(header)} columns and {rows} rows; its JSON describes "
+                f"{width} columns and {steps} rows (a truncated or edited file?)"
             )
         cols = np.cumsum([1, nq + nv + na, nu, len(measures)])
         noise = meta["noise"]
