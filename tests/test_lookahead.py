@@ -352,3 +352,10 @@ def test_scenario_keeps_plain_floats_that_hash_and_print_alike():
     assert type(one.delay) is float and "lookahead 0 s" in one.label and "-0" not in one.label
     sped = mpcbox.Scenario(realtime=True, speed=np.float32(2.0))
     assert type(sped.speed) is float and hash(sped) == hash(mpcbox.Scenario(realtime=True, speed=2))
+
+
+def test_a_misspelled_keyword_is_named_with_the_valid_ones(problem):
+    from mpcbox.errors import UnknownOptionError
+
+    with pytest.raises(UnknownOptionError, match=r"'look_ahead'.*lookahead"):
+        simulate_realtime(problem, Recorder(problem, 0.0, 0.05), 0.1, look_ahead="auto")

@@ -135,7 +135,6 @@ class RealtimeResult(SimulationResult):
     realtime: RealtimeStats | None = None
 
 
-@checked_keywords
 def whole_steps_delay(delay: float, dt: float) -> float:
     """The latency a simulated ``delay`` (s) has on a world stepping ``dt`` (s): a plan
     takes effect at the first step at or after it is ready, so ``delay`` rounded up to whole
@@ -154,6 +153,7 @@ def whole_steps_delay(delay: float, dt: float) -> float:
     return float(delay)
 
 
+@checked_keywords
 def simulate_realtime(
     problem: Problem,
     controller: Controller,
