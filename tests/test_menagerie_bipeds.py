@@ -125,6 +125,11 @@ def test_the_g1_plans_ilqr_without_dry_friction_and_lands_a_hop_flat():
         problem = BipedStand("menagerie:unitree_g1", threads=1)
     assert problem.controller_configs["ilqr"].dry_friction == "drop"
     assert BipedStand.controller_configs["ilqr"].dry_friction is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        one_foot = BipedStand("menagerie:unitree_g1", stance="left", threads=1)
+    assert one_foot.controller_configs["ilqr"].dry_friction is None  # measured on two feet
+    one_foot.close()
     controller = mpcbox.make_controller("ilqr", problem)
     assert controller.problem.dry_friction == "drop" and problem.dry_friction == "keep"
     push = mpcbox.Push(force=(250.0, 0.0, 0.0), start=2.0, duration=0.1, body=problem.root)

@@ -29,8 +29,8 @@ MENAGERIE_BIPED_FEET: MappingProxyType[str, tuple[str, str]] = MappingProxyType(
     }
 )
 
-#: iLQR-MPC options of Menagerie bipeds that differ from :class:`BipedStand`'s, by robot
-#: name, each chosen by measurement. The G1 plans on Jacobians without its joints' dry
+#: iLQR-MPC options of Menagerie bipeds on two feet that differ from :class:`BipedStand`'s,
+#: by robot name, each chosen by measurement. The G1 plans on Jacobians without its dry
 #: friction (``ILQRConfig.dry_friction="drop"``): after a hop its feet rock back onto their
 #: heels, where the friction-aware Jacobians' replans stall and it falls backwards; without
 #: the friction it lands flat again. A 250 N push under noise with a simulated 14 ms
@@ -182,7 +182,7 @@ class BipedStand(LeggedBalance):
             feet = menagerie_biped_feet(model)
         super().__init__(model, feet=feet, **kwargs)
         ilqr = MENAGERIE_BIPED_ILQR.get(menagerie_robot(model) or "")
-        if ilqr:  # this robot's measured iLQR options (the class's configs stay shared)
+        if ilqr and self.stance == "two":  # measured options (the class's stay shared)
             configs = dict(type(self).controller_configs)
             configs["ilqr"] = dataclasses.replace(configs["ilqr"], **ilqr)
             self.controller_configs = MappingProxyType(configs)
