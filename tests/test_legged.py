@@ -523,3 +523,14 @@ def test_ilqr_mpc_stands_the_adam_lite_whose_com_is_off_the_middle_of_its_soles(
     assert res.metrics.measures["tilt_rms_deg"] < 5.0
     assert ctrl.stats["fallbacks"] == 0
     problem.close()
+
+
+@pytest.mark.parametrize("fall_height", [-5.0, 50.0])
+def test_a_fall_height_outside_floor_to_root_is_refused(fall_height) -> None:
+    """Below the floor no run can fall, above the standing root every run falls at once: a
+    fuzz run found -5 m accepted, and a humanoid lying on the floor reported as standing."""
+    from mpcbox.tasks.humanoid.balance import HumanoidBalance
+
+    with pytest.raises(InvalidArgumentError, match=r"fall_height must lie between the floor"):
+        HumanoidBalance(fall_height=fall_height)
+    assert HumanoidBalance(fall_height=0.5).fall_height == 0.5

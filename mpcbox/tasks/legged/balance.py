@@ -100,10 +100,9 @@ def _unique_name(
 
 #: OSQP settings of LeggedBalance's QP-MPC and of all its presets, the humanoid ones included
 #: since stop 25 (over :data:`~mpcbox.controllers.qp_mpc.solvers.OSQP_DEFAULTS`).
-#: With the duality-gap test on, solves went on for a hundred iterations after their
-#: residuals were below 1e-5; with it off and ``rho = 0.3`` the mean iterations under the
-#: noise recipe fell from 40 to 25 (Go1), 64 to 25 (A1), 59 to 33 (ANYmal C) and 376 (1 of
-#: 75 at the cap) to 34 (Go2), 1.5 s, seed 0; on the G1 (BipedStand) from 92 to 25.
+#: With the duality-gap test off and ``rho = 0.3`` the mean iterations under the noise recipe
+#: fell from 40 to 25 (Go1), 64 to 25 (A1), 59 to 33 (ANYmal C), 376 to 34 (Go2) and 92 to
+#: 25 (G1), 1.5 s, seed 0 (with it on, solves ran a hundred iterations past 1e-5 residuals).
 QP_OSQP_SETTINGS: MappingProxyType[str, Any] = MappingProxyType(
     {"rho": 0.3, "check_dualgap": False}
 )
@@ -166,8 +165,8 @@ class LeggedBalance(Problem):
         root: Root body (default: the body of the free joint).
         keyframe: Name or index of the standing keyframe (default: the first keyframe,
             else ``qpos0``).
-        fall_height: The run fails when the root is lower than this (m); default
-            ``fall_fraction`` times the root's height in the reference posture.
+        fall_height: The run fails when the root is lower than this (m, between the floor
+            and the root's reference height); default ``fall_fraction`` times that height.
         fall_fraction: See ``fall_height``.
         fall_tilt: The run also fails when the root tilts more than this many degrees from
             its reference tilt (a robot thrown onto its side or back may keep its root
@@ -407,8 +406,14 @@ class LeggedBalance(Problem):
         data = mujoco.MjData(model)
         data.qpos[:] = self.qpos_ref
         mujoco.mj_kinematics(model, data)
+        height = float(data.xpos[self.root_id, 2])
         if self.fall_height is None:
-            self.fall_height = self.fall_fraction * float(data.xpos[self.root_id, 2])
+            self.fall_height = self.fall_fraction * height
+        elif self.fall_height >= height or self.fall_height < min(0.0, height):
+            raise InvalidArgumentError(  # above it all runs "fall", below the floor none can
+                f"fall_height must lie between the floor (0 m) and the {self.root!r} body's "
+                f"reference height ({height:.3g} m), got {self.fall_height:g}"
+            )
         #: The root's tilt in the reference posture (deg).
         self.reference_tilt = Tilt(body=self.root).sample(model, data)
         #: Horizontal offset of the center of mass from each support point in the
