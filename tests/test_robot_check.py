@@ -160,3 +160,14 @@ def test_a_posture_that_falls_open_loop_is_a_note_not_ok() -> None:
     assert level == "note" and "not held without feedback" in text, text
     held = topics(check_robot(pendulum(), keyframe="down"))["open-loop hold"]
     assert held[0] == "ok"
+
+
+def test_a_keyframe_far_outside_a_joint_range_is_a_warning_not_ok() -> None:
+    """The elbow's range is [0, 2] rad; a keyframe at -1 rad is not a rounding onto the limit
+    (which a Problem moves inside, a note) but a posture the limit pushes back: a fuzz run
+    found it graded "ok", with only the equilibrium's torque left to hint at the cause."""
+    far = pendulum().replace('<key name="down" qpos="0 1"/>', '<key name="down" qpos="0 -1"/>')
+    level, text = topics(check_robot(far, keyframe="down", hold=0))["joint limits"]
+    assert level == "warning" and "elbow -1 not in [0, 2]" in text, text
+    near = topics(check_robot(pendulum(), hold=0))["joint limits"]  # 'bent': on the limit
+    assert near[0] == "note"

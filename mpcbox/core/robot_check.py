@@ -40,7 +40,12 @@ import numpy as np
 from mpcbox.core.actuation import actuator_name, motor_actuators, position_servo_actuators
 from mpcbox.core.divergence import diverged, unstable_warning
 from mpcbox.core.equilibrium import Equilibrium, find_equilibrium
-from mpcbox.core.joint_limits import clear_of_limits, describe_moves
+from mpcbox.core.joint_limits import (
+    RANGE_FRACTION,
+    clear_of_limits,
+    describe_moves,
+    movable_joints,
+)
 from mpcbox.core.menagerie import MissingMeshWarning
 from mpcbox.core.model import ModelSource, compile_spec, free_body, load_spec, object_id
 from mpcbox.core.mujoco_warnings import captured_warnings
@@ -171,6 +176,21 @@ def _integrator(model: mujoco.MjModel) -> Finding:
 
 
 def _limits(model: mujoco.MjModel, qpos: np.ndarray) -> Finding:
+    far = []  # what clear_of_limits leaves as given: a posture of its own, past the limits
+    for j in movable_joints(model):
+        lo, hi = model.jnt_range[j]
+        q = float(qpos[model.jnt_qposadr[j]])
+        if hi > lo and max(lo - q, q - hi) > RANGE_FRACTION * (hi - lo):
+            far.append(f"{model.joint(j).name or f'joint {j}'} {q:.3g} not in [{lo:.3g}, {hi:.3g}]")
+    if far:
+        return Finding(
+            "joint limits",
+            "warning",
+            f"{len(far)} driven joint(s) far outside their range: {'; '.join(far[:4])}"
+            + (" ..." if len(far) > 4 else "")
+            + ": the limits push them back, so the posture cannot be held as it is (a range "
+            "in degrees where the model's compiler reads radians, or the wrong keyframe?)",
+        )
     _, moves = clear_of_limits(model, qpos)
     if not moves:
         return Finding("joint limits", "ok", "no driven joint on or past a limit")
