@@ -90,13 +90,10 @@ class Scenario:
         string("name", self.name)
         boolean("realtime", self.realtime)
         # Plain floats (-0.0 as 0.0), so that scenarios hash and print alike.
-        object.__setattr__(self, "speed", positive("speed", self.speed) + 0.0)
+        object.__setattr__(self, "speed", positive("speed", self.speed))
         if self.speed != 1.0 and not self.realtime:
             raise InvalidArgumentError("speed needs realtime=True (a lock-step run has no clock)")
-        lookahead = check_lookahead(self.lookahead)
-        if lookahead is not None and lookahead != "auto":
-            lookahead = float(lookahead) + 0.0
-        object.__setattr__(self, "lookahead", lookahead)
+        object.__setattr__(self, "lookahead", check_lookahead(self.lookahead))
         if self.lookahead is not None and not self.realtime:
             raise InvalidArgumentError(
                 "lookahead needs realtime=True (a lock-step run has no latency to compensate)"
@@ -104,7 +101,7 @@ class Scenario:
         if self.delay is not None:
             if not self.realtime:
                 raise InvalidArgumentError("delay needs realtime=True")
-            object.__setattr__(self, "delay", float(non_negative("delay", self.delay)) + 0.0)
+            object.__setattr__(self, "delay", non_negative("delay", self.delay) + 0.0)
             if self.speed != 1.0:
                 raise InvalidArgumentError(
                     "speed has no effect with delay (the world waits for each tick): "

@@ -49,6 +49,13 @@ class LimitMove(NamedTuple):
     new: float
 
 
+def far_outside(model: mujoco.MjModel, q: float, joint: int) -> bool:
+    """Whether position ``q`` of ``joint`` lies more than :data:`RANGE_FRACTION` of its
+    range outside it: a posture of its own, not a rounding onto a limit."""
+    lo, hi = model.jnt_range[joint]
+    return bool(hi > lo and max(lo - q, q - hi) > RANGE_FRACTION * (hi - lo))
+
+
 def clear_of_limits(
     model: mujoco.MjModel,
     qpos: np.ndarray,
@@ -86,7 +93,7 @@ def clear_of_limits(
         c = min(min(clearance, RANGE_FRACTION * (hi - lo)) + margin, 0.5 * (hi - lo))
         adr = model.jnt_qposadr[j]
         name = model.joint(j).name or f"joint {j}"
-        if max(lo - out[adr], out[adr] - hi) > RANGE_FRACTION * (hi - lo):
+        if far_outside(model, out[adr], j):
             far.append(name)
             continue
         new = min(max(out[adr], lo + c), hi - c)

@@ -41,9 +41,9 @@ from mpcbox.core.actuation import actuator_name, motor_actuators, position_servo
 from mpcbox.core.divergence import diverged, unstable_warning
 from mpcbox.core.equilibrium import Equilibrium, find_equilibrium
 from mpcbox.core.joint_limits import (
-    RANGE_FRACTION,
     clear_of_limits,
     describe_moves,
+    far_outside,
     movable_joints,
 )
 from mpcbox.core.menagerie import MissingMeshWarning
@@ -178,9 +178,9 @@ def _integrator(model: mujoco.MjModel) -> Finding:
 def _limits(model: mujoco.MjModel, qpos: np.ndarray) -> Finding:
     far = []  # what clear_of_limits leaves as given: a posture of its own, past the limits
     for j in movable_joints(model):
-        lo, hi = model.jnt_range[j]
         q = float(qpos[model.jnt_qposadr[j]])
-        if hi > lo and max(lo - q, q - hi) > RANGE_FRACTION * (hi - lo):
+        if far_outside(model, q, j):
+            lo, hi = model.jnt_range[j]
             far.append(f"{model.joint(j).name or f'joint {j}'} {q:.3g} not in [{lo:.3g}, {hi:.3g}]")
     if far:
         return Finding(

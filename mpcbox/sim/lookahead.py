@@ -46,6 +46,13 @@ AUTO_WINDOW = 10
 LOOKAHEAD_CHOICES = ("auto",)
 
 
+def whole_steps(seconds: float, dt: float) -> int:
+    """Simulation steps of ``dt`` until ``seconds`` have passed, rounded up (a plan takes
+    effect at the first world step at or after its start): ``ceil(seconds / dt)``, to within
+    1e-6 of a step, and at least 0."""
+    return max(0, math.ceil(seconds / dt - 1e-6))
+
+
 def check_lookahead(value: object) -> float | str | None:
     """Check a ``lookahead`` argument: ``None`` (off), ``"auto"``, or seconds ``>= 0``.
 
@@ -65,7 +72,7 @@ def check_lookahead(value: object) -> float | str | None:
         raise InvalidTypeError(
             f"lookahead must be None, 'auto' or seconds >= 0, got {type(value).__name__}"
         )
-    return non_negative("lookahead", value)
+    return non_negative("lookahead", value) + 0.0  # -0.0 as 0.0
 
 
 class Lookahead:
@@ -109,10 +116,8 @@ class Lookahead:
         return min(self.speed * float(np.median(latencies[-AUTO_WINDOW:])), self.limit)
 
     def steps(self, seconds: float) -> int:
-        """Model steps of a lookahead of ``seconds``, rounded up (a plan takes effect at the
-        first step at or after its start): ``ceil(seconds / dt)``, to within 1e-6 of a
-        step."""
-        return max(0, math.ceil(seconds / self.dt - 1e-6))
+        """Model steps of a lookahead of ``seconds``, rounded up (:func:`whole_steps`)."""
+        return whole_steps(seconds, self.dt)
 
     def predict(
         self,

@@ -300,7 +300,7 @@ class PlannerThread:
         want = max(want, self._last_start + self.period - time)
         steps = self.lookahead.steps(want)
         if time + self.lookahead.dt * steps < self._last_start + self.period - 1e-9:
-            steps += 1  # rounded down below the spacing
+            steps += 1  # within whole_steps' 1e-6 of a step, but short of the spacing
         times = time + self.lookahead.dt * np.arange(steps)
         with self._lock:
             plans = [seen] + [self._select(float(t)) for t in times[1:]]

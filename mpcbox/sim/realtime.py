@@ -65,7 +65,7 @@ from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, PeriodWarning
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.divergence import DivergenceMonitor
-from mpcbox.sim.lookahead import check_lookahead
+from mpcbox.sim.lookahead import check_lookahead, whole_steps
 from mpcbox.sim.planner_thread import PlannerThread
 from mpcbox.sim.run_start import start_run
 from mpcbox.sim.simulation import SimulationResult, finish_run
@@ -138,10 +138,9 @@ class RealtimeResult(SimulationResult):
 def whole_steps_delay(delay: float, dt: float) -> float:
     """The latency a simulated ``delay`` (s) has on a world stepping ``dt`` (s): a plan
     takes effect at the first step at or after it is ready, so ``delay`` rounded up to whole
-    steps (to within 1e-6 of a step); a :class:`~mpcbox.errors.PeriodWarning` says so when
-    that changes it."""
-    steps = max(0, math.ceil(delay / dt - 1e-6))
-    whole = steps * dt
+    steps (:func:`~mpcbox.sim.lookahead.whole_steps`); a
+    :class:`~mpcbox.errors.PeriodWarning` says so when that changes it."""
+    whole = whole_steps(delay, dt) * dt
     if abs(whole - delay) > 1e-6 * dt:
         warnings.warn(
             f"delay={delay:g} s is not a whole number of simulation steps ({dt:g} s): a "

@@ -86,7 +86,7 @@ class ILQR(ILQRSolver, Controller):
     def reset(self) -> None:
         """Forget the warm start, the counters and the backward passes kept, so that a run
         after it repeats the first run after the controller was built."""
-        if getattr(self, "riccati_cache", None) is not None:
+        if self.riccati_cache is not None:
             self.riccati_cache.clear()
         self._last_result: ILQRResult | None = None
         self._plan_time = 0.0
