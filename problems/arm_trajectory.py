@@ -36,7 +36,7 @@ from mpcbox.cli.checks import script_main
 from mpcbox.core import menagerie
 from mpcbox.core.end_effector import end_effector
 from mpcbox.core.menagerie import MissingMeshWarning
-from mpcbox.core.model import load_spec
+from mpcbox.core.model import compile_spec, load_spec
 from mpcbox.errors import EquilibriumWarning, InvalidArgumentError
 from mpcbox.sim.trajectory import save_trajectory, trajectory_from_result
 from mpcbox.tasks import scene_path
@@ -113,7 +113,7 @@ def _run(argv: list[str] | None) -> int:
     source = model_source(args.model)
     warnings.simplefilter("ignore", MissingMeshWarning)
     warnings.simplefilter("ignore", EquilibriumWarning)
-    model = load_spec(source).compile()
+    model = compile_spec(load_spec(source))
     frame = args.frame or frame or end_effector(model)  # its error asks for --frame's value
     start = model.key_qpos[0].copy() if model.nkey else model.qpos0.copy()
     goal = start.copy()

@@ -40,7 +40,7 @@ from mpcbox.controllers.ilqr.controller import ILQR
 from mpcbox.controllers.servo_actions import motors
 from mpcbox.core.end_effector import end_effector
 from mpcbox.core.menagerie import MissingMeshWarning, model_source
-from mpcbox.core.model import frame_object, frame_position, load_spec
+from mpcbox.core.model import compile_spec, frame_object, frame_position, load_spec
 from mpcbox.errors import SolverError
 from mpcbox.registry import make_controller
 from mpcbox.tasks.reach import ArmReach
@@ -78,7 +78,7 @@ def arm_length(model: mujoco.MjModel, frame: str, qpos: np.ndarray) -> float:
 
 def default_offset(source, frame: str | None) -> np.ndarray:
     """The default target offset ``(3,)`` for the arm ``source`` (see the module docstring)."""
-    model = load_spec(source).compile()
+    model = compile_spec(load_spec(source))
     if model.nkey == 0:
         qpos = model.qpos0
     else:

@@ -72,6 +72,26 @@ def test_nothing_missing_changes_nothing(tmp_path: Path) -> None:
     assert spec.compile().ngeom == 3
 
 
+def test_a_model_loaded_by_path_drops_missing_visual_meshes_too(tmp_path: Path) -> None:
+    """A user's own file (or a Menagerie robot given by path) loads as a Menagerie name does."""
+    from mpcbox.core.model import load_spec
+
+    path = write_scene(tmp_path, visual_missing=True, collision_missing=False)
+    with pytest.warns(menagerie.MissingMeshWarning, match="looks"):
+        spec = load_spec(str(path))
+    assert spec.compile().ngeom == 2
+
+
+def test_a_model_loaded_by_path_with_a_missing_collision_mesh_is_a_named_error(
+    tmp_path: Path,
+) -> None:
+    from mpcbox import Problem
+
+    path = write_scene(tmp_path, visual_missing=False, collision_missing=True)
+    with pytest.raises(ModelLoadError, match=r"bumper.*absent"):
+        Problem(str(path))
+
+
 def test_unknown_robot_lists_the_valid_names() -> None:
     pytest.importorskip("mujoco_menagerie")
     with pytest.raises(

@@ -71,7 +71,10 @@ def load_spec(source: str | Path | mujoco.MjSpec) -> mujoco.MjSpec:
     Raises:
         InvalidTypeError: If ``source`` is none of these types.
         ModelNotFoundError: If a path does not exist.
-        ModelLoadError: If MuJoCo cannot parse the file.
+        ModelLoadError: If MuJoCo cannot parse the file, or a geom that collides uses a
+            mesh whose file is missing. A visual-only geom whose mesh file is missing (as in
+            a partial Menagerie copy) is dropped with a
+            :class:`~mpcbox.core.menagerie.MissingMeshWarning`.
     """
     if isinstance(source, mujoco.MjSpec):
         return source.copy()
@@ -95,9 +98,11 @@ def load_spec(source: str | Path | mujoco.MjSpec) -> mujoco.MjSpec:
             hint = f"; for a MuJoCo Menagerie robot write {menagerie.PREFIX + source!r}"
         raise ModelNotFoundError(f"model: no MJCF file at {str(path)!r}{hint}")
     try:
-        return mujoco.MjSpec.from_file(str(path))
+        spec = mujoco.MjSpec.from_file(str(path))
     except Exception as exc:
         raise ModelLoadError(f"model: MuJoCo could not load {str(path)!r}: {exc}") from exc
+    menagerie.drop_missing_visual_meshes(spec)
+    return spec
 
 
 def compile_spec(spec: mujoco.MjSpec) -> mujoco.MjModel:

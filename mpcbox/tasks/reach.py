@@ -49,7 +49,7 @@ from mpcbox.core.cost import ControlCost, Cost, FramePosition, StateCost
 from mpcbox.core.end_effector import end_effector
 from mpcbox.core.equilibrium import find_equilibrium
 from mpcbox.core.free_bodies import free_objects, weld_free_bodies
-from mpcbox.core.model import ModelSource, frame_position, load_spec, object_id
+from mpcbox.core.model import ModelSource, compile_spec, frame_position, load_spec, object_id
 from mpcbox.core.posture import reach_posture
 from mpcbox.core.problem import Problem
 from mpcbox.core.servo_ringing import ServoRinging, servo_ringing
@@ -246,7 +246,7 @@ class ArmReach(Problem):
     def _without_free_objects(self, source: ModelSource, mode: str) -> ModelSource:
         """``source`` with its free objects welded (``"weld"``), or an error naming them."""
         spec = None if isinstance(source, mujoco.MjModel) else load_spec(source)
-        base = source if spec is None else spec.compile()
+        base = source if spec is None else compile_spec(spec)
         if self.frame is None:
             self.frame = end_effector(base)
         objects = free_objects(base, self.frame)

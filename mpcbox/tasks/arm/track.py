@@ -49,7 +49,13 @@ from mpcbox.core.cost import (
     StateCost,
 )
 from mpcbox.core.equilibrium import find_equilibrium
-from mpcbox.core.model import ModelSource, frame_object, frame_position, object_id
+from mpcbox.core.model import (
+    ModelSource,
+    compile_spec,
+    frame_object,
+    frame_position,
+    object_id,
+)
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.sim.measures import Measure
 from mpcbox.tasks import scene_path
@@ -247,7 +253,7 @@ class ArmTrack(ArmReach):
         out = super()._without_free_objects(source, mode)
         if not isinstance(out, mujoco.MjSpec):
             return out
-        base = out.compile()
+        base = compile_spec(out)
         if frame_object(base, self.frame)[0] == "body":
             if mujoco.mj_name2id(base, mujoco.mjtObj.mjOBJ_SITE, self.site) >= 0:
                 raise InvalidArgumentError(
