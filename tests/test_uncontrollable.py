@@ -45,7 +45,8 @@ def test_a_weighted_unreachable_mode_leaves_the_scalar_riccati_solution():
     p = scipy.linalg.solve_discrete_are(np.array([[1.2]]), np.array([[1.0]]), [[q]], [[r]])[0, 0]
     k = 1.2 * p / (r + p)
     np.testing.assert_allclose(K, k * w[None, :], rtol=1e-9)
-    np.testing.assert_allclose(P, p * np.outer(w, w), rtol=1e-9, atol=1e-12)
+    # SciPy's Riccati solvers differ in the last digits (1.3e-9 apart with scipy 1.17).
+    np.testing.assert_allclose(P, p * np.outer(w, w), rtol=1e-8, atol=1e-12)
     # The unreachable mode stays on the unit circle; the reachable one is stabilized.
     closed = np.sort(np.abs(np.linalg.eigvals(A - B @ K)))
     np.testing.assert_allclose(closed, [abs(1.2 - k), 1.0], atol=1e-9)
@@ -86,3 +87,62 @@ def test_an_unreachable_unstable_mode_still_raises():
     B = np.array([[0.0], [1.0], [0.0]])
     with pytest.raises(mpcbox.NotStabilizableError, match=r"1\.5"):
         dlqr(A, B, np.eye(3), np.eye(1))
+
+
+def _double_integrator(dt: float = 0.01) -> np.ndarray:
+    return np.array([[1.0, dt], [0.0, 1.0]])
+
+
+def test_an_unreachable_double_integrator_is_left_out_beside_a_driven_oscillator():
+    """A free spin no motor drives (angle and rate: a Jordan block at 1) beside a driven,
+    damped oscillator: the block's spectral projector takes it out of the cost, and the gain
+    is the oscillator's alone (python-control on the 2x2 subsystem)."""
+    control = pytest.importorskip("control")
+    dt = 0.01
+    osc = np.array([[1.0, dt], [-0.04, 0.99]])
+    A = scipy.linalg.block_diag(osc, _double_integrator(dt))
+    B = np.array([[0.0], [dt], [0.0], [0.0]])
+    proj = uncontrollable_marginal_projector(A, B)
+    np.testing.assert_allclose(proj, np.diag([0.0, 0.0, 1.0, 1.0]), atol=1e-9)
+    K, P = dlqr(A, B, np.eye(4), np.eye(1))
+    K_ref, P_ref, _ = control.dlqr(osc, B[:2], np.eye(2), np.eye(1))
+    np.testing.assert_allclose(K[:, :2], K_ref, rtol=1e-8)
+    np.testing.assert_allclose(K[:, 2:], 0.0, atol=1e-12)
+    np.testing.assert_allclose(P[:2, :2], P_ref, rtol=1e-8)
+
+
+def test_a_partly_reached_double_integrator_is_not_stabilizable():
+    """Two double integrators with one input: eigenvalue 1 four times, one block driven and
+    one not. No projector separates them, and the undriven one drifts: a named error."""
+    dt = 0.01
+    A = scipy.linalg.block_diag(_double_integrator(dt), _double_integrator(dt))
+    B = np.array([[0.0], [0.0], [0.0], [dt]])
+    with pytest.raises(mpcbox.NotStabilizableError, match="Jordan block"):
+        dlqr(A, B, np.eye(4), np.eye(1))
+
+
+def test_no_input_at_all_gives_a_zero_gain_on_a_neutral_system():
+    K, P = dlqr(np.eye(2), np.zeros((2, 1)), np.eye(2), np.eye(1))
+    np.testing.assert_array_equal(K, 0.0)
+    np.testing.assert_array_equal(P, 0.0)
+
+
+def test_a_ball_joint_pendulum_with_one_driven_axis_is_regulated():
+    """A hanging ball-joint pendulum whose motor drives one axis: the spin about the vertical
+    is a free, undamped double integrator no input reaches (a Jordan block), the swing about
+    the other horizontal axis an undamped oscillator no input reaches. LQR leaves both out
+    (four closed-loop eigenvalues stay on the unit circle), and a tilt about the driven axis
+    decays."""
+    xml = """<mujoco><worldbody><body name="b" pos="0 0 1"><joint name="j" type="ball"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -1" size=".05" mass="1"/></body></worldbody>
+      <actuator><motor joint="j" gear="1 0 0" ctrlrange="-5 5"/></actuator></mujoco>"""
+    problem = mpcbox.Problem(xml)
+    lqr = mpcbox.LQR(problem)
+    driven = np.abs(lqr.closed_loop_eigenvalues)
+    assert np.sum(driven > 1.0 - 1e-9) == 4  # the spin's block and the free swing
+    assert np.sum(driven < 0.999) == 2  # the driven swing is damped
+    state = problem.reference_state()
+    state[:4] = [np.cos(0.1), np.sin(0.1), 0.0, 0.0]  # tilted 0.2 rad about the driven axis
+    run = mpcbox.simulate(problem, lqr, 3.0, initial_state=state)
+    tilt = [2 * np.arcsin(min(1.0, abs(s[1]))) for s in run.states]
+    assert tilt[-1] < 0.2 * tilt[0]

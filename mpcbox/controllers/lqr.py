@@ -85,6 +85,8 @@ def check_weights(Q: np.ndarray, R: np.ndarray, rtol: float = 1e-9) -> None:
 
 #: Distance from the unit circle within which a mode counts as on it.
 _MARGIN = 1e-6
+#: Closed-loop eigenvalues within this of the unit circle count as on it (not stabilized).
+_UNDAMPED = 1e-9
 
 
 def check_stabilizable(
@@ -125,6 +127,20 @@ def _count_marginal(modes: list[UncontrollableMode], margin: float) -> int:
     return marginal
 
 
+def _refuse_partly_reached_blocks(modes: list[UncontrollableMode], margin: float) -> None:
+    """Raise on a defective eigenvalue on the unit circle that the inputs reach only in
+    part: no projector leaves it out of the cost, and no gain stops its drift."""
+    for mode in modes:
+        if mode.projector is None and abs(abs(mode.eigenvalue) - 1.0) <= margin:
+            raise NotStabilizableError(
+                f"(A, B) is not stabilizable: eigenvalue {mode.eigenvalue:.6g} on the unit "
+                "circle is a Jordan block (a coordinate and its rate, such as a joint that "
+                "turns freely with neither stiffness nor damping) that the inputs reach only "
+                "in part: it drifts at a constant rate that no gain can stop. Add an "
+                "actuator, damping or stiffness to that joint, or lock it"
+            )
+
+
 def nearest_psd(P: np.ndarray) -> np.ndarray:
     """Nearest positive semidefinite matrix to the symmetric part of ``P`` ``(n, n)``.
 
@@ -154,8 +170,10 @@ def dlqr(
         NotStabilizableError: No stabilizing gain exists.
         SolverError: The Riccati solver failed.
     """
-    n = A.shape[0] if A.ndim == 2 else -1
-    A = as_array("A", A, (n, n))
+    A = as_array("A", A, (None, None))
+    n = A.shape[0]
+    if A.shape != (n, n):
+        raise ShapeError(f"A must be a square matrix (n, n), got shape {A.shape}")
     B = as_array("B", B, (n, None))
     m = B.shape[1]
     Q = as_array("Q", Q, (n, n))
@@ -167,6 +185,7 @@ def dlqr(
     check_weights(Q, R)
     modes = uncontrollable_modes(A, B)
     _count_marginal(modes, _MARGIN)  # raises on an uncontrollable unstable mode
+    _refuse_partly_reached_blocks(modes, _MARGIN)
     Q, R = 0.5 * (Q + Q.T), 0.5 * (R + R.T)
     # Modes no control reaches and that neither grow nor decay (a floating robot moved
     # sideways or turned as a whole) have no stabilizing Riccati solution where the cost
@@ -176,8 +195,10 @@ def dlqr(
     if uncontrollable is None:
         return _solve_dare(A, B, Q, R, N)
     keep = np.eye(n) - uncontrollable
+    if np.linalg.norm(keep) <= 1e-9 * n:  # no input reaches anything: the gain is zero
+        return np.zeros((m, n)), np.zeros((n, n))
     try:
-        K, P = _solve_dare(A, B, keep.T @ Q @ keep, R, None if N is None else keep.T @ N)
+        K, P = _solve_dare(A, B, keep.T @ Q @ keep, R, None if N is None else keep.T @ N, keep)
     except SolverError:
         # SciPy's reordering can fail on the full pencil: solve in an orthonormal basis T
         # of the complement instead (x_c = T z).
@@ -189,28 +210,57 @@ def dlqr(
 
 
 def _solve_dare(
-    A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, N: np.ndarray | None
+    A: np.ndarray,
+    B: np.ndarray,
+    Q: np.ndarray,
+    R: np.ndarray,
+    N: np.ndarray | None,
+    keep: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``K`` and ``P`` of the discrete Riccati equation (arguments already checked)."""
+    """``K`` and ``P`` of the discrete Riccati equation (arguments already checked).
+
+    A mode on the unit circle that ``Q`` does not see (a floating robot turning about its
+    one stance foot) makes the pencil singular: older SciPy raises, SciPy 1.17 returns a
+    solution whose gain leaves the mode on the circle. Either way the equation is solved
+    again with every state weighed negligibly (``1e-9`` of ``Q``'s largest diagonal entry;
+    only the part ``keep`` ``(n, n)`` that inputs reach when uncontrollable modes are left
+    out), which moves such a mode inside without changing the gain elsewhere.
+    """
+    left_out = 0 if keep is None else len(A) - round(float(np.trace(keep)))
     try:
         P = scipy.linalg.solve_discrete_are(A, B, Q, R, s=N)
-    except (np.linalg.LinAlgError, ValueError) as exc:
-        # A mode on the unit circle that Q does not see (a floating robot turning about its
-        # one stance foot) makes the pencil singular; weighing every state negligibly
-        # moves it off the circle without changing the gain elsewhere.
-        delta = 1e-9 * max(1.0, float(np.max(np.abs(np.diag(Q)))))
-        try:
-            P = scipy.linalg.solve_discrete_are(A, B, Q + delta * np.eye(len(A)), R, s=N)
-        except (np.linalg.LinAlgError, ValueError):
-            P = None
-        if P is None or not np.all(np.isfinite(P)):
-            raise SolverError(
-                f"the discrete Riccati equation has no stabilizing solution ({exc}); "
-                "check that every unstable mode is penalized by Q (detectability)"
-            ) from exc
+    except Exception as exc:  # LinAlgError, ValueError, and LAPACK's own error type
+        error: Exception | None = exc
+    else:
+        error = None
+        K = _gain(A, B, R, N, P)
+        if np.all(np.isfinite(P)) and _on_circle(A - B @ K) <= left_out:
+            return K, P
+    delta = 1e-9 * max(1.0, float(np.max(np.abs(np.diag(Q)))))
+    weigh = np.eye(len(A)) if keep is None else keep.T @ keep
+    try:
+        P = scipy.linalg.solve_discrete_are(A, B, Q + delta * weigh, R, s=N)
+    except Exception:
+        P = None
+    if P is None or not np.all(np.isfinite(P)):
+        raise SolverError(
+            f"the discrete Riccati equation has no stabilizing solution ({error}); "
+            "check that every unstable mode is penalized by Q (detectability)"
+        ) from error
+    return _gain(A, B, R, N, P), P
+
+
+def _gain(
+    A: np.ndarray, B: np.ndarray, R: np.ndarray, N: np.ndarray | None, P: np.ndarray
+) -> np.ndarray:
     cross = B.T @ P @ A if N is None else B.T @ P @ A + N.T
-    K = np.linalg.solve(R + B.T @ P @ B, cross)
-    return K, P
+    return np.linalg.solve(R + B.T @ P @ B, cross)
+
+
+def _on_circle(closed: np.ndarray) -> int:
+    """How many eigenvalues of the closed-loop matrix ``closed`` lie on or outside the unit
+    circle (to within :data:`_UNDAMPED`)."""
+    return int(np.sum(np.abs(np.linalg.eigvals(closed)) >= 1.0 - _UNDAMPED))
 
 
 @checked_options

@@ -85,7 +85,8 @@ class UncontrollableMode(NamedTuple):
     Attributes:
         eigenvalue: The eigenvalue.
         projector: :math:`\Pi_u` ``(n, n)`` onto those directions (complex; see the module),
-            or ``None`` for a defective eigenvalue, found by the PBH rank test alone.
+            or ``None`` for a defective eigenvalue found by the PBH rank test whose
+            generalized eigenspace inputs partly reach (no projector leaves it out).
     """
 
     eigenvalue: complex
@@ -133,7 +134,7 @@ def uncontrollable_modes(
         if max(np.linalg.cond(V), np.linalg.cond(W)) > _MAX_CONDITION:
             pbh = np.hstack([A - lam * np.eye(n), B])
             if np.linalg.svd(pbh, compute_uv=False)[-1] <= PBH_TOL * scale:
-                modes.append(UncontrollableMode(lam, None))
+                modes.append(UncontrollableMode(lam, _block_projector(A, B, lam, len(idx), tol)))
             continue
         # Left eigenvectors of unit length that the (unit-column) input barely moves.
         Wo = np.linalg.qr(W)[0]
@@ -147,10 +148,37 @@ def uncontrollable_modes(
     return modes
 
 
+def _block_projector(
+    A: np.ndarray, B: np.ndarray, lam: complex, k: int, tol: float
+) -> np.ndarray | None:
+    r"""The spectral projector onto a defective eigenvalue's generalized eigenspace when no
+    input reaches any of it, else ``None``.
+
+    A joint that turns freely with neither stiffness nor damping and no actuator (a body
+    spinning about an axis no motor drives) is a Jordan block at :math:`\lambda = 1`: its
+    angle and rate. With :math:`R, L` ``(n, k)`` orthonormal bases of the right and left
+    generalized eigenspaces (the null spaces of :math:`(A - \lambda I)^k` and of its
+    conjugate transpose), the coordinates :math:`L^H x` evolve on their own when
+    :math:`\|L^H B\| \le` ``tol``, and :math:`\Pi_u = R (L^H R)^{-1} L^H` projects along
+    the invariant complement, which holds the range of :math:`B`.
+    """
+    n = A.shape[0]
+    power = np.linalg.matrix_power(A - lam * np.eye(n), k)
+    U, _, Vh = np.linalg.svd(power)
+    R, L = Vh[n - k :].conj().T, U[:, n - k :]
+    if np.linalg.norm(L.conj().T @ B, 2) > tol:
+        return None  # part of the block is reached: only the PBH test's verdict stands
+    LR = L.conj().T @ R
+    if np.linalg.cond(LR) > _MAX_CONDITION:
+        return None
+    return R @ np.linalg.solve(LR, L.conj().T)
+
+
 def marginal_projector(modes: list[UncontrollableMode], margin: float = 1e-6) -> np.ndarray | None:
     r"""The projector :math:`\Pi_u` ``(n, n)`` onto those of ``modes`` (from
     :func:`uncontrollable_modes`) with :math:`\bigl||\lambda| - 1\bigr| \le` ``margin``, or
-    ``None`` when there are none (defective ones are left out: they have no projector)."""
+    ``None`` when there are none (a defective one that inputs partly reach has no projector
+    and is left out)."""
     parts = [
         mode.projector
         for mode in modes
