@@ -34,10 +34,13 @@ def as_array(name: str, value: object, shape: Sequence[int | None]) -> np.ndarra
 
     Raises:
         ShapeError: If the number of dimensions or a fixed dimension differs.
-        InvalidTypeError: If ``value`` is not numeric (a string, a mapping, ``None``, ...).
+        InvalidTypeError: If ``value`` is not numeric (a string, a mapping, ``None``, ...) or
+            complex.
     """
     if value is None or isinstance(value, (str, bytes, Mapping)):
         raise InvalidTypeError(f"{name} must be a numeric array, got {type(value).__name__}")
+    if np.iscomplexobj(value):  # float64 would drop the imaginary part with only a warning
+        raise InvalidTypeError(f"{name} must be a real array, got complex values")
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:

@@ -140,7 +140,7 @@ def test_divergent_rollouts_raise_regularization_and_recover():
     assert res.cost == pytest.approx(ref.cost, rel=1e-6)
 
 
-def test_mpc_feedback_between_replans_and_no_crash_on_nan():
+def test_mpc_feedback_between_replans_and_a_diverged_state_is_reported():
     problem = point_mass()
     ctrl = ILQR(problem, horizon=T, replan_period=0.2)
     assert ctrl.period is None
@@ -154,8 +154,11 @@ def test_mpc_feedback_between_replans_and_no_crash_on_nan():
     assert ctrl.stats["replans"] == 1
     ctrl(plan.states[4], 4 * problem.dt)
     assert ctrl.stats["replans"] == 2
-    out = ctrl(np.full(4, np.nan), 5 * problem.dt)
-    assert np.all(np.isfinite(out)) and ctrl.stats["fallbacks"] == 1
+    with pytest.raises(mpcbox.DivergenceError, match="non-finite"):  # a diverged world
+        ctrl(np.full(4, np.nan), 5 * problem.dt)
+    with pytest.raises(mpcbox.DivergenceError, match="mjMAXVAL"):  # MuJoCo would reset it
+        ctrl(np.full(4, 1e11), 5 * problem.dt)
+    assert ctrl.stats["fallbacks"] == 0
     held = ILQR(problem, horizon=T, replan_period=0.1, feedback=False)
     assert held.period == pytest.approx(0.1)
 

@@ -349,3 +349,44 @@ def test_compare_refuses_a_push_that_starts_after_the_run(tmp_path, capsys):
     args = ["compare", "pendulum_swingup", "--push", "3", "--push-time", "2", "--duration", "1"]
     assert cli_main([*args, "--out", str(tmp_path)]) == 2
     assert "--push-time (2 s) must be before the end of the run" in capsys.readouterr().err
+
+
+def test_options_that_contradict_each_other_are_refused_by_name(problem, tmp_path):
+    """Each once built and then did nothing, or failed only in every run."""
+    from mpcbox.comparison.scenario import PushTest
+    from mpcbox.controllers.ilqr.config import ILQRConfig
+    from mpcbox.controllers.qp_mpc.config import QPMPCConfig
+    from mpcbox.controllers.sampling.config import CEMConfig
+
+    with pytest.raises(mpcbox.InvalidArgumentError, match="tolerance must be below max_force"):
+        PushTest(tolerance=5000.0, max_force=2000.0)
+    with pytest.raises(mpcbox.InvalidArgumentError, match="regularization_max"):
+        ILQRConfig(horizon=10, regularization=1e12)
+    with pytest.raises(mpcbox.InvalidArgumentError, match="std_min"):
+        CEMConfig(std_min=10.0, noise_scale=0.1).validate(problem.nu, problem.dt)
+    folder = tmp_path / "file"
+    folder.write_text("")
+    with pytest.raises(mpcbox.InvalidArgumentError, match="export_dir must be a folder"):
+        QPMPCConfig(export_dir=folder)
+    with pytest.raises(mpcbox.InvalidArgumentError, match="width must span at most"):
+        mpcbox.ActuatorNoise(std=0.1, width=1e6).sample(5, problem.nu, problem.dt, 0)
+    with pytest.raises(mpcbox.InvalidArgumentError, match="delay must be at most"):
+        mpcbox.simulate_realtime(problem, mpcbox.LQR(problem), 0.1, delay=1.0)
+
+
+def test_compare_names_an_unknown_pushed_body_before_any_run(problem):
+    push = mpcbox.Push(force=(1.0, 0.0, 0.0), start=0.01, body="torso")
+    scenario = Scenario(duration=0.05, noise_scale=0.0, pushes=(push,))
+    with pytest.raises(mpcbox.UnknownNameError, match=r"Push body: unknown body 'torso'.*pole"):
+        mpcbox.compare(problem, ["lqr"], scenario, seeds=1, progress=False)
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "match"),
+    [("fall_fraction", 2.0, r"fall_fraction must be in \(0, 1\)"), ("fall_tilt", 500.0, "180")],
+)
+def test_legged_fall_criteria_out_of_their_range_are_refused(option, value, match):
+    from mpcbox.tasks.legged.quadruped import QuadrupedStand
+
+    with pytest.raises(mpcbox.InvalidArgumentError, match=match):
+        QuadrupedStand(**{option: value})

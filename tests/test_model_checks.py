@@ -227,6 +227,32 @@ def pendulum_problem():
     return mpcbox.Problem(str(PENDULUM_SCENE))
 
 
+def test_states_beyond_mujocos_limit_are_divergence_not_a_silent_reset(pendulum_problem):
+    # MuJoCo resets a state beyond mjMAXVAL (BADQVEL) and steps on from qpos0.
+    problem, u = pendulum_problem, np.zeros(1)
+    huge = np.array([0.0, 1e11])
+    with pytest.raises(mpcbox.DivergenceError, match=r"state has a magnitude .*mjMAXVAL"):
+        problem.step(huge, u)
+    with pytest.raises(mpcbox.DivergenceError, match="mjMAXVAL"):
+        problem.linearize(huge, u)
+    with pytest.raises(mpcbox.DivergenceError, match="mjMAXVAL"):
+        problem.rollout(huge, np.zeros((3, 1)))
+    assert np.all(np.isfinite(problem.step(np.array([0.0, 1e9]), u)))  # below it: stepped
+
+
+def test_state_arrays_that_do_not_fit_are_named_errors(pendulum_problem):
+    problem = pendulum_problem
+    x = np.array([0.3, 0.0])
+    with pytest.raises(mpcbox.InvalidTypeError, match="real"):
+        problem.step(x + 0.1j, np.zeros(1))
+    with pytest.raises(mpcbox.ShapeError, match="float64"):
+        problem.state_difference(x, x, out=np.zeros(2, dtype=int))
+    other = mujoco.MjModel.from_xml_path(str(scene_path("cartpole.xml")))
+    with pytest.raises(mpcbox.ShapeError, match=r"data must be of this Problem's model"):
+        problem.get_state(mujoco.MjData(other))
+    np.testing.assert_array_equal(problem.get_state(mujoco.MjData(problem.model)), [0.0, 0.0])
+
+
 @pytest.mark.parametrize("ctrl", [1.5e10, -1e12])
 def test_controls_beyond_mujocos_limit_are_refused_not_zeroed(pendulum_problem, ctrl):
     # MuJoCo would zero them (BADCTRL) and step/linearize as if the control were 0.

@@ -39,6 +39,7 @@ from mpcbox.comparison.robustness import PushLimit
 from mpcbox.comparison.scenario import PushTest, Scenario, check_noise_models
 from mpcbox.config import check_option_names, resolve_config
 from mpcbox.controllers.base import Controller
+from mpcbox.core.model import object_id
 from mpcbox.core.problem import Problem
 from mpcbox.errors import (
     InvalidArgumentError,
@@ -119,6 +120,18 @@ def resolve_controllers(
 
 
 @checked_keywords
+def _check_pushed_bodies(
+    problem: Problem, scenarios: Sequence[Scenario], tests: Sequence[PushTest]
+) -> None:
+    """Every pushed body must exist in ``problem``'s model: a name error before any run,
+    rather than the same error in every run's row."""
+    for scenario in scenarios:
+        for push in scenario.pushes:
+            object_id(problem.model, "body", push.body, "scenarios: Push body")
+    for test in tests:
+        object_id(problem.model, "body", test.body, "push_tests: PushTest body")
+
+
 def compare(
     problem: Problem | str,
     controllers: Sequence[ControllerSpec] | str | None = None,
@@ -251,6 +264,8 @@ def compare(
     if len(set(labels)) != len(labels):
         raise InvalidArgumentError(f"push_tests need distinct labels, got {labels}")
     check_noise_models(instance or problem_class, [*scenarios, *tests])
+    if instance is not None:  # a task given by name is checked in each run's own instance
+        _check_pushed_bodies(instance, scenarios, tests)
 
     setup = Setup(
         task=task,

@@ -271,6 +271,11 @@ class PushTest:
             positive("rest_speed", self.rest_speed)
         if self.scan_step is not None:
             positive("scan_step", self.scan_step)
+        if self.tolerance >= self.max_force:
+            raise InvalidArgumentError(
+                f"tolerance must be below max_force ({self.max_force:g} N), got "
+                f"{self.tolerance!r}: the bisection would stop before its first trial"
+            )
 
     @property
     def label(self) -> str:

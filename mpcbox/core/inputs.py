@@ -35,11 +35,18 @@ def check_state(name: str, state: object, nstate: int) -> np.ndarray:
 
     Raises:
         ShapeError: For another shape.
-        DivergenceError: If it holds NaN or infinity.
+        DivergenceError: If it holds NaN or infinity, or a magnitude beyond MuJoCo's limit
+            :data:`MAX_CTRL` (``mjMAXVAL``, 1e10), at which MuJoCo resets the simulation
+            (``BADQPOS``/``BADQVEL``) and a step would silently start over.
     """
     state = as_array(name, state, (nstate,))
-    if not np.all(np.isfinite(state)):
-        raise DivergenceError(f"{name} holds non-finite values (NaN or inf)")
+    if state.size and not np.abs(state).max() <= MAX_CTRL:  # one pass; False for NaN too
+        if not np.all(np.isfinite(state)):
+            raise DivergenceError(f"{name} holds non-finite values (NaN or inf)")
+        raise DivergenceError(
+            f"{name} has a magnitude {np.abs(state).max():.3g} beyond MuJoCo's limit "
+            f"{MAX_CTRL:.0e} (mjMAXVAL), at which MuJoCo resets the simulation"
+        )
     return state
 
 

@@ -19,6 +19,11 @@ from mpcbox.validation import seed as check_seed
 MAX_FORCE = 1e8
 
 
+#: Most samples of :class:`ActuatorNoise`'s smoothing kernel (its ``width`` over the
+#: timestep): 1e6, 2000 s at a 2 ms step, far beyond any run; a larger one only costs memory.
+MAX_KERNEL = 1_000_000
+
+
 @checked_options
 @dataclass(frozen=True, kw_only=True)
 class ActuatorNoise:
@@ -52,6 +57,7 @@ class ActuatorNoise:
 
         Raises:
             ShapeError: If ``std`` has one value per actuator and ``nu`` differs.
+            InvalidArgumentError: If ``width`` spans more than :data:`MAX_KERNEL` steps.
         """
         steps, nu = integer("steps", steps, 1), integer("nu", nu, 1)
         dt, seed = positive("dt", dt), check_seed("seed", seed)
@@ -59,6 +65,11 @@ class ActuatorNoise:
         std = np.full(nu, float(std)) if std.ndim == 0 else finite_array("std", std, (nu,))
         white = np.random.RandomState(seed).randn(steps, nu)
         width = max(1, int(positive("width", self.width) / dt))
+        if width > MAX_KERNEL:
+            raise InvalidArgumentError(
+                f"width must span at most {MAX_KERNEL:.0e} timesteps of {dt:g} s (the "
+                f"smoothing kernel's samples), got {self.width!r} s = {width:.3g} steps"
+            )
         kernel = np.exp(-0.5 * np.linspace(-3.0, 3.0, width) ** 2)
         kernel /= np.linalg.norm(kernel)
         smooth = np.empty_like(white)

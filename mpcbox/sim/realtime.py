@@ -250,6 +250,11 @@ def simulate_realtime(
         )
     if delay is not None:
         delay = whole_steps_delay(delay, dt)
+        if delay > duration:
+            raise InvalidArgumentError(
+                f"delay must be at most the run's duration ({duration:g} s), got {delay:g} s: "
+                "no plan would take effect"
+            )
     period = getattr(controller, "period", None)
     if period is None and callable(getattr(controller, "policy", None)):
         period = getattr(controller, "replan_period", None)  # the world runs the feedback

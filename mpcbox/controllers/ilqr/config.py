@@ -298,6 +298,11 @@ class ILQRConfig:
                 "regularization_max must exceed regularization_min, got "
                 f"{self.regularization_max} <= {self.regularization_min}"
             )
+        if reg > self.regularization_max:
+            raise InvalidArgumentError(
+                f"regularization must not exceed regularization_max "
+                f"({self.regularization_max:g}), got {reg!r}"
+            )
         factor = positive("regularization_factor", self.regularization_factor)
         if factor <= 1.0:
             raise InvalidArgumentError(f"regularization_factor must be > 1, got {factor}")

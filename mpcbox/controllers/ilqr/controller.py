@@ -26,7 +26,7 @@ from mpcbox.core.blas_threads import single_blas_thread
 from mpcbox.core.mujoco_warnings import captured_warnings
 from mpcbox.core.problem import Problem
 from mpcbox.errors import MpcboxError
-from mpcbox.validation import as_array, finite
+from mpcbox.validation import finite
 
 
 class ILQR(ILQRSolver, Controller):
@@ -169,7 +169,9 @@ class ILQR(ILQRSolver, Controller):
     def __call__(self, state: np.ndarray, time: float) -> np.ndarray:
         """MPC step: replan every ``replan_period``, otherwise apply the feedback law.
 
-        Never raises on numerical trouble: a failed replan keeps the previous plan (or
+        A state holding NaN or infinity is a :class:`~mpcbox.DivergenceError` (the world
+        diverged; as every controller reports it). Otherwise it never raises on numerical
+        trouble in the planner: a failed replan keeps the previous plan (or
         ``ctrl_ref``) and counts a fallback. A replan that stalled
         (``stop_reason.stalled``) is used and counted in ``stats["stalled"]``; it counts a
         fallback too only when it stalled before accepting a step from the previous plan's
@@ -186,15 +188,12 @@ class ILQR(ILQRSolver, Controller):
         degraded run of a robot that stood).
         """
         cfg = self.config
-        state = as_array("state", state, (self.problem.nstate,))
+        state = self.problem.check_state(state)
         time = finite("time", time)
         if self._last_result is not None and time < self._plan_time - 1e-9:
             self.reset()  # a new simulation started
         due = self._last_result is None or time - self._plan_time >= self.replan_period - 1e-9
         self.last_call = "solve" if due else "hold"
-        if not np.all(np.isfinite(state)):
-            self._counts["fallbacks"] += 1
-            return self._last_ctrl.copy()
         if due:
             warm = self._shifted_ctrls(time, state)
             first = self._last_result is None

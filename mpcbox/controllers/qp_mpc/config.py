@@ -307,6 +307,11 @@ class QPMPCConfig:
                     f"export_dir must be a path, got {type(self.export_dir).__name__}"
                 )
             put("export_dir", Path(self.export_dir))
+            if self.export_dir.exists() and not self.export_dir.is_dir():
+                raise InvalidArgumentError(
+                    f"export_dir must be a folder (made if missing), got the file "
+                    f"{str(self.export_dir)!r}"
+                )
         one_of("fallback", self.fallback, FALLBACKS)
         one_of("between_ticks", self.between_ticks, BETWEEN_TICKS)
         one_of("first_stage_forces", self.first_stage_forces, FIRST_STAGE_FORCES)

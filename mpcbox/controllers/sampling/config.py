@@ -445,7 +445,12 @@ class CEMConfig(SamplingConfig):
             )
         non_negative("std_min", self.std_min)
         in_range("smoothing", self.smoothing, 0.0, 1.0, low_open=False, high_open=True)
-        self.initial_std(nu)
+        cap = float(np.max(np.maximum(self.initial_std(nu), self.knot_noise(nu))))
+        if self.std_min > cap:
+            raise InvalidArgumentError(
+                f"std_min must not exceed the largest standard deviation the refit allows, "
+                f"max(std_init, noise_scale) = {cap:g}, got {self.std_min!r}"
+            )
 
     def initial_std(self, nu: int) -> np.ndarray:
         """``std_init`` (or ``noise_scale``) per knot and control ``(K, nu)``, scheduled.

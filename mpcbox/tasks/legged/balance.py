@@ -40,10 +40,10 @@ from mpcbox.validation import (
     as_weights,
     finite,
     finite_array,
+    in_range,
     non_negative,
     one_of,
     optional_positive,
-    positive,
 )
 
 #: Name of the world site added at the middle of several feet (``support="center"``).
@@ -287,9 +287,16 @@ class LeggedBalance(Problem):
         self.support = one_of("support", support, SUPPORTS)
         self.balance_target = one_of("balance_target", balance_target, BALANCE_TARGETS)
         self.ctrl_units = one_of("ctrl_units", ctrl_units, UNITS)
-        self.fall_fraction = positive("fall_fraction", fall_fraction)
+        self.fall_fraction = in_range(
+            "fall_fraction", fall_fraction, 0.0, 1.0, low_open=True, high_open=True
+        )
         self.fall_height = None if fall_height is None else finite("fall_height", fall_height)
         self.fall_tilt = optional_positive("fall_tilt", fall_tilt)
+        if self.fall_tilt is not None and self.fall_tilt > 180.0:
+            raise InvalidArgumentError(
+                f"fall_tilt must be at most 180 degrees (None: no tilt criterion), "
+                f"got {fall_tilt!r}"
+            )
         self.weights = dict(
             balance=non_negative("balance_cost", balance_cost),
             joint=_weight("joint_cost", joint_cost),
