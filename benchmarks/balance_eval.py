@@ -28,7 +28,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+from json_report import check_balance_args, json_option  # benchmarks/ is not a package
 
+from mpcbox.cli.checks import number_flag, script_main
 from mpcbox.comparison.runner import compare
 from mpcbox.comparison.scenario import PushTest, Scenario
 
@@ -104,8 +106,11 @@ def evaluate(args: argparse.Namespace) -> dict:
                 else None
             ),
             "failed_seeds": [r.seed for r in failed],
-            "com_deviation_rms_cm": round(row.measures["com_deviation_rms_cm"], 3),
-            "tilt_rms_deg": round(row.measures["tilt_rms_deg"], 3),
+            # A run that failed before recording (a build error) has no measures: its
+            # failure is listed instead.
+            "failures": sorted({r.failure for r in runs if r.failure}),
+            "com_deviation_rms_cm": _rounded(row.measures.get("com_deviation_rms_cm"), 3),
+            "tilt_rms_deg": _rounded(row.measures.get("tilt_rms_deg"), 3),
             "compute_mean_ms": round(row.compute_mean_ms, 3),
             "compute_p99_ms": round(row.compute_p99_ms, 3),
             "realtime_factor": round(row.realtime_factor, 2),
@@ -120,6 +125,10 @@ def evaluate(args: argparse.Namespace) -> dict:
             }
         out["controllers"][row.controller] = entry
     return out
+
+
+def _rounded(value: float | None, digits: int) -> float | None:
+    return None if value is None else round(value, digits)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -151,14 +160,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", default="", help="also write the JSON to this path")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
+    check_balance_args(args, "--seed")
+    number_flag("--noise", args.noise, low=0.0, strict=False)
+    json_option("--weights", args.weights)
     summary = evaluate(args)
     text = json.dumps(summary, indent=2)
     print(text)
     if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(text + "\n")
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(script_main(main, None))

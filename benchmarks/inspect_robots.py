@@ -11,6 +11,7 @@ user would name it, and records every finding's level and text and the wall time
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -69,11 +70,12 @@ def main() -> int:
     )
     parser.add_argument("--out", default="")
     args = parser.parse_args()
+    from mpcbox.core.menagerie import model_source
     from mpcbox.core.robot_check import check_robot
     from mpcbox.errors import MpcboxError
 
     started = time.perf_counter()
-    names = [r for r in args.robots.split(",") if r]
+    names = [model_source(r) for r in args.robots.split(",") if r]  # a bare name: Menagerie's
     if args.every_test_model:
         names = every_test_model()
     elif not args.no_third_party:
@@ -94,7 +96,8 @@ def main() -> int:
         rows[name]["seconds"] = round(time.perf_counter() - tic, 2)
     out = {
         "benchmark": "inspect_robots: mpcbox inspect's checks (check_robot) on each model",
-        "command": "MENAGERIE_ROOT=... python benchmarks/inspect_robots.py",
+        "command": "MENAGERIE_ROOT=... python benchmarks/inspect_robots.py "
+        + " ".join(sys.argv[1:]),
         "levels": {
             k: v.get("level", "refused" if "refused" in v else "ERROR") for k, v in rows.items()
         },

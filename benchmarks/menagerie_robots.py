@@ -27,8 +27,11 @@ import numpy as np
 from quadruped_stand import add_push_options  # benchmarks/ is not a package
 from quadruped_walk import parse_set  # benchmarks/ is not a package
 
+from mpcbox.cli.checks import check_output_folder, number_flag
 from mpcbox.cli.compare import parse_sets
-from mpcbox.errors import MpcboxError
+from mpcbox.errors import InvalidArgumentError, MpcboxError
+from mpcbox.registry import controller_class
+from mpcbox.validation import positive_int
 
 OUT = Path(__file__).parent / "results" / "menagerie_robots.json"
 
@@ -236,6 +239,24 @@ def _job(args: tuple) -> tuple[str, dict]:
         return robot, {"crash": traceback.format_exc()[-1500:]}
 
 
+def _stored_results(path: Path) -> dict:
+    """The labels already in ``--out`` (``{}`` for a new file), checked to be writable.
+
+    Raises:
+        InvalidArgumentError: If ``--out`` is not a JSON object or cannot be written.
+    """
+    check_output_folder(path.parent, "--out")
+    if not path.exists():
+        return {}
+    try:
+        stored = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise InvalidArgumentError(f"--out: {str(path)!r} is not a results JSON: {exc}") from exc
+    if not isinstance(stored, dict):
+        raise InvalidArgumentError(f"--out: {str(path)!r} holds no labels (a JSON object)")
+    return stored
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robots", default=",".join(ROBOTS))
@@ -285,6 +306,15 @@ def main() -> int:
         controller_options = parse_sets(args.controller_set)
     except MpcboxError as exc:
         parser.error(f"--controller-set: {exc}")
+    try:
+        positive_int("--workers", args.workers)
+        positive_int("--seeds", args.seeds)
+        number_flag("--duration", args.duration, low=0.0)
+        for name in controllers:
+            controller_class(name)
+        stored = _stored_results(Path(args.out))  # before the runs, which take minutes
+    except MpcboxError as exc:
+        parser.error(str(exc))
     jobs = [
         (
             r,
@@ -304,11 +334,10 @@ def main() -> int:
         )
         for r in robots
     ]
+    path = Path(args.out)
     started = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         results = dict(pool.map(_job, jobs))
-    path = Path(args.out)
-    stored = json.loads(path.read_text()) if path.exists() else {}
     stored[args.label] = {
         "command": "MENAGERIE_ROOT=... python benchmarks/menagerie_robots.py "
         f"--robots {args.robots} --label {args.label} --seeds {args.seeds} "

@@ -34,8 +34,9 @@ import time
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
-from json_report import SANDBOX, finish  # benchmarks/ is not a package
+from json_report import SANDBOX, check_balance_args, finish  # benchmarks/ is not a package
 
+from mpcbox.cli.checks import script_main
 from mpcbox.cli.compare_parser import add_push_scan_step
 from mpcbox.comparison.report import Comparison
 from mpcbox.comparison.runner import compare
@@ -65,10 +66,9 @@ def controller_summary(result: Comparison, name: str) -> dict:
             "tick_median_ms": round(float(np.median([m.compute_p50_ms for m in metrics])), 3),
             "tick_p99_ms": round(float(np.max([m.compute_p99_ms for m in metrics])), 3),
             "period_ms": round(1000 * metrics[0].period_s, 2),
-            "tilt_rms_deg": round(float(np.mean([m.measures["tilt_rms_deg"] for m in metrics])), 3),
-            "com_deviation_rms_cm": round(
-                100 * float(np.mean([m.measures["com_deviation_rms_m"] for m in metrics])), 3
-            ),
+            # Runs that failed before recording (a build error) have no measures.
+            "tilt_rms_deg": _mean_measure(metrics, "tilt_rms_deg", 1.0),
+            "com_deviation_rms_cm": _mean_measure(metrics, "com_deviation_rms_m", 100.0),
         }
     for label, limit in result.push_limits.get(name, {}).items():
         out[f"largest_push_{label}"] = {
@@ -103,6 +103,12 @@ def push_record(args: argparse.Namespace) -> dict:
         "scan_step_N": args.push_scan_step,
         "noise": 0,
     }
+
+
+def _mean_measure(metrics: list, name: str, scale: float) -> float | None:
+    """Mean of measure ``name`` times ``scale`` over the runs that recorded it."""
+    values = [m.measures[name] for m in metrics if name in m.measures]
+    return round(scale * float(np.mean(values)), 3) if values else None
 
 
 def evaluate(robot: str, args: argparse.Namespace) -> dict:
@@ -178,6 +184,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--machine", default=SANDBOX, help="what runs it, for the JSON")
     parser.add_argument("--json", default="", help="also write the JSON here")
     args = parser.parse_args(argv)
+    check_balance_args(args, "--first-seed")
     t0 = time.perf_counter()
     out = {
         "benchmark": "quadruped_stand",
@@ -192,4 +199,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(script_main(main, None))

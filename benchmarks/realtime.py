@@ -36,14 +36,65 @@ import numpy as np
 from quadruped_walk import parse_set
 
 import mpcbox
-from mpcbox.cli.checks import lookahead_option
+from mpcbox.cli.checks import check_output_folder, lookahead_option, number_flag, script_main
 from mpcbox.comparison.records import gpu_names
+from mpcbox.errors import InvalidArgumentError, UnknownNameError
 from mpcbox.registry import task_class
 from mpcbox.sim.disturbances import ModelMismatch, Push
 from mpcbox.sim.realtime import simulate_realtime
+from mpcbox.validation import integer, positive_int
+
+LOOPS = ("lockstep", "realtime")
 
 
-def main() -> None:
+def check_args(args: argparse.Namespace) -> list[float] | None:
+    """Every number and name before any run (a named :class:`MpcboxError`); returns the
+    parsed ``--push`` (force, start, duration) or ``None``."""
+    from mpcbox.registry import controller_class
+
+    for loop in args.loops.split(","):
+        if loop not in LOOPS:
+            raise UnknownNameError("--loops entry", loop, LOOPS)
+    for name in args.controllers.split(","):
+        fields = getattr(controller_class(name).config_class, "__dataclass_fields__", {})
+        if "backend" not in fields:
+            raise InvalidArgumentError(
+                f"--controllers: {name!r} is not a sampling controller (this benchmark runs "
+                "ps, mppi and cem with --backend)"
+            )
+    positive_int("--seeds", args.seeds)
+    integer("--first-seed", args.first_seed, minimum=0)
+    number_flag("--duration", args.duration, low=0.0)
+    number_flag("--speed", args.speed, low=0.0)
+    number_flag("--start-perturbation", args.start_perturbation, low=0.0, strict=False)
+    for flag in ("--period", "--mass-scale", "--delay", "--noise-scale"):
+        value = getattr(args, flag[2:].replace("-", "_"))
+        if value is not None:
+            number_flag(flag, value, low=0.0, strict=flag in ("--period", "--mass-scale"))
+    if args.num_samples is not None:
+        positive_int("--num-samples", args.num_samples)
+    if args.json:
+        check_output_folder(Path(args.json).parent, "--json")
+    if not args.push:
+        return None
+    try:
+        spec = [float(v) for v in args.push.split(",")]
+    except ValueError:
+        spec = []
+    if len(spec) != 3:
+        raise InvalidArgumentError(f"--push takes FORCE,START,DURATION, got {args.push!r}")
+    number_flag("--push force", spec[0], low=0.0, strict=False)
+    number_flag("--push start", spec[1], low=0.0, strict=False)
+    number_flag("--push duration", spec[2], low=0.0)
+    return spec
+
+
+def main() -> int:
+    """Run the loops; a bad argument prints its named error and returns 2."""
+    return script_main(_run, None)
+
+
+def _run(argv: list[str] | None) -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--task", default="cartpole_swingup")
     parser.add_argument("--loops", default="lockstep,realtime")
@@ -86,13 +137,13 @@ def main() -> None:
     parser.add_argument("--gpu", default=None, help="GPU name to record (default nvidia-smi)")
     parser.add_argument("--machine", default="2-core sandbox CPU, shared")
     parser.add_argument("--json", default=None)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     lookahead = lookahead_option(args.lookahead)
+    push_spec = check_args(args)
 
     problem = task_class(args.task)(**parse_set(args.task_set))
     noise = problem.noise(args.noise_scale) if args.noise_scale is not None else None
     mismatch = ModelMismatch(mass_scale=args.mass_scale) if args.mass_scale else None
-    push_spec = [float(v) for v in args.push.split(",")] if args.push else None
     report: dict = {
         "task": args.task,
         "machine": args.machine,
@@ -193,9 +244,9 @@ def main() -> None:
     text = json.dumps(report, indent=2)
     print(text)
     if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(text + "\n")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

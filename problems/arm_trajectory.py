@@ -32,7 +32,7 @@ import mujoco
 import numpy as np
 
 import mpcbox
-from mpcbox.cli.checks import script_main
+from mpcbox.cli.checks import check_save_name, number_flag, script_main
 from mpcbox.core import menagerie
 from mpcbox.core.end_effector import end_effector
 from mpcbox.core.menagerie import MissingMeshWarning
@@ -105,6 +105,12 @@ def _run(argv: list[str] | None) -> int:
     parser.add_argument("--mass-scale", type=float, default=1.3)
     parser.add_argument("--save", default=None, help="NAME of the CSV/JSON of the quintic run")
     args = parser.parse_args(argv)
+    number_flag("--duration", args.duration, low=0.0)
+    number_flag("--obstacle", args.obstacle, low=0.0, strict=False)
+    number_flag("--mass-scale", args.mass_scale, low=0.0)
+    if args.iterations < 1:
+        raise InvalidArgumentError(f"--iterations must be >= 1, got {args.iterations}")
+    check_save_name("--save", args.save)
 
     key = Path(args.model.removeprefix("menagerie:")).stem
     frame, offset, offsets = PRESETS.get(key, (None, [0.0, 0.0, 0.0], None))

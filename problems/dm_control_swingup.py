@@ -23,12 +23,16 @@ MODELS = ("cartpole", "acrobot")
 
 def main(argv: list[str] | None = None) -> int:
     """Parse ``--model`` and pass the other arguments to the comparison."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], add_help=False)
-    parser.add_argument("--model", choices=MODELS, default="cartpole")
-    args, rest = parser.parse_known_args(argv)
+    parser = argparse.ArgumentParser(add_help=False)
+    parser.add_argument(
+        "--model", choices=MODELS, default="cartpole", help="dm_control suite model to swing up"
+    )
+    args, _ = parser.parse_known_args(argv)
     return run_task_script(
         f"dm_{args.model}_swingup",
-        rest,
+        argv,
+        prog="dm_control_swingup.py",
+        parents=[parser],
         controllers="ilqr,mppi",
         duration=6.0,
         seeds=1,

@@ -21,7 +21,12 @@ from go2_stand import main as go2_main
 
 def main(argv: list[str] | None = None) -> int:
     """Run the comparison on the Go1 (``argv`` defaults to the command line)."""
-    return go2_main(argv, default_model="unitree_go1", prog="go1_stand.py")
+    return go2_main(
+        argv,
+        default_model="unitree_go1",
+        prog="go1_stand.py",
+        description=__doc__.split("\n\n")[0],
+    )
 
 
 if __name__ == "__main__":

@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from mpcbox.cli.checks import number_flag
 from mpcbox.cli.compare_parser import add_push_scan_step
 from mpcbox.comparison.balance_suite import balance_suite
 from mpcbox.comparison.runner import compare
@@ -40,12 +41,17 @@ from mpcbox.tasks.legged.quadruped import QuadrupedStand
 
 
 def main(
-    argv: list[str] | None = None, *, default_model: str = "unitree_go2", prog: str = "go2_stand.py"
+    argv: list[str] | None = None,
+    *,
+    default_model: str = "unitree_go2",
+    prog: str = "go2_stand.py",
+    description: str | None = None,
 ) -> int:
-    """Run the comparison (``argv`` defaults to the command line)."""
+    """Run the comparison (``argv`` defaults to the command line; ``description``: the
+    ``--help`` text's first paragraph, by default this module's)."""
     parser = argparse.ArgumentParser(
         prog=prog,
-        description=__doc__.split("\n\n")[0],
+        description=description or __doc__.split("\n\n")[0],
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     parser.add_argument("--model", default=default_model, help="Menagerie name or MJCF path")
@@ -66,6 +72,10 @@ def main(
     parser.add_argument("--workers", type=int, default=1, help="worker processes")
     args = parser.parse_args(argv)
     try:
+        number_flag("--duration", args.duration, low=0.0)
+        number_flag("--push", args.push, low=0.0, strict=False)
+        if args.push_scan_step is not None:
+            number_flag("--push-scan-step", args.push_scan_step, low=0.0)
         feet = [f for f in args.feet.split(",") if f] or None
         problem = QuadrupedStand(model_source(args.model), feet=feet)
         suite = balance_suite(

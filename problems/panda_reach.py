@@ -41,11 +41,11 @@ from mpcbox.controllers.servo_actions import motors
 from mpcbox.core.end_effector import end_effector
 from mpcbox.core.menagerie import MissingMeshWarning, model_source
 from mpcbox.core.model import compile_spec, frame_object, frame_position, load_spec
-from mpcbox.errors import SolverError
+from mpcbox.errors import InvalidArgumentError, SolverError
 from mpcbox.registry import make_controller
 from mpcbox.tasks.reach import ArmReach
 from mpcbox.tasks.reach_measures import arrival
-from mpcbox.validation import positive, positive_int
+from mpcbox.validation import finite_array, positive, positive_int
 
 #: The Panda's default target offset from its start (m): 40 cm sideways and down.
 PANDA_OFFSET = np.array([0.0, 0.3, -0.2646])
@@ -163,6 +163,12 @@ def _run(argv: list[str] | None) -> int:
     positive("--duration", args.duration)  # before any solve: a named error, exit 2
     positive("--offline-horizon", args.offline_horizon)
     positive_int("--offline-iterations", args.offline_iterations)
+    if {"offline", "ilqr", "mppi", "lqr"} <= set(args.skip):
+        raise InvalidArgumentError(
+            "--skip leaves nothing to run: keep at least one of offline, ilqr, mppi, lqr"
+        )
+    if args.target is not None:
+        finite_array("--target", args.target, (3,))
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MissingMeshWarning)

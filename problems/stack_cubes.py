@@ -20,7 +20,7 @@ import argparse
 import sys
 
 import mpcbox
-from mpcbox.cli.checks import script_main
+from mpcbox.cli.checks import check_save_name, script_main
 from mpcbox.sim.trajectory import save_trajectory, trajectory_from_result
 from mpcbox.tasks.manipulation.pick_place import PickPlaceTiming, stacking_controller
 from mpcbox.tasks.manipulation.stacking import StackCubes
@@ -42,6 +42,7 @@ def _run(argv: list[str] | None) -> int:
     args = parser.parse_args(argv)
     positive_int("--trials", args.trials)
     integer("--first-seed", args.first_seed, minimum=0)  # NumPy seeds
+    check_save_name("--save", args.save)
     problem = StackCubes(args.arm, threads=1)
     controller = stacking_controller(problem)
     duration = PickPlaceTiming().total

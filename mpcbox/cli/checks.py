@@ -90,11 +90,12 @@ def check_arguments(args: argparse.Namespace) -> None:
     resolve_model(args)
 
 
-def check_output_folder(folder: str | Path) -> Path:
-    """Create ``--out`` and check that a file can be written there, before anything runs.
+def check_output_folder(folder: str | Path, flag: str = "--out") -> Path:
+    """Create ``folder`` (the value of ``flag``, or the folder of its file) and check that
+    a file can be written there, before anything runs.
 
     Raises:
-        InvalidArgumentError: If the folder cannot be created or written.
+        InvalidArgumentError: If the folder cannot be created or written, naming ``flag``.
     """
     path = Path(folder)
     try:
@@ -102,8 +103,39 @@ def check_output_folder(folder: str | Path) -> Path:
         with tempfile.NamedTemporaryFile(dir=path):
             pass
     except OSError as exc:
-        raise InvalidArgumentError(f"--out {str(path)!r} is not a writable folder: {exc}") from exc
+        raise InvalidArgumentError(
+            f"{flag}: {str(path)!r} is not a writable folder: {exc}"
+        ) from exc
     return path
+
+
+def number_flag(flag: str, value: float, *, low: float | None = None, strict: bool = True) -> float:
+    """``value`` of ``flag``, checked to be finite and above ``low`` (``>=`` with
+    ``strict=False``).
+
+    Raises:
+        InvalidArgumentError: Naming the flag.
+    """
+    _finite(flag, value, low=low, strict=strict)
+    return value
+
+
+def check_save_name(flag: str, name: str | None) -> None:
+    """Check before any run that ``flag``'s ``PATH`` (written as ``PATH.csv`` and
+    ``PATH.json``) names a file in a folder that can be created and written.
+
+    Raises:
+        InvalidArgumentError: Naming the flag.
+    """
+    if name is None:
+        return
+    from mpcbox.sim.trajectory import trajectory_paths
+
+    try:
+        csv_path, _ = trajectory_paths(name)
+    except InvalidArgumentError as exc:
+        raise InvalidArgumentError(f"{flag}: {exc}") from None
+    check_output_folder(csv_path.parent, flag)
 
 
 def check_options(name: str, options: Mapping[str, Any], chosen: Iterable[str]) -> None:

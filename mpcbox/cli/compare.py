@@ -151,7 +151,6 @@ def run_comparison(
     from mpcbox.registry import controller_class, task_class
 
     stream = stream or sys.stdout
-    out = check_output_folder(args.out)
     check_arguments(args)
     check_single_run_flags(args)
     chosen = list(resolve_controllers(task_class(task), args.controllers or None))
@@ -189,6 +188,7 @@ def run_comparison(
         )
     seeds = range(args.seed, args.seed + args.seeds)
     scenarios = scenarios_from_args(args)
+    out = check_output_folder(args.out)  # made only once every argument has passed
     t0 = time.perf_counter()
     result = compare(
         task,
@@ -295,6 +295,8 @@ def run_task_script(
     argv: Sequence[str] | None = None,
     *,
     controller_options: dict[str, dict[str, Any]] | None = None,
+    prog: str | None = None,
+    parents: Sequence[argparse.ArgumentParser] = (),
     **defaults: Any,
 ) -> int:
     """Entry point of a ``problems/<task>.py`` script: ``mpcbox compare <task>`` with defaults.
@@ -304,6 +306,9 @@ def run_task_script(
         argv: Arguments (default: ``sys.argv[1:]``).
         controller_options: Option overrides for controllers, used when they are chosen
             (e.g. smaller sample counts for a quick CPU run); ``--set`` overrides them.
+        prog: Program name in the usage (default ``<task>.py``).
+        parents: The script's own option parsers (``add_help=False``), listed in
+            ``--help``; the script reads them itself (their values are ignored here).
         **defaults: Overrides of :data:`~mpcbox.cli.compare_parser.DEFAULTS` (e.g.
             ``duration=5.0, seeds=1``); ``out`` defaults to ``results/<task>``.
 
@@ -315,8 +320,12 @@ def run_task_script(
     if task not in TASKS:
         raise UnknownNameError("task", task, TASKS)
     defaults.setdefault("out", f"results/{task}")
-    parser = build_parser(task, prog=f"{task}.py", **defaults)
+    parser = build_parser(task, prog=prog or f"{task}.py", parents=parents, **defaults)
     args = parser.parse_args(None if argv is None else list(argv))
+    for own in parents:  # the script's options are not the comparison's
+        for action in own._actions:
+            if hasattr(args, action.dest):
+                delattr(args, action.dest)
     try:
         return run_comparison(task, args, controller_defaults=controller_options)
     except (MpcboxError, ImportError, OSError) as exc:

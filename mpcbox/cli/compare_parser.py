@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import inspect
+from collections.abc import Sequence
 from typing import Any
 
 from mpcbox.errors import UnknownNameError
@@ -76,18 +77,26 @@ def add_push_scan_step(parser: argparse.ArgumentParser, default: float | None = 
         "--push-scan-step",
         type=float,
         default=default,
-        help="--largest-push: before bisecting, try this force and its multiples up to the "
-        "first failure (N), so that a survival region that is not one interval is not "
+        help="largest-push search: before bisecting, try this force and its multiples up to "
+        "the first failure (N), so that a survival region that is not one interval is not "
         "skipped (default: bisection only)",
     )
 
 
-def build_parser(task: str | None = None, *, prog: str | None = None, **defaults: Any):
+def build_parser(
+    task: str | None = None,
+    *,
+    prog: str | None = None,
+    parents: Sequence[argparse.ArgumentParser] = (),
+    **defaults: Any,
+):
     """The argument parser of a comparison, with the task's options when ``task`` is given.
 
     Args:
         task: Task name; ``None`` adds a positional ``task`` argument instead.
         prog: Program name shown in the usage.
+        parents: Parsers (``add_help=False``) whose options a script adds in front of the
+            comparison's (shown in its ``--help``).
         **defaults: Overrides of :data:`DEFAULTS`.
     """
     unknown = set(defaults) - set(DEFAULTS)
@@ -96,6 +105,7 @@ def build_parser(task: str | None = None, *, prog: str | None = None, **defaults
     d = {**DEFAULTS, **defaults}
     parser = argparse.ArgumentParser(
         prog=prog,
+        parents=list(parents),
         description=(
             f"Compare controllers on {task!r}: " if task else "Compare controllers on a task: "
         )

@@ -23,6 +23,7 @@ import csv
 import dataclasses
 import json
 import math
+import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -289,6 +290,11 @@ def trajectory_paths(path: str | Path) -> tuple[Path, Path]:
     """The CSV and JSON paths of a trajectory named ``path`` (with or without a suffix)."""
     if not isinstance(path, (str, Path)):
         raise InvalidTypeError(f"path must be a file path, got {type(path).__name__}")
+    if str(path).endswith(("/", os.sep)) or Path(path).is_dir():
+        raise InvalidArgumentError(
+            f"path must name a file (PATH.csv and PATH.json are written), got the folder "
+            f"{str(path)!r}: add a name, such as {str(Path(path) / 'run')!r}"
+        )
     path = Path(path)
     if path.suffix.lower() in (".csv", ".json"):
         path = path.with_suffix("")

@@ -73,8 +73,9 @@ def _root_body(model: mujoco.MjModel, root: str | None) -> int:
     body = free_body(model)
     if body is None:
         raise InvalidArgumentError(
-            "root: the model has no free joint, so no floating root body to balance; name "
-            f"the root body (bodies: {', '.join(names(model, 'body'))})"
+            "root: the model has no free joint, so it is not a floating (legged) robot and "
+            "has no root body to balance; for a robot mounted on a rail or a stand, pass the "
+            f"task's root=BODY (bodies: {', '.join(names(model, 'body'))})"
         )
     return body
 
