@@ -38,7 +38,8 @@ from mpcbox.core.end_effector import end_effector
 from mpcbox.core.menagerie import MissingMeshWarning
 from mpcbox.core.model import compile_spec, load_spec
 from mpcbox.errors import EquilibriumWarning, InvalidArgumentError
-from mpcbox.sim.trajectory import save_trajectory, trajectory_from_result
+from mpcbox.sim.trajectory import trajectory_from_result
+from mpcbox.sim.trajectory_files import save_trajectory
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.arm import (
     ArmTrack,

@@ -10,7 +10,7 @@ layouts. Each line gives the outcome, the centre-to-centre errors and the reason
         [--save runs/stack]
 
 ``--save PATH`` writes the first trial as ``PATH.csv``/``PATH.json``
-(:func:`mpcbox.sim.trajectory.save_trajectory`: time, states, controls, the tool centre
+(:func:`mpcbox.sim.trajectory_files.save_trajectory`: time, states, controls, the tool centre
 point's x, y, z), e.g. for ``mpcbox validate`` to replay its controls on the scene.
 """
 
@@ -21,7 +21,8 @@ import sys
 
 import mpcbox
 from mpcbox.cli.checks import check_save_name, script_main
-from mpcbox.sim.trajectory import save_trajectory, trajectory_from_result
+from mpcbox.sim.trajectory import trajectory_from_result
+from mpcbox.sim.trajectory_files import save_trajectory
 from mpcbox.tasks.manipulation.pick_place import PickPlaceTiming, stacking_controller
 from mpcbox.tasks.manipulation.stacking import StackCubes
 from mpcbox.validation import integer, positive_int

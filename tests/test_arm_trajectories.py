@@ -22,7 +22,8 @@ from mpcbox.controllers.trajectory.quintic import PEAK_ACCELERATION_RATIO, PEAK_
 from mpcbox.core.cost import ActuatorForce, Cost, SphereClearance, StateCost
 from mpcbox.core.torque_limits import inverse_dynamics, torque_limits, torque_ratio
 from mpcbox.errors import InvalidArgumentError
-from mpcbox.sim.trajectory import load_trajectory, replay, save_trajectory, trajectory_from_result
+from mpcbox.sim.trajectory import replay, trajectory_from_result
+from mpcbox.sim.trajectory_files import load_trajectory, save_trajectory
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.arm import (
     ArmTrack,

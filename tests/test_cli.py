@@ -64,14 +64,31 @@ def test_options_lists_a_controllers_config_with_defaults(capsys) -> None:
         (["compare", "quadruped_stand", "--model", str(Path(__file__))], "model: MuJoCo could"),
         (["options", "no_such_controller"], "no_such_controller"),
         (["frobnicate"], "frobnicate"),
+        # From a fuzz of the command line (each ran, failed every run, or read oddly):
+        (["compare", "pendulum_swingup", "--controllers", "ilqr,ilqr"], "'ilqr' twice"),
+        (["compare", "pendulum_swingup", "--duration", "1e-9"], "one simulation step"),
+        (["compare", "pendulum_swingup", "--noise", ""], "--noise"),
+        (["compare", "pendulum_swingup", "--push-body", "nope"], "--push-body"),
+        (
+            ["compare", "pendulum_swingup", "--controllers", "ilqr", "--set", "mppi.horizon=1"],
+            "'mppi' is not among the chosen controllers (ilqr)",
+        ),
+        (["simulate", "pendulum_swingup"], "--controller is required"),
+        (
+            ["simulate", "pendulum_swingup", "--controller", "lqr", "--controllers", "ilqr"],
+            "one --controller",
+        ),
+        (["list", "extra"], "no arguments"),
     ],
 )
 def test_user_errors_exit_2_with_one_line(capsys, tmp_path, argv, needle) -> None:
-    code, out, err = run(capsys, *argv, *(["--out", str(tmp_path)] if argv[0] == "compare" else []))
+    out_flag = ["--out", str(tmp_path / "out")] if argv[0] in ("compare", "simulate") else []
+    code, out, err = run(capsys, *argv, *out_flag)
     assert code == 2
     assert err.startswith("error:") and needle in err, err
     assert "Traceback" not in err
     assert "|" not in out  # no table: nothing ran
+    assert not (tmp_path / "out").exists()  # --out is made only once every argument passed
 
 
 def test_unwritable_out_fails_before_anything_runs(capsys, tmp_path: Path) -> None:
@@ -247,6 +264,9 @@ def test_replay_errors_exit_2_with_one_line(capsys, tmp_path) -> None:
     (tmp_path / "bad.csv").write_text("time\n0\n")
     code, _, err = run(capsys, "replay", str(bad))
     assert code == 2 and err.startswith("error:") and "bad" in err
+    video, viewer = ["--video", str(tmp_path / "v.gif")], ["--viewer", "live"]
+    code, _, err = run(capsys, "replay", str(bad), *video, *viewer)
+    assert code == 2 and "give one" in err
 
 
 def test_compare_realtime_reports_kept_up(capsys, tmp_path):
@@ -296,3 +316,24 @@ def test_compare_takes_a_bare_menagerie_name_as_the_scripts_do(tmp_path, monkeyp
     err = capsys.readouterr().err
     assert code == 2 and "unknown Menagerie robot 'no_such_robot'" in err
     assert "'anybotics_anymal_b'" in err and "no MJCF file" not in err
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["simulate", "--help"], "mpcbox simulate TASK --controller NAME"),
+        (["simulate", "-h"], "mpcbox simulate TASK --controller NAME"),
+        (["options", "--help"], "usage: mpcbox options CONTROLLER"),
+    ],
+)
+def test_help_of_simulate_and_options(capsys, argv, needle) -> None:
+    code, out, err = run(capsys, *argv)
+    assert code == 0 and needle in out and not err
+
+
+def test_simulate_help_lists_its_own_options_not_compares(capsys) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["simulate", "pendulum_swingup", "--help"])
+    out = capsys.readouterr().out
+    assert info.value.code == 0
+    assert "One run of one controller" in out and "--controllers" not in out

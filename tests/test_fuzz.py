@@ -41,7 +41,8 @@ from mpcbox.core.cost import (
 from mpcbox.core.equilibrium import find_equilibrium
 from mpcbox.core.posture import stance_posture
 from mpcbox.registry import controller_class, make_controller, task_class
-from mpcbox.sim.trajectory import load_trajectory, replay, trajectory_from_result
+from mpcbox.sim.trajectory import replay, trajectory_from_result
+from mpcbox.sim.trajectory_files import load_trajectory
 from mpcbox.tasks import scene_path
 from mpcbox.tasks.legged.balance import LeggedBalance
 

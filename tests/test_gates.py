@@ -119,7 +119,8 @@ def test_throughput_rows_and_json(contacts, tmp_path) -> None:
 
 def test_saved_trajectory_is_replayed_exactly_on_the_cpu(tmp_path) -> None:
     from mpcbox.registry import task_class
-    from mpcbox.sim.trajectory import make_trajectory, save_trajectory
+    from mpcbox.sim.trajectory import make_trajectory
+    from mpcbox.sim.trajectory_files import save_trajectory
 
     problem = task_class("pendulum_swingup")()
     model, data = problem.model, mujoco.MjData(problem.model)
@@ -208,6 +209,16 @@ def test_keyframe_walk_visits_every_keyframe_control() -> None:
             lambda: validate_scene(CONTACTS, ctrl_trajectory="/no/run.csv"),
             InvalidArgumentError,
             "ctrl_trajectory",
+        ),
+        (
+            lambda: validate_scene(CONTACT_FREE, config=GatesConfig(controls="keyframes")),
+            InvalidArgumentError,
+            "1 keyframe",
+        ),
+        (
+            lambda: GatesConfig(throughput_steps=5, block_steps=20),
+            InvalidArgumentError,
+            "throughput_steps must be at least block_steps",
         ),
     ],
 )

@@ -11,12 +11,8 @@ from mpcbox.errors import InvalidArgumentError
 from mpcbox.registry import make_controller, task_class
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.simulation import simulate
-from mpcbox.sim.trajectory import (
-    load_trajectory,
-    replay,
-    save_trajectory,
-    trajectory_from_result,
-)
+from mpcbox.sim.trajectory import replay, trajectory_from_result
+from mpcbox.sim.trajectory_files import load_trajectory, save_trajectory
 from mpcbox.sim.viewer import Viewer
 
 
@@ -159,3 +155,35 @@ def test_bad_files_and_problems_are_named(pendulum_run, tmp_path) -> None:
         replay(load_trajectory(csv_path), cartpole)
     with pytest.raises(InvalidArgumentError, match="Trajectory"):
         save_trajectory(result, tmp_path / "x")
+
+
+def test_edited_files_are_refused_naming_the_row(pendulum_run, tmp_path) -> None:
+    """Each edit once loaded as a valid run (or gave a NumPy message about NumPy's API)."""
+    problem, result = pendulum_run
+    traj = trajectory_from_result(result, problem, metadata={"task": "pendulum_swingup"})
+    csv_path, json_path = save_trajectory(traj, tmp_path / "r")
+    meta = json.loads(json_path.read_text())
+    lines = csv_path.read_text().splitlines(keepends=True)
+
+    def edited(csv_lines=None, **changes):
+        csv_path.write_text("".join(lines if csv_lines is None else csv_lines))
+        json_path.write_text(json.dumps({**meta, **changes}))
+        with pytest.raises(InvalidArgumentError) as info:
+            load_trajectory(csv_path)
+        return str(info.value)
+
+    assert "version 99" in edited(version=99)
+    assert "task_options must be a JSON object" in edited(task_options=[1, 2])
+    assert "'xx', expected 'qpos_0'" in edited([lines[0].replace("qpos_0", "xx"), *lines[1:]])
+    cells = lines[3].split(",")
+    cells[1 + problem.nq + problem.nv + problem.na] = "nan"  # the first control
+    nan_ctrl = [*lines[:3], ",".join(cells), *lines[4:]]
+    assert "data row 3 holds NaN" in edited(nan_ctrl)
+    backwards = [lines[0], lines[2], lines[1], *lines[3:]]
+    assert "time does not increase at data row 2" in edited(backwards)
+    assert "empty" in edited([])
+    assert "data row 2 has" in edited([lines[0], lines[1], lines[2][: len(lines[2]) // 2] + "\n"])
+    # The untouched files still load.
+    csv_path.write_text("".join(lines))
+    json_path.write_text(json.dumps(meta))
+    assert np.array_equal(load_trajectory(csv_path).states, traj.states)

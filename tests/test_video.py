@@ -19,7 +19,8 @@ from mpcbox.errors import BackendUnavailableError, InvalidArgumentError
 from mpcbox.registry import make_controller, task_class
 from mpcbox.sim.disturbances import Push
 from mpcbox.sim.simulation import simulate
-from mpcbox.sim.trajectory import save_trajectory, trajectory_from_result
+from mpcbox.sim.trajectory import trajectory_from_result
+from mpcbox.sim.trajectory_files import save_trajectory
 from mpcbox.sim.video import check_video_path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -38,7 +39,7 @@ def saved(tmp_path_factory) -> Path:
 RENDER = """
 import sys
 from mpcbox.registry import task_class
-from mpcbox.sim.trajectory import load_trajectory
+from mpcbox.sim.trajectory_files import load_trajectory
 from mpcbox.sim.video import render_video
 problem = task_class("pendulum_swingup")()
 render_video(load_trajectory(sys.argv[1]), problem, sys.argv[2], fps={fps}, width=96, height=64)
@@ -88,7 +89,7 @@ def test_no_gl_context_is_a_named_error(saved, tmp_path) -> None:
         import sys
         from mpcbox.errors import BackendUnavailableError
         from mpcbox.registry import task_class
-        from mpcbox.sim.trajectory import load_trajectory
+        from mpcbox.sim.trajectory_files import load_trajectory
         from mpcbox.sim.video import render_video
         problem = task_class("pendulum_swingup")()
         try:

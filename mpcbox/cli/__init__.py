@@ -39,7 +39,7 @@ from mpcbox.cli.compare import (
     run_task_script,
 )
 from mpcbox.cli.compare_parser import DEFAULTS, build_parser
-from mpcbox.errors import MpcboxError, UnknownNameError
+from mpcbox.errors import InvalidArgumentError, MpcboxError, UnknownNameError
 
 __all__ = [
     "DEFAULTS",
@@ -81,6 +81,13 @@ def _options(rest: Sequence[str], stream) -> int:
     from mpcbox.config import describe_config
     from mpcbox.registry import CONTROLLERS, controller_class
 
+    if rest and rest[0] in ("-h", "--help"):
+        print(
+            "usage: mpcbox options CONTROLLER\n\nA controller's config options and their "
+            f"defaults. Controllers: {', '.join(CONTROLLERS)}",
+            file=stream,
+        )
+        return 0
     if len(rest) != 1:
         raise UnknownNameError("controller", " ".join(rest) or "(none)", CONTROLLERS)
     cls = controller_class(rest[0])
@@ -102,17 +109,35 @@ def _simulate(rest: Sequence[str], command: Sequence[str]) -> int:
 
     pre = argparse.ArgumentParser(prog="mpcbox simulate", add_help=False)
     pre.add_argument("task")
-    pre.add_argument("--controller", required=True)
+    pre.add_argument("--controller")
+    wants_help = any(a in ("-h", "--help") for a in rest)
     if not rest or rest[0].startswith("-"):
-        pre.print_usage(sys.stderr)
-        return 2
+        print(SIMULATE_USAGE, file=sys.stdout if wants_help else sys.stderr)
+        return 0 if wants_help else 2
     known, remaining = pre.parse_known_args(list(rest))
     if known.task not in TASKS:
         raise UnknownNameError("task", known.task, TASKS)
-    parser = build_parser(known.task, prog=f"mpcbox simulate {known.task}", seeds=1)
+    parser = build_parser(
+        known.task,
+        prog=f"mpcbox simulate {known.task} --controller NAME",
+        description=f"One run of one controller on {known.task!r}: prints its measures and "
+        "writes them to --out (--seeds repeats it with the next seeds).",
+        seeds=1,
+    )
+    for action in parser._actions:  # one run takes --controller, not compare's list
+        if action.dest == "controllers":
+            action.help = argparse.SUPPRESS
     add_single_run_flags(parser)
     add_viewer_flags(parser)
-    args = parser.parse_args(remaining)
+    args = parser.parse_args(remaining)  # --help prints the options and exits here
+    if known.controller is None:
+        raise InvalidArgumentError(
+            "--controller is required: mpcbox simulate TASK --controller NAME"
+        )
+    if args.controllers:
+        raise InvalidArgumentError(
+            "--controllers belongs to mpcbox compare; simulate takes one --controller"
+        )
     args.controllers = known.controller
     if args.viewer is not None:
         return run_watched(
@@ -124,6 +149,24 @@ def _simulate(rest: Sequence[str], command: Sequence[str]) -> int:
     return run_comparison(
         known.task, args, controller_defaults=quick_sampling_options(known.task), command=command
     )
+
+
+SIMULATE_USAGE = (
+    "usage: mpcbox simulate TASK --controller NAME [options]\n\n"
+    "One run of one controller on a task (see `mpcbox list`); "
+    "`mpcbox simulate TASK --controller NAME --help` lists the options."
+)
+
+
+def _one_line_warnings() -> None:
+    """Show warnings as ``warning: MESSAGE`` lines, without the source line that Python
+    prints under them (the command's user did not write that code)."""
+    import warnings
+
+    def formatted(message, category, filename, lineno, line=None) -> str:
+        return f"warning: {message}\n"
+
+    warnings.formatwarning = formatted
 
 
 def _prepare_gl(argv: Sequence[str]) -> None:
@@ -180,9 +223,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     command, rest = argv[0], argv[1:]
     line = ["mpcbox", *argv]
     _prepare_gl(rest)
+    _one_line_warnings()
     try:
         _import_mujoco()
         if command == "list":
+            if rest:
+                raise InvalidArgumentError(f"mpcbox list takes no arguments, got {rest}")
             return _list(sys.stdout)
         if command == "options":
             return _options(rest, sys.stdout)

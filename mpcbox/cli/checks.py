@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from mpcbox.config import check_option_names
-from mpcbox.errors import InvalidArgumentError, MpcboxError, UnknownNameError
+from mpcbox.errors import InvalidArgumentError, MpcboxError
 
 #: Smallest bisection tolerance of ``--push-tolerance`` (N): below it a bisection over forces
 #: of hundreds of newtons would run into the float resolution.
@@ -82,10 +82,12 @@ def check_arguments(args: argparse.Namespace) -> None:
             "it cannot be combined with --realtime: run it without --realtime, or give a "
             "fixed --push in real time"
         )
+    message = f"--noise must be numbers separated by commas, got {args.noise!r}"
+    if not str(args.noise).strip():
+        raise InvalidArgumentError(message)
     for part in str(args.noise).split(","):
         if not part.strip():
             continue
-        message = f"--noise must be numbers separated by commas, got {args.noise!r}"
         _finite("--noise", _to_float(part, message), low=0.0, strict=False)
     resolve_model(args)
 
@@ -129,7 +131,7 @@ def check_save_name(flag: str, name: str | None) -> None:
     """
     if name is None:
         return
-    from mpcbox.sim.trajectory import trajectory_paths
+    from mpcbox.sim.trajectory_files import trajectory_paths
 
     try:
         csv_path, _ = trajectory_paths(name)
@@ -149,7 +151,10 @@ def check_options(name: str, options: Mapping[str, Any], chosen: Iterable[str]) 
 
     chosen = list(chosen)
     if name not in chosen:
-        raise UnknownNameError("controller in --set (not among the chosen ones)", name, chosen)
+        raise InvalidArgumentError(
+            f"--set {name}.OPTION=VALUE: {name!r} is not among the chosen controllers "
+            f"({', '.join(chosen)}); add it to --controllers or drop the --set"
+        )
     check_option_names(controller_class(name).config_class, options, f"--set {name}")
 
 

@@ -153,6 +153,10 @@ def run_comparison(
     stream = stream or sys.stdout
     check_arguments(args)
     check_single_run_flags(args)
+    listed = [c.strip() for c in (args.controllers or "").split(",") if c.strip()]
+    twice = sorted({c for c in listed if listed.count(c) > 1})
+    if twice:
+        raise InvalidArgumentError(f"--controllers lists {', '.join(map(repr, twice))} twice")
     chosen = list(resolve_controllers(task_class(task), args.controllers or None))
     defaults = {k: dict(v) for k, v in (controller_defaults or {}).items() if k in chosen}
     overrides = {k: dict(v) for k, v in defaults.items()}
@@ -165,11 +169,17 @@ def run_comparison(
     # Built here (write_outputs needs it anyway) so that a bad task option or --set value
     # stops the command before any run, instead of failing every run.
     problem = task_class(task)(**task_options)
+    step = float(problem.model.opt.timestep)
+    if args.duration < step:
+        raise InvalidArgumentError(
+            f"--duration must be at least one simulation step ({step:g} s), got {args.duration:g}"
+        )
+    push_body_given = args.push_body is not None
     default_push_body(args, problem)
     for name, options in overrides.items():
         cls = controller_class(name).config_class
         resolve_config(cls, problem.controller_configs.get(name), options, f"--set {name}")
-    if args.push or args.largest_push:
+    if args.push or args.largest_push or push_body_given:
         object_id(problem.model, "body", args.push_body, "--push-body")
     push_tests = ()
     if args.largest_push:

@@ -88,6 +88,7 @@ def build_parser(
     *,
     prog: str | None = None,
     parents: Sequence[argparse.ArgumentParser] = (),
+    description: str | None = None,
     **defaults: Any,
 ):
     """The argument parser of a comparison, with the task's options when ``task`` is given.
@@ -97,6 +98,7 @@ def build_parser(
         prog: Program name shown in the usage.
         parents: Parsers (``add_help=False``) whose options a script adds in front of the
             comparison's (shown in its ``--help``).
+        description: The ``--help`` text's first paragraph (default: the comparison's).
         **defaults: Overrides of :data:`DEFAULTS`.
     """
     unknown = set(defaults) - set(DEFAULTS)
@@ -106,9 +108,8 @@ def build_parser(
     parser = argparse.ArgumentParser(
         prog=prog,
         parents=list(parents),
-        description=(
-            f"Compare controllers on {task!r}: " if task else "Compare controllers on a task: "
-        )
+        description=description
+        or (f"Compare controllers on {task!r}: " if task else "Compare controllers on a task: ")
         + "every controller runs the same seeded scenarios; prints a markdown table and "
         "writes results.md, results.csv and PNG plots to --out.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,

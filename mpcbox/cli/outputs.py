@@ -117,7 +117,7 @@ def check_single_run_flags(args: argparse.Namespace) -> None:
         check_output_folder(Path(video).parent or ".")
     saved = getattr(args, "save_trajectory", None)
     if saved:
-        from mpcbox.sim.trajectory import trajectory_paths
+        from mpcbox.sim.trajectory_files import trajectory_paths
 
         check_output_folder(Path(saved).parent or ".")
         out = Path(args.out).resolve()
@@ -188,7 +188,7 @@ def _single_run(result, problem, task, options, saved, video) -> list[Path]:
 
 def save_or_render(traj, problem, saved: str | None, video: str | None) -> list[Path]:
     """Save ``traj`` as ``saved`` (CSV + JSON) and/or render it to ``video``; the files."""
-    from mpcbox.sim.trajectory import save_trajectory
+    from mpcbox.sim.trajectory_files import save_trajectory
 
     written: list[Path] = []
     if saved:

@@ -71,12 +71,17 @@ def run_replay(argv: Sequence[str], stream=None) -> int:
         0 when the replay matches (or the video was written), 1 when the final states
         differ by more than ``--tolerance``.
     """
-    from mpcbox.sim.trajectory import load_trajectory, replay
+    from mpcbox.sim.trajectory import replay
+    from mpcbox.sim.trajectory_files import load_trajectory
 
     stream = stream or sys.stdout
     args = build_replay_parser().parse_args(list(argv))
     if not args.tolerance >= 0:
         raise InvalidArgumentError(f"--tolerance must be >= 0, got {args.tolerance!r}")
+    if args.video and args.viewer is not None:
+        raise InvalidArgumentError(
+            "--video renders the saved states and --viewer watches a re-simulation: give one"
+        )
     if args.video:
         from mpcbox.sim.video import check_video_path
 

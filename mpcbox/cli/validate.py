@@ -156,6 +156,10 @@ def run_validate(argv: Sequence[str], stream=None) -> int:
     except ImportError:
         pass
     out = _check_out(args.out) if args.out else None
+    if args.scene and ":" not in args.scene:  # a bare name: a Menagerie robot, as inspect reads it
+        from mpcbox.core.menagerie import model_source
+
+        args.scene = model_source(args.scene)
     config = GatesConfig(
         duration=args.duration,
         controls=args.controls,

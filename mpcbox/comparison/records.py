@@ -13,7 +13,7 @@
   dataclasses as dicts), package versions, the command line, the machine and the date, and
   where the jobs ran (``placement``: jobs per host, Ray node and GPU ids);
 * ``trajectories/``: the traced run (first seed) of each controller and scenario, as
-  :func:`~mpcbox.sim.trajectory.save_trajectory` writes them.
+  :func:`~mpcbox.sim.trajectory_files.save_trajectory` writes them.
 
 In JSON a non-finite number is ``null``; in CSV it is ``nan``/``inf``.
 """
@@ -41,7 +41,8 @@ from mpcbox.config import resolve_config
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError
 from mpcbox.registry import CONTROLLERS, controller_class
-from mpcbox.sim.trajectory import Trajectory, jsonable, make_trajectory, save_trajectory
+from mpcbox.sim.trajectory import Trajectory, jsonable, make_trajectory
+from mpcbox.sim.trajectory_files import save_trajectory
 
 #: Packages whose versions ``run.json`` records (distribution names).
 PACKAGES = ("mpcbox", "mujoco", "mujoco-warp", "warp-lang", "numpy", "scipy", "osqp")

@@ -266,7 +266,8 @@ class Comparison:
                     f"{100 * row.success_rate:.0f}%",
                     ", ".join(f"{n} {k}" for k, n in row.outcomes.items()) or "-",
                     f"{row.mean_time_to_fall:.2f}",
-                    *[f"{row.measures[m.display_key(s)]:.2f}" for m, s in columns],
+                    # NaN: no run gave a value (a settle time that never came).
+                    *[_cell(row.measures[m.display_key(s)]) for m, s in columns],
                     f"{row.control_effort:.3f}",
                     *pushes,
                     f"{row.compute_mean_ms:.2f}",
@@ -332,6 +333,11 @@ class Comparison:
 
     def __str__(self) -> str:
         return self.to_markdown()
+
+
+def _cell(value: float) -> str:
+    """A measure in the markdown table: two decimals, ``-`` where no run gave one."""
+    return "-" if math.isnan(value) else f"{value:.2f}"
 
 
 def _kept_up(metrics: list[Metrics]) -> float | None:

@@ -119,7 +119,6 @@ def resolve_controllers(
     return out
 
 
-@checked_keywords
 def _check_pushed_bodies(
     problem: Problem, scenarios: Sequence[Scenario], tests: Sequence[PushTest]
 ) -> None:
@@ -132,6 +131,7 @@ def _check_pushed_bodies(
         object_id(problem.model, "body", test.body, "push_tests: PushTest body")
 
 
+@checked_keywords
 def compare(
     problem: Problem | str,
     controllers: Sequence[ControllerSpec] | str | None = None,

@@ -50,6 +50,37 @@ def check_state(name: str, state: object, nstate: int) -> np.ndarray:
     return state
 
 
+def check_data(data: object, sizes: tuple[int, int, int]) -> None:
+    """``data`` must be a ``mujoco.MjData`` of a model with ``(nq, nv, na) = sizes``.
+
+    Raises:
+        InvalidTypeError: For another type.
+        ShapeError: For data of a model of other sizes.
+    """
+    if not isinstance(data, mujoco.MjData):
+        raise InvalidTypeError(f"data must be a mujoco.MjData, got {type(data).__name__}")
+    found = (data.qpos.size, data.qvel.size, data.act.size)
+    if found != tuple(sizes):
+        raise ShapeError(
+            f"data must be of this Problem's model (nq, nv, na) = {tuple(sizes)}, got data of "
+            f"sizes {found}"
+        )
+
+
+def check_out(name: str, out: object, shape: tuple[int, ...]) -> None:
+    """An output array, unless ``None``, must be float64 of ``shape`` (NumPy would cast
+    into another dtype).
+
+    Raises:
+        ShapeError: Otherwise, naming ``name``.
+    """
+    if out is None:
+        return
+    if not isinstance(out, np.ndarray) or out.shape != shape or out.dtype != np.float64:
+        got = f"{out.dtype} {out.shape}" if isinstance(out, np.ndarray) else type(out).__name__
+        raise ShapeError(f"{name} must be a float64 array of shape {shape}, got {got}")
+
+
 def check_ctrl(name: str, ctrl: object, shape: tuple[int | None, ...]) -> np.ndarray:
     """Controls of ``shape`` (``(nu,)``, ``(T, nu)``, ...) within MuJoCo's sanity limit.
 

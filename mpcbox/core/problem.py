@@ -245,20 +245,13 @@ class Problem(ProblemCosts):
         return np.tile(self.clip_ctrl(self.ctrl_ref), (positive_int("horizon", horizon), 1))
 
     def get_state(self, data: mujoco.MjData) -> np.ndarray:
-        """The state ``[qpos, qvel, act]`` held in ``data``, which must be data of this
-        Problem's model (or one of the same sizes): a :class:`ShapeError` otherwise."""
-        instance("data", data, mujoco.MjData, "a mujoco.MjData")
-        sizes = (data.qpos.size, data.qvel.size, data.act.size)
-        if sizes != (self.nq, self.nv, self.na):
-            raise ShapeError(
-                f"data must be of this Problem's model (nq, nv, na) = "
-                f"{(self.nq, self.nv, self.na)}, got data of sizes {sizes}"
-            )
+        """The state ``[qpos, qvel, act]`` held in ``data`` of this Problem's model."""
+        inputs.check_data(data, (self.nq, self.nv, self.na))
         return _read_state(data)
 
     def set_state(self, data: mujoco.MjData, state: np.ndarray) -> None:
-        """Write a state ``(nstate,)`` into ``data``."""
-        instance("data", data, mujoco.MjData, "a mujoco.MjData")
+        """Write a state ``(nstate,)`` into ``data`` of this Problem's model."""
+        inputs.check_data(data, (self.nq, self.nv, self.na))
         _write_state(data, self.check_state(state))
 
     def state_difference(
@@ -281,15 +274,7 @@ class Problem(ProblemCosts):
                 f"state must have shape (..., {self.nstate}) and state_ref ({self.nstate},) or "
                 f"the shape of state, got {state.shape} and {state_ref.shape}"
             )
-        if out is not None and (
-            not isinstance(out, np.ndarray)
-            or out.shape != (*state.shape[:-1], self.nx)
-            or out.dtype != np.float64
-        ):
-            raise ShapeError(
-                f"out must be a float64 array of shape {(*state.shape[:-1], self.nx)}, got "
-                f"{getattr(out, 'dtype', type(out).__name__)} {getattr(out, 'shape', '')}"
-            )
+        inputs.check_out("out", out, (*state.shape[:-1], self.nx))
         return self.tangent.state_difference(state, state_ref, out)
 
     def state_add(self, state: np.ndarray, dx: np.ndarray) -> np.ndarray:
@@ -299,8 +284,7 @@ class Problem(ProblemCosts):
         return self.tangent.state_add(self.planning_model, state, dx)
 
     def clip_ctrl(self, ctrl: np.ndarray) -> np.ndarray:
-        """Clamp controls ``(..., nu)`` to the actuators' ``ctrlrange`` (where limited); NaN
-        stays NaN (the callers that apply a control check it: :meth:`check_ctrl`)."""
+        """Clamp controls ``(..., nu)`` to the actuators' ``ctrlrange`` (where limited)."""
         ctrl = as_array("ctrl", ctrl, (None,) * (max(np.ndim(ctrl), 1) - 1) + (self.nu,))
         return np.clip(ctrl, self.ctrl_low, self.ctrl_high)
 

@@ -110,6 +110,11 @@ class GatesConfig:
         check_seed("seed", self.seed)
         positive_int("throughput_steps", self.throughput_steps)
         positive_int("block_steps", self.block_steps)
+        if self.throughput_steps < self.block_steps:
+            raise InvalidArgumentError(
+                f"throughput_steps must be at least block_steps ({self.block_steps}), the steps "
+                f"of one launch block, got {self.throughput_steps}"
+            )
 
 
 __all__ = ["CONTROL_MODES", "CPU_WORLDS", "GPU_WORLDS", "GatesConfig"]

@@ -2,7 +2,7 @@ r"""What the gates replay: a model, its start state and a control sequence (:cla
 
 The controls come from one of three places:
 
-* a trajectory saved by :func:`mpcbox.sim.trajectory.save_trajectory` (its applied controls
+* a trajectory saved by :func:`mpcbox.sim.trajectory_files.save_trajectory` (its applied controls
   ``ctrls[:-1]`` from its initial state; the model is the given scene, or the task the
   trajectory names);
 * a registered task run in closed loop by one of its tuned controllers
@@ -112,6 +112,11 @@ def scene_controls(model: mujoco.MjModel, config: GatesConfig, scene: str = "sce
         mujoco.mj_resetDataKeyframe(model, data, key)
     steps = _steps(model, config.duration or DEFAULT_DURATION)
     start = f"keyframe {key}" if key is not None else "qpos0"
+    if config.controls == "keyframes" and model.nkey < 2:
+        raise InvalidArgumentError(
+            f"controls='keyframes' walks through the keyframes' controls, and the model has "
+            f"{model.nkey} keyframe(s): use 'hold' or 'zero'"
+        )
     if config.controls == "zero" or model.nu == 0:
         ctrls = np.zeros((steps, model.nu))
         source = f"zero controls from {start}"
@@ -149,7 +154,7 @@ def trajectory_controls(
             no scene is given, or the scene's sizes or timestep differ from the recorded ones.
     """
     from mpcbox.registry import TASKS, task_class
-    from mpcbox.sim.trajectory import load_trajectory
+    from mpcbox.sim.trajectory_files import load_trajectory
 
     try:
         traj = load_trajectory(path)

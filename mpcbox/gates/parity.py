@@ -45,7 +45,8 @@ class Parity(NamedTuple):
     Attributes:
         passed: Within tolerance over the window, not diverged, no capacity overflow.
         tolerance: ``parity_tolerance`` (rad or m).
-        window: Seconds from the start that must stay within tolerance.
+        window: Seconds from the start that had to stay within tolerance (``parity_window``,
+            at most the run's length).
         time: Times ``(S + 1,)`` (s).
         qpos_error: :math:`e_k` ``(S + 1,)``.
         qvel_error: The same for velocities ``(S + 1,)``.
@@ -153,7 +154,7 @@ def run_parity(
     return Parity(
         passed=within and not diverged and not overflow,
         tolerance=config.parity_tolerance,
-        window=config.parity_window,
+        window=min(config.parity_window, float(t[-1])),  # what was checked (run length)
         time=cpu.time,
         qpos_error=qpos_error,
         qvel_error=qvel_error,

@@ -107,7 +107,7 @@ def validate_scene(
         scene: An MJCF path, ``"menagerie:NAME"``, ``"task:NAME"`` (a registered task's
             model from its initial state) or a ``mujoco.MjModel``; optional when
             ``task`` or a trajectory that names its task gives the model.
-        ctrl_trajectory: A trajectory saved by :func:`mpcbox.sim.trajectory.save_trajectory`
+        ctrl_trajectory: A trajectory saved by :func:`mpcbox.sim.trajectory_files.save_trajectory`
             (``NAME.csv``/``NAME.json``) whose applied controls are replayed.
         task: A registered task run in closed loop to record the controls.
         controller: The task's controller (default: the first tuned one that runs here).

@@ -19,13 +19,9 @@ saved initial state; MuJoCo being deterministic, it reaches the saved final stat
 
 from __future__ import annotations
 
-import csv
 import dataclasses
-import json
 import math
-import os
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 from typing import Any, NamedTuple
 
 import mujoco
@@ -33,16 +29,11 @@ import numpy as np
 
 from mpcbox.core.model import object_id
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidArgumentError, InvalidTypeError, MpcboxError
+from mpcbox.errors import InvalidArgumentError
 from mpcbox.sim.disturbances import ActuatorNoise, ModelMismatch, Push
 from mpcbox.sim.simulation import SimulationResult
 from mpcbox.sim.viewer_choice import as_viewer
 from mpcbox.validation import as_array, checked_keywords, instance
-
-#: ``format`` entry of the JSON sidecar.
-FORMAT = "mpcbox-trajectory"
-#: Version of the file layout.
-VERSION = 1
 
 
 class Trajectory(NamedTuple):
@@ -266,7 +257,8 @@ def push_to_dict(push: Push) -> dict[str, Any]:
     }
 
 
-def _disturbances(traj: Trajectory) -> dict[str, Any]:
+def disturbance_record(traj: Trajectory) -> dict[str, Any]:
+    """The seed, pushes, noise and mismatch of ``traj`` as JSON-ready entries."""
     noise = traj.noise
     mismatch = traj.mismatch
     return {
@@ -283,157 +275,6 @@ def _disturbances(traj: Trajectory) -> dict[str, Any]:
             "body_mass_scale": mismatch.body_mass_scale,
         },
     }
-
-
-# ------------------------------------------------------------------------------ files
-def trajectory_paths(path: str | Path) -> tuple[Path, Path]:
-    """The CSV and JSON paths of a trajectory named ``path`` (with or without a suffix)."""
-    if not isinstance(path, (str, Path)):
-        raise InvalidTypeError(f"path must be a file path, got {type(path).__name__}")
-    if str(path).endswith(("/", os.sep)) or Path(path).is_dir():
-        raise InvalidArgumentError(
-            f"path must name a file (PATH.csv and PATH.json are written), got the folder "
-            f"{str(path)!r}: add a name, such as {str(Path(path) / 'run')!r}"
-        )
-    path = Path(path)
-    if path.suffix.lower() in (".csv", ".json"):
-        path = path.with_suffix("")
-    return path.with_name(path.name + ".csv"), path.with_name(path.name + ".json")
-
-
-def _columns(traj: Trajectory) -> list[str]:
-    nq, nv = int(traj.metadata["nq"]), int(traj.metadata["nv"])
-    na, nu = int(traj.metadata["na"]), traj.ctrls.shape[1]
-    cols = ["time"]
-    cols += [f"qpos_{i}" for i in range(nq)] + [f"qvel_{i}" for i in range(nv)]
-    cols += [f"act_{i}" for i in range(na)] + [f"ctrl_{i}" for i in range(nu)]
-    cols += [f"measure_{name}" for name in traj.series]
-    for name in traj.sites:
-        cols += [f"site_{name}_{axis}" for axis in "xyz"]
-    return cols
-
-
-@checked_keywords
-def save_trajectory(traj: Trajectory, path: str | Path) -> tuple[Path, Path]:
-    """Write ``traj`` as ``PATH.csv`` and ``PATH.json`` (a ``.csv``/``.json`` suffix is dropped).
-
-    Args:
-        traj: The trajectory.
-        path: File name without suffix; folders are created.
-
-    Returns:
-        The CSV and JSON paths.
-
-    Raises:
-        InvalidArgumentError: If ``traj`` is not a Trajectory or the files cannot be written.
-    """
-    if not isinstance(traj, Trajectory):
-        raise InvalidArgumentError(f"traj must be an mpcbox Trajectory, got {type(traj).__name__}")
-    csv_path, json_path = trajectory_paths(path)
-    blocks = [traj.time[:, None], traj.states, traj.ctrls]
-    blocks += [v[:, None] for v in traj.series.values()]
-    blocks += list(traj.sites.values())
-    table = np.hstack(blocks)
-    meta = {
-        "format": FORMAT,
-        "version": VERSION,
-        "csv": csv_path.name,
-        "problem": traj.problem,
-        "controller": traj.controller,
-        "failure": traj.failure,
-        "steps": len(traj.time),
-        "final_time": float(traj.time[-1]),
-        "initial_state": jsonable(traj.initial_state),
-        "measures": list(traj.series),
-        "sites": list(traj.sites),
-        **_disturbances(traj),
-        **{k: jsonable(v) for k, v in traj.metadata.items()},
-    }
-    try:
-        csv_path.parent.mkdir(parents=True, exist_ok=True)
-        with csv_path.open("w", newline="") as f:
-            csv.writer(f, lineterminator="\n").writerow(_columns(traj))
-            np.savetxt(f, table, fmt="%.17g", delimiter=",")
-        json_path.write_text(json.dumps(meta, indent=2, allow_nan=True) + "\n")
-    except OSError as exc:
-        raise InvalidArgumentError(f"cannot write the trajectory {str(path)!r}: {exc}") from exc
-    return csv_path, json_path
-
-
-_SHARED = {"format", "version", "csv", "problem", "controller", "failure", "steps", "final_time"}
-_SHARED |= {"initial_state", "measures", "sites", "seed", "pushes", "noise", "mismatch"}
-
-
-@checked_keywords
-def load_trajectory(path: str | Path) -> Trajectory:
-    """Read a trajectory written by :func:`save_trajectory`.
-
-    Args:
-        path: ``NAME.csv``, ``NAME.json`` or ``NAME``.
-
-    Raises:
-        InvalidArgumentError: If a file is missing, unreadable or not a whole mpcbox trajectory.
-    """
-    csv_path, json_path = trajectory_paths(path)
-    try:
-        meta = json.loads(json_path.read_text())
-        with csv_path.open(newline="") as f:
-            header = next(csv.reader(f))
-            table = np.loadtxt(f, delimiter=",", ndmin=2, dtype=np.float64)
-    except (OSError, ValueError, StopIteration) as exc:
-        raise InvalidArgumentError(
-            f"path: cannot read the trajectory {str(path)!r} ({csv_path.name} + {json_path.name}): "
-            f"{exc or type(exc).__name__}"
-        ) from exc
-    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
-        raise InvalidArgumentError(f"{str(json_path)!r} is not an mpcbox trajectory (no format)")
-    try:
-        nq, nv, na, nu = (int(meta[k]) for k in ("nq", "nv", "na", "nu"))
-        measures, sites = list(meta["measures"]), list(meta["sites"])
-        width = 1 + nq + nv + na + nu + len(measures) + 3 * len(sites)
-        rows, steps = len(table), int(meta.get("steps", len(table)))
-        if len(header) != width or (table.size and table.shape[1] != width) or rows != steps:
-            raise InvalidArgumentError(
-                f"{csv_path.name} has {len(header)} columns and {rows} rows; its JSON describes "
-                f"{width} columns and {steps} rows (a truncated or edited file?)"
-            )
-        cols = np.cumsum([1, nq + nv + na, nu, len(measures)])
-        noise = meta["noise"]
-        mismatch = meta["mismatch"]
-        return Trajectory(
-            problem=str(meta["problem"]),
-            controller=str(meta["controller"]),
-            time=table[:, 0].copy(),
-            states=table[:, 1 : cols[1]].copy(),
-            ctrls=table[:, cols[1] : cols[2]].copy(),
-            series={m: table[:, cols[2] + i].copy() for i, m in enumerate(measures)},
-            sites={
-                s: table[:, cols[3] + 3 * i : cols[3] + 3 * i + 3].copy()
-                for i, s in enumerate(sites)
-            },
-            failure=meta["failure"],
-            initial_state=np.asarray(meta["initial_state"], dtype=np.float64),
-            pushes=tuple(
-                Push(
-                    force=tuple(p["force"]),
-                    torque=tuple(p["torque"]),
-                    start=float(p["start"]),
-                    duration=float(p["duration"]),
-                    body=str(p["body"]),
-                )
-                for p in meta["pushes"]
-            ),
-            mismatch=None if mismatch is None else ModelMismatch(**mismatch),
-            noise=None if noise is None else ActuatorNoise(**noise),
-            seed=int(meta["seed"]),
-            metadata={k: v for k, v in meta.items() if k not in _SHARED},
-        )
-    except (KeyError, TypeError, ValueError) as exc:
-        if isinstance(exc, MpcboxError):
-            raise
-        raise InvalidArgumentError(
-            f"{str(json_path)!r} is not a complete mpcbox trajectory: {exc!r}"
-        ) from exc
 
 
 @checked_keywords
@@ -504,3 +345,16 @@ def replay(traj: Trajectory, problem: Problem, *, viewer: Any = None) -> Replay:
     diff = np.abs(states[-1] - traj.states[-1])
     error = float(np.max(diff)) if np.all(np.isfinite(diff)) else math.nan
     return Replay(times, states, error)
+
+
+__all__ = [
+    "Replay",
+    "Trajectory",
+    "disturbance_record",
+    "jsonable",
+    "make_trajectory",
+    "push_to_dict",
+    "replay",
+    "site_positions",
+    "trajectory_from_result",
+]

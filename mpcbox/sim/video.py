@@ -131,7 +131,7 @@ def render_video(
     """Write a video of ``traj`` to ``path`` (``.mp4`` or ``.gif``), in real time.
 
     Args:
-        traj: The run (:func:`~mpcbox.sim.trajectory.load_trajectory`,
+        traj: The run (:func:`~mpcbox.sim.trajectory_files.load_trajectory`,
             :func:`~mpcbox.sim.trajectory.trajectory_from_result`).
         problem: The Problem it ran on.
         path: Output file; the suffix picks the format; folders are created.

@@ -20,10 +20,7 @@ from mpcbox.core.model import (
     ModelSource,
     compile_spec,
     dof_weights,
-    frame_position,
-    free_body,
     load_spec,
-    names,
     object_id,
 )
 from mpcbox.core.problem import Problem
@@ -35,6 +32,7 @@ from mpcbox.sim.effort_noise import effort_noise
 from mpcbox.sim.measures import Measure
 from mpcbox.tasks.legged.feet import Foot, find_feet
 from mpcbox.tasks.legged.measures import Tilt, balance_measures
+from mpcbox.tasks.legged.root import root_body, support_offsets
 from mpcbox.validation import (
     as_array,
     as_weights,
@@ -54,30 +52,6 @@ SUPPORTS: tuple[str, ...] = ("center", "feet")
 BALANCE_TARGETS: tuple[str, ...] = ("reference", "support")
 #: How flat mesh soles are planned on (``mesh_soles``).
 MESH_SOLES: tuple[str, ...] = ("box", "mesh")
-
-
-def support_offsets(
-    model: mujoco.MjModel, data: mujoco.MjData, root_id: int, frames: Sequence[str]
-) -> np.ndarray:
-    """Horizontal offsets ``(n, 2)`` of the root's subtree center of mass from each of the
-    support ``frames`` (site or body names) (m), at the posture whose kinematics ``data``
-    holds."""
-    mujoco.mj_comPos(model, data)
-    com = data.subtree_com[root_id, :2]
-    return np.array([com - frame_position(model, data, name)[:2] for name in frames])
-
-
-def _root_body(model: mujoco.MjModel, root: str | None) -> int:
-    if root is not None:
-        return object_id(model, "body", root, "root")
-    body = free_body(model)
-    if body is None:
-        raise InvalidArgumentError(
-            "root: the model has no free joint, so it is not a floating (legged) robot and "
-            "has no root body to balance; for a robot mounted on a rail or a stand, pass the "
-            f"task's root=BODY (bodies: {', '.join(names(model, 'body'))})"
-        )
-    return body
 
 
 def _weight(name: str, value: object) -> float | np.ndarray:
@@ -292,12 +266,11 @@ class LeggedBalance(Problem):
             "fall_fraction", fall_fraction, 0.0, 1.0, low_open=True, high_open=True
         )
         self.fall_height = None if fall_height is None else finite("fall_height", fall_height)
-        self.fall_tilt = optional_positive("fall_tilt", fall_tilt)
-        if self.fall_tilt is not None and self.fall_tilt > 180.0:
-            raise InvalidArgumentError(
-                f"fall_tilt must be at most 180 degrees (None: no tilt criterion), "
-                f"got {fall_tilt!r}"
-            )
+        self.fall_tilt = (
+            None
+            if fall_tilt is None
+            else in_range("fall_tilt", fall_tilt, 0.0, 180.0, low_open=True, high_open=False)
+        )
         self.weights = dict(
             balance=non_negative("balance_cost", balance_cost),
             joint=_weight("joint_cost", joint_cost),
@@ -317,7 +290,7 @@ class LeggedBalance(Problem):
         qpos = base.qpos0 if key is None else base.key_qpos[key]
         if kwargs.get("qpos_ref") is not None:
             qpos = as_array("qpos_ref", kwargs["qpos_ref"], (base.nq,))
-        self.root_id = _root_body(base, root)
+        self.root_id = root_body(base, root)
         self.root = mujoco.mj_id2name(base, mujoco.mjtObj.mjOBJ_BODY, self.root_id) or ""
         if not self.root:
             raise InvalidArgumentError("root: the root body needs a name for the cost sensors")
