@@ -63,6 +63,13 @@ def test_non_finite_targets_are_refused_by_their_name(argument, value) -> None:
         ArmReach(aloha_scene(), frame="left\\gripper", relative=True, **kwargs)
 
 
+def test_a_frame_no_joint_moves_is_refused_by_name() -> None:
+    """Such a frame (the world, a table) went to the IK, which called the target out of
+    reach."""
+    with pytest.raises(InvalidArgumentError, match="frame 'world' is fixed to the world"):
+        ArmReach(aloha_scene(), frame="world", target=[0.0, 0.0, 0.0], relative=True)
+
+
 def test_lqr_reaches_and_the_goal_check_and_measure_agree(aloha: ArmReach) -> None:
     start = aloha.initial_state()
     assert aloha.dry_friction == "drop"  # the ViperX joints' dry friction (2 N m) left out

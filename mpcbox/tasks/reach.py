@@ -49,7 +49,14 @@ from mpcbox.core.cost import ControlCost, Cost, FramePosition, StateCost
 from mpcbox.core.end_effector import end_effector
 from mpcbox.core.equilibrium import find_equilibrium
 from mpcbox.core.free_bodies import free_objects, weld_free_bodies
-from mpcbox.core.model import ModelSource, compile_spec, frame_position, load_spec, object_id
+from mpcbox.core.model import (
+    ModelSource,
+    compile_spec,
+    frame_object,
+    frame_position,
+    load_spec,
+    object_id,
+)
 from mpcbox.core.posture import reach_posture
 from mpcbox.core.problem import Problem
 from mpcbox.core.servo_ringing import ServoRinging, servo_ringing
@@ -59,6 +66,20 @@ from mpcbox.validation import finite_array, one_of, positive
 
 #: Valid values of ``ArmReach(free_objects=...)``.
 FREE_OBJECTS = ("weld", "error")
+
+
+def _check_moving_frame(model: mujoco.MjModel, frame: str) -> None:
+    """The end effector must hang from at least one joint (a frame on the world or a
+    static body never moves, and the IK would only report it out of reach)."""
+    kind, oid = frame_object(model, frame)
+    body = int(model.site_bodyid[oid]) if kind == "site" else oid
+    while body > 0 and model.body_jntnum[body] == 0:
+        body = int(model.body_parentid[body])
+    if body == 0:
+        raise InvalidArgumentError(
+            f"frame {frame!r} is fixed to the world (no joint moves it): name a site or body on "
+            "the arm's moving links"
+        )
 
 
 class ArmReach(Problem):
@@ -249,6 +270,7 @@ class ArmReach(Problem):
         base = source if spec is None else compile_spec(spec)
         if self.frame is None:
             self.frame = end_effector(base)
+        _check_moving_frame(base, self.frame)
         objects = free_objects(base, self.frame)
         if not objects:
             return source if spec is None else spec

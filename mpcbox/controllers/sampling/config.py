@@ -304,6 +304,11 @@ class SamplingConfig:
             positive("period", self.period)
         if self.replan_period is not None:
             positive("replan_period", self.replan_period)
+            if self.period is not None and self.replan_period < self.period:
+                raise InvalidArgumentError(
+                    f"replan_period ({self.replan_period:g} s) below period ({self.period:g} s) "
+                    "has no effect (every call replans): leave it None or make it longer"
+                )
         one_of("risk", self.risk, RISKS)
         in_range("cvar_alpha", self.cvar_alpha, 0.0, 1.0, low_open=True, high_open=False)
         positive("headroom", self.headroom)
