@@ -372,7 +372,7 @@ def test_options_that_contradict_each_other_are_refused_by_name(problem, tmp_pat
         mpcbox.ActuatorNoise(std=0.1, width=1e6).sample(5, problem.nu, problem.dt, 0)
     with pytest.raises(mpcbox.InvalidArgumentError, match="delay must be at most"):
         mpcbox.simulate_realtime(problem, mpcbox.LQR(problem), 0.1, delay=1.0)
-    with pytest.raises(mpcbox.InvalidArgumentError, match="replan_period .* has no effect"):
+    with pytest.raises(mpcbox.InvalidArgumentError, match=r"replan_period .* has no effect"):
         mpcbox.make_controller("mppi", problem, period=0.02, replan_period=0.01)
 
 
