@@ -337,3 +337,21 @@ def test_simulate_help_lists_its_own_options_not_compares(capsys) -> None:
     out = capsys.readouterr().out
     assert info.value.code == 0
     assert "One run of one controller" in out and "--controllers" not in out
+
+
+def test_a_realtime_run_takes_the_tasks_lookahead_unless_told() -> None:
+    """The G1 get-up plans one median tick ahead in real time by default (its class
+    attribute, read without building the robot); --lookahead none or a value overrides it,
+    and other tasks plan from the observed state."""
+    from argparse import Namespace
+
+    from mpcbox.cli.compare import realtime_lookahead
+
+    def ahead(task, realtime=True, lookahead=None):
+        return realtime_lookahead(Namespace(realtime=realtime, lookahead=lookahead), task)
+
+    assert ahead("g1_getup") == "auto"
+    assert ahead("g1_getup", lookahead="none") is None
+    assert ahead("g1_getup", lookahead="0.02") == 0.02
+    assert ahead("g1_getup", realtime=False) is None
+    assert ahead("humanoid_getup") is None and ahead("pendulum_swingup") is None

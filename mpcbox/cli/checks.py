@@ -179,14 +179,17 @@ def script_main(run: Callable[[list[str] | None], int], argv: list[str] | None) 
 
 
 def lookahead_option(text: str | None) -> float | str | None:
-    """``--lookahead``'s value: ``None``, ``"auto"`` or seconds ``>= 0``.
+    """``--lookahead``'s value: ``None`` (not given, or ``"none"``), ``"auto"`` or seconds
+    ``>= 0``.
 
     Raises:
         InvalidArgumentError: For anything else, naming the flag.
     """
-    if text is None or text == "auto":
+    if text is None or text == "none":
+        return None
+    if text == "auto":
         return text
-    seconds = _to_float(text, f"--lookahead must be 'auto' or seconds >= 0, got {text!r}")
+    seconds = _to_float(text, f"--lookahead must be 'auto', 'none' or seconds >= 0, got {text!r}")
     _finite("--lookahead", seconds, low=0.0, strict=False)
     return seconds
 

@@ -58,8 +58,22 @@ def default_push_body(args: argparse.Namespace, problem: Any) -> None:
     args.push_body = root or "torso"
 
 
-def scenarios_from_args(args: argparse.Namespace):
-    """The scenarios that the duration, noise, push and mismatch flags describe."""
+def realtime_lookahead(args: argparse.Namespace, task: str | None) -> float | str | None:
+    """The lookahead of a ``--realtime`` run: ``--lookahead``, else the task's own
+    ``realtime_lookahead`` (``None`` for most tasks); ``--lookahead none``: none."""
+    from mpcbox.registry import task_class
+
+    if args.lookahead == "none":
+        return None
+    ahead = lookahead_option(args.lookahead)
+    if ahead is None and args.realtime and task is not None:
+        ahead = getattr(task_class(task), "realtime_lookahead", None)
+    return ahead
+
+
+def scenarios_from_args(args: argparse.Namespace, task: str | None = None):
+    """The scenarios that the duration, noise, push and mismatch flags describe (the
+    lookahead of a real-time run from :func:`realtime_lookahead` with ``task``)."""
     from mpcbox.comparison.scenario import Scenario
     from mpcbox.sim.disturbances import ModelMismatch, Push
 
@@ -89,7 +103,7 @@ def scenarios_from_args(args: argparse.Namespace):
         mismatch=mismatch,
         realtime=args.realtime,
         speed=args.speed,
-        lookahead=lookahead_option(args.lookahead),
+        lookahead=realtime_lookahead(args, task),
         delay=args.delay,
     )
 
@@ -197,7 +211,7 @@ def run_comparison(
             PushTest(direction=(-1.0, 0.0, 0.0), name="backward", **common),
         )
     seeds = range(args.seed, args.seed + args.seeds)
-    scenarios = scenarios_from_args(args)
+    scenarios = scenarios_from_args(args, task)
     out = check_output_folder(args.out)  # made only once every argument has passed
     t0 = time.perf_counter()
     result = compare(

@@ -136,8 +136,9 @@ def build_parser(
     add(
         "--lookahead",
         default=d["lookahead"],
-        help="real time: plan from the state predicted this many seconds ahead, or 'auto' "
-        "(the recent median tick time); default: from the observed state",
+        help="real time: plan from the state predicted this many seconds ahead, 'auto' "
+        "(the recent median tick time) or 'none'; default: the task's choice (auto for "
+        "g1_getup), else from the observed state",
     )
     add(
         "--delay",

@@ -108,7 +108,7 @@ def run_watched(
     problem = task_class(task)(**task_options)
     default_push_body(args, problem)
     controller = make_controller(name, problem, **options)
-    scenario = scenarios_from_args(args)[0]
+    scenario = scenarios_from_args(args, task)[0]
     result = scenario.run(problem, controller, args.seed, viewer=viewer)
     m = result.metrics
     print(

@@ -33,6 +33,7 @@ from collections.abc import Callable, Sequence
 import mujoco
 import numpy as np
 
+from mpcbox.core.dynamics import write_state
 from mpcbox.core.mujoco_warnings import captured_warnings
 from mpcbox.core.problem import Problem
 from mpcbox.errors import InvalidArgumentError, InvalidTypeError
@@ -175,7 +176,9 @@ class Lookahead:
     def _start(self, state: np.ndarray, time: float) -> mujoco.MjData:
         """This object's data at ``state`` and ``time``, without applied forces."""
         data = self.data
-        self.problem.set_state(data, state)
+        # Unchecked: a state beyond MuJoCo's limit makes it reset, which the prediction
+        # detects and answers with the observed state (the world reports the divergence).
+        write_state(data, state)
         data.time = time
         data.xfrc_applied[:] = 0.0
         return data
