@@ -5,9 +5,10 @@ A thin wrapper of ``mpcbox compare g1_getup`` (:class:`~mpcbox.tasks.humanoid.g1
 1000): one seed of 5 s, success when the torso is up within the 5 s and held for the last
 0.5 s. Needs the robot: ``pip install "mpcbox[menagerie]"`` or ``MENAGERIE_ROOT`` pointing at
 an offline copy (without it the script names what is missing and returns 2). With an NVIDIA
-GPU MPPI runs its tuned config on MuJoCo Warp (in the real-time loop on an H200: 121 of 140
-held-out runs; with ``--lookahead auto``, which plans from the state predicted one tick
-ahead, 74 of 80 where the plain loop got 69 on the same seeds, ``docs/results/sampling_gpu.md``);
+GPU MPPI runs its tuned config on MuJoCo Warp. With ``--realtime`` it plans from the state
+predicted one median tick ahead (the task's default, ``--lookahead none`` turns it off): on
+an H200 up in 132 of 140 runs where the plain loop got 119 on the same seeds
+(``docs/results/sampling_gpu.md``);
 without one it runs with a handful of samples, which shows the loop but does not get the G1
 up.
 
@@ -15,7 +16,7 @@ Examples::
 
     MENAGERIE_ROOT=... python problems/g1_getup.py --controllers mppi
     MENAGERIE_ROOT=... python problems/g1_getup.py --controllers mppi --seeds 10 --realtime
-    MENAGERIE_ROOT=... python problems/g1_getup.py --controllers mppi --realtime --lookahead auto
+    MENAGERIE_ROOT=... python problems/g1_getup.py --controllers mppi --realtime --lookahead none
 """
 
 from __future__ import annotations
