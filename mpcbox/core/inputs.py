@@ -40,14 +40,20 @@ def check_state(name: str, state: object, nstate: int) -> np.ndarray:
             (``BADQPOS``/``BADQVEL``) and a step would silently start over.
     """
     state = as_array(name, state, (nstate,))
-    if state.size and not np.abs(state).max() <= MAX_CTRL:  # one pass; False for NaN too
-        if not np.all(np.isfinite(state)):
-            raise DivergenceError(f"{name} holds non-finite values (NaN or inf)")
-        raise DivergenceError(
-            f"{name} has a magnitude {np.abs(state).max():.3g} beyond MuJoCo's limit "
-            f"{MAX_CTRL:.0e} (mjMAXVAL), at which MuJoCo resets the simulation"
-        )
+    _within_limit(name, state, DivergenceError, "resets the simulation")
     return state
+
+
+def _within_limit(name: str, values: np.ndarray, error: type, what: str) -> None:
+    """Raise :class:`DivergenceError` for NaN or infinity in ``values``, and ``error``
+    (saying that MuJoCo then ``what``) for a magnitude beyond :data:`MAX_CTRL`."""
+    if values.size and not np.abs(values).max() <= MAX_CTRL:  # one pass; False for NaN too
+        if not np.all(np.isfinite(values)):
+            raise DivergenceError(f"{name} holds non-finite values (NaN or inf)")
+        raise error(
+            f"{name} has a magnitude {np.abs(values).max():.3g} beyond MuJoCo's limit "
+            f"{MAX_CTRL:.0e} (mjMAXVAL), at which MuJoCo {what}"
+        )
 
 
 def check_data(data: object, sizes: tuple[int, int, int]) -> None:
@@ -91,13 +97,7 @@ def check_ctrl(name: str, ctrl: object, shape: tuple[int | None, ...]) -> np.nda
             every control).
     """
     ctrl = as_array(name, ctrl, shape)
-    if ctrl.size and not np.abs(ctrl).max() <= MAX_CTRL:  # one pass; False for NaN too
-        if not np.all(np.isfinite(ctrl)):
-            raise DivergenceError(f"{name} holds non-finite values (NaN or inf)")
-        raise InvalidArgumentError(
-            f"{name} has a magnitude {np.abs(ctrl).max():.3g} beyond MuJoCo's limit "
-            f"{MAX_CTRL:.0e} (mjMAXVAL), at which MuJoCo sets every control to zero"
-        )
+    _within_limit(name, ctrl, InvalidArgumentError, "sets every control to zero")
     return ctrl
 
 
