@@ -360,6 +360,6 @@ def test_panda_reach_scales_its_default_target_by_the_arms_length(problem_script
 def test_the_arm_scripts_print_a_bad_arguments_named_error_and_return_2(capsys, problem_script):
     script = problem_script("arm_trajectory")
     assert script.main(["--model", "arm3", "--duration", "0"]) == 2
-    assert "error: duration must be a positive finite number" in capsys.readouterr().err
+    assert "error: --duration must be > 0, got 0.0" in capsys.readouterr().err
     assert script.main(["--model", "arm3", "--offsets", "1", "1", "1", "1"]) == 2
     assert "--offsets: 4 given, the model has 3 qpos" in capsys.readouterr().err
