@@ -158,15 +158,10 @@ SIMULATE_USAGE = (
 )
 
 
-def _one_line_warnings() -> None:
-    """Show warnings as ``warning: MESSAGE`` lines, without the source line that Python
-    prints under them (the command's user did not write that code)."""
-    import warnings
-
-    def formatted(message, category, filename, lineno, line=None) -> str:
-        return f"warning: {message}\n"
-
-    warnings.formatwarning = formatted
+def _one_line_warning(message, category, filename, lineno, line=None) -> str:
+    """A warning as one ``warning: MESSAGE`` line, without the source line that Python
+    prints under it (the command's user did not write that code)."""
+    return f"warning: {message}\n"
 
 
 def _prepare_gl(argv: Sequence[str]) -> None:
@@ -201,6 +196,19 @@ def _import_mujoco() -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The ``mpcbox`` console command (see :func:`_main`); warnings print as one line
+    while it runs."""
+    import warnings
+
+    shown = warnings.formatwarning
+    warnings.formatwarning = _one_line_warning
+    try:
+        return _main(argv)
+    finally:
+        warnings.formatwarning = shown
+
+
+def _main(argv: Sequence[str] | None = None) -> int:
     """The ``mpcbox`` console command.
 
     Args:
@@ -223,7 +231,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     command, rest = argv[0], argv[1:]
     line = ["mpcbox", *argv]
     _prepare_gl(rest)
-    _one_line_warnings()
     try:
         _import_mujoco()
         if command == "list":
