@@ -227,6 +227,7 @@ def _solve_dare(
     out), which moves such a mode inside without changing the gain elsewhere.
     """
     left_out = 0 if keep is None else len(A) - round(float(np.trace(keep)))
+    first: tuple[np.ndarray, np.ndarray] | None = None
     try:
         P = scipy.linalg.solve_discrete_are(A, B, Q, R, s=N)
     except Exception as exc:  # LinAlgError, ValueError, and LAPACK's own error type
@@ -234,8 +235,10 @@ def _solve_dare(
     else:
         error = None
         K = _gain(A, B, R, N, P)
-        if np.all(np.isfinite(P)) and _on_circle(A - B @ K) <= left_out:
-            return K, P
+        if np.all(np.isfinite(P)):
+            if _on_circle(A - B @ K) <= left_out:
+                return K, P
+            first = (K, P)  # finite, but a mode stays on the circle: the fallback
     delta = 1e-9 * max(1.0, float(np.max(np.abs(np.diag(Q)))))
     weigh = np.eye(len(A)) if keep is None else keep.T @ keep
     try:
@@ -243,6 +246,8 @@ def _solve_dare(
     except Exception:
         P = None
     if P is None or not np.all(np.isfinite(P)):
+        if first is not None:
+            return first
         raise SolverError(
             f"the discrete Riccati equation has no stabilizing solution ({error}); "
             "check that every unstable mode is penalized by Q (detectability)"
