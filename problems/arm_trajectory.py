@@ -49,6 +49,7 @@ from mpcbox.tasks.arm import (
     move_tracker,
     quintic_move,
 )
+from mpcbox.validation import positive_int
 
 #: Per-model defaults: end-effector frame, site offset in it (m), joint offsets (rad).
 PRESETS = {
@@ -109,8 +110,7 @@ def _run(argv: list[str] | None) -> int:
     number_flag("--duration", args.duration, low=0.0)
     number_flag("--obstacle", args.obstacle, low=0.0, strict=False)
     number_flag("--mass-scale", args.mass_scale, low=0.0)
-    if args.iterations < 1:
-        raise InvalidArgumentError(f"--iterations must be >= 1, got {args.iterations}")
+    positive_int("--iterations", args.iterations)
     check_save_name("--save", args.save)
 
     key = Path(args.model.removeprefix("menagerie:")).stem

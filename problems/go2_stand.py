@@ -31,7 +31,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from mpcbox.cli.checks import number_flag
+from mpcbox.cli.checks import check_push_flags
 from mpcbox.cli.compare_parser import add_push_scan_step
 from mpcbox.comparison.balance_suite import balance_suite
 from mpcbox.comparison.runner import compare
@@ -72,10 +72,7 @@ def main(
     parser.add_argument("--workers", type=int, default=1, help="worker processes")
     args = parser.parse_args(argv)
     try:
-        number_flag("--duration", args.duration, low=0.0)
-        number_flag("--push", args.push, low=0.0, strict=False)
-        if args.push_scan_step is not None:
-            number_flag("--push-scan-step", args.push_scan_step, low=0.0)
+        check_push_flags(args)
         feet = [f for f in args.feet.split(",") if f] or None
         problem = QuadrupedStand(model_source(args.model), feet=feet)
         suite = balance_suite(

@@ -122,6 +122,19 @@ def number_flag(flag: str, value: float, *, low: float | None = None, strict: bo
     return value
 
 
+def check_push_flags(args: argparse.Namespace) -> None:
+    """``--duration`` (> 0), ``--push`` (>= 0) and ``--push-scan-step`` (> 0 when given)
+    of the legged-balance scripts (``problems/go2_stand.py``, ``problems/g1_balance.py``).
+
+    Raises:
+        InvalidArgumentError: Naming the first bad flag.
+    """
+    _finite("--duration", args.duration, low=0.0)
+    _finite("--push", args.push, low=0.0, strict=False)
+    if args.push_scan_step is not None:
+        _finite("--push-scan-step", args.push_scan_step, low=0.0)
+
+
 def check_save_name(flag: str, name: str | None) -> None:
     """Check before any run that ``flag``'s ``PATH`` (written as ``PATH.csv`` and
     ``PATH.json``) names a file in a folder that can be created and written.

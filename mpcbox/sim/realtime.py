@@ -152,6 +152,17 @@ def whole_steps_delay(delay: float, dt: float) -> float:
     return float(delay)
 
 
+def _within_run(name: str, seconds: float, duration: float) -> float:
+    """``seconds`` of a latency setting, at most the run's ``duration`` (a named error
+    otherwise: no plan would take effect)."""
+    if seconds > duration:
+        raise InvalidArgumentError(
+            f"{name} must be at most the run's duration ({duration:g} s), got {seconds:g} s: "
+            "no plan would take effect"
+        )
+    return seconds
+
+
 @checked_keywords
 def simulate_realtime(
     problem: Problem,
@@ -243,18 +254,10 @@ def simulate_realtime(
     pushes, push_ids, measures, noise_seq = run.pushes, run.push_ids, run.measures, run.noise
     duration, degraded_limit = run.duration, run.degraded_limit
     stop_on_failure, fallbacks0 = run.stop_on_failure, run.fallbacks0
-    if isinstance(lookahead, float) and lookahead > duration:
-        raise InvalidArgumentError(
-            f"lookahead must be at most the run's duration ({duration:g} s), got {lookahead:g} "
-            "s: no plan would take effect"
-        )
+    if isinstance(lookahead, float):
+        _within_run("lookahead", lookahead, duration)
     if delay is not None:
-        delay = whole_steps_delay(delay, dt)
-        if delay > duration:
-            raise InvalidArgumentError(
-                f"delay must be at most the run's duration ({duration:g} s), got {delay:g} s: "
-                "no plan would take effect"
-            )
+        delay = _within_run("delay", whole_steps_delay(delay, dt), duration)
     period = getattr(controller, "period", None)
     if period is None and callable(getattr(controller, "policy", None)):
         period = getattr(controller, "replan_period", None)  # the world runs the feedback

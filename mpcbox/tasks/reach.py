@@ -73,9 +73,7 @@ def _check_moving_frame(model: mujoco.MjModel, frame: str) -> None:
     static body never moves, and the IK would only report it out of reach)."""
     kind, oid = frame_object(model, frame)
     body = int(model.site_bodyid[oid]) if kind == "site" else oid
-    while body > 0 and model.body_jntnum[body] == 0:
-        body = int(model.body_parentid[body])
-    if body == 0:
+    if model.body_weldid[body] == 0:  # welded to the world
         raise InvalidArgumentError(
             f"frame {frame!r} is fixed to the world (no joint moves it): name a site or body on "
             "the arm's moving links"
