@@ -187,6 +187,10 @@ class WarpBackend(AsyncRolloutBackend):
     ) -> None:
         wp, mjw = _import_warp()
         from mpcbox.controllers.sampling.backends import warp_costs as wc
+        from mpcbox.controllers.sampling.backends.warp_sensors import (
+            DeviceSensors,
+            own_sensor_plan,
+        )
         from mpcbox.controllers.sampling.backends.warp_value import device_forms
 
         self._wp, self._mjw, self._wc = wp, mjw, wc
@@ -200,6 +204,7 @@ class WarpBackend(AsyncRolloutBackend):
         # Raises UnsupportedCostTermError for terms without rows, before anything is compiled.
         self.running_rows = wc.build_rows(problem.cost.running)
         self.terminal_rows = wc.build_rows(problem.cost.terminal)
+        self._sensor_plan = own_sensor_plan(problem, self.models[0])
         self.nconmax: int | None = None
         self.njmax: int | None = None
         self.nworld = 0
@@ -216,10 +221,15 @@ class WarpBackend(AsyncRolloutBackend):
             "njmax": 0,
             "contacts_disabled": 0,
             "precompiled_modules": 0,
+            # Sensors computed by warp_sensors.sensor_kernel (-1: by MJWarp's pipeline).
+            "own_sensors": -1 if self._sensor_plan is None else int(self._sensor_plan.kind.size),
         }
         with wp.ScopedDevice(device):
             m = self._put_model()
             self.m = m
+            self.sensors = None
+            if self._sensor_plan is not None and self._sensor_plan.kind.size:
+                self.sensors = DeviceSensors(self._sensor_plan, device)
             self.running = wc.DeviceRows(self.running_rows, device, problem.nu)
             self.terminal = wc.DeviceRows(self.terminal_rows, device, problem.nu)
             self.running_forms = device_forms(self.running_rows.forms, device)
@@ -246,6 +256,14 @@ class WarpBackend(AsyncRolloutBackend):
                 models.append(model)
             self.models = models
             self._stats["contacts_disabled"] = 1
+        if self._sensor_plan is not None:
+            # The cost's sensors come from warp_sensors.sensor_kernel (or none are read).
+            models = []
+            for model in self.models:
+                model = copy.copy(model)
+                model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+                models.append(model)
+            self.models = models
         base = self.models[0]
         nmod = len(self.models)
         batch = None if nmod == 1 else {f: nmod for f in RANDOMIZED_FIELDS}
@@ -366,6 +384,8 @@ class WarpBackend(AsyncRolloutBackend):
             for form in self.running_forms:
                 form.launch(nw, d.qpos, d.qvel, self.cost)
             mjw.step(m, d)
+            if self.sensors is not None:
+                self.sensors.launch(m, d, nw)
         if run.has_sensors:
             wp.launch(
                 wc.fused_stage_kernel,
@@ -375,6 +395,8 @@ class WarpBackend(AsyncRolloutBackend):
             )
         if term.has_sensors:
             mjw.forward(m, d)
+            if self.sensors is not None:
+                self.sensors.launch(m, d, nw)
         if term.has_state or term.has_sensors:
             wp.launch(
                 wc.terminal_kernel,
