@@ -218,6 +218,24 @@ def test_a_controller_that_errors_in_every_run_gets_a_row_not_a_crash():
     assert "broken" in result.to_markdown()
 
 
+def _not_one(problem):
+    return "lqr"
+
+
+def test_a_factory_that_returns_no_controller_is_a_type_error_not_a_row():
+    from mpcbox.errors import InvalidTypeError
+
+    with pytest.raises(InvalidTypeError, match="'_not_one' returned str, not an mpcbox"):
+        compare(
+            "pendulum_swingup",
+            ["lqr", _not_one],
+            Scenario(duration=0.05, noise_scale=0.0),
+            seeds=1,
+            workers=1,
+            progress=False,
+        )
+
+
 def test_cli_unknown_names(capsys):
     assert main(["compare", "humanoid_balanse"]) == 2
     err = capsys.readouterr().err

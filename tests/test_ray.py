@@ -6,6 +6,7 @@ from __future__ import annotations
 import functools
 import os
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -133,6 +134,17 @@ def test_executor_errors_name_the_choices():
         RayExecutor(cpus_per_run=0)
     with pytest.raises(InvalidArgumentError, match="max_restarts"):
         RayExecutor(max_restarts=-1)
+    for bad in ("localhost", "localhost:port", "ray://:10001", "host:70000"):
+        with pytest.raises(InvalidArgumentError, match="address"):
+            RayExecutor(address=bad)
+    # Nothing listens on port 1: a clear error at once, where ray.init would keep retrying.
+    from mpcbox.comparison.executors import _check_reachable
+    from mpcbox.errors import BackendUnavailableError
+
+    start = time.perf_counter()
+    with pytest.raises(BackendUnavailableError, match="no Ray cluster answers at"):
+        _check_reachable("127.0.0.1:1", timeout=2.0)
+    assert time.perf_counter() - start < 3.0
 
 
 def test_cli_executor_flags_are_checked(tmp_path, capsys):

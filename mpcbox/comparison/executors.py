@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import abc
 import os
+import socket
 import threading
 import time
 from collections.abc import Iterator, Sequence
@@ -151,6 +152,33 @@ class _RayWorker:
         return done._replace(where=f"{host} node {node}" + (f" gpu {gpu}" if gpu else ""))
 
 
+def _host_port(address: str) -> tuple[str, int]:
+    """``(host, port)`` of ``"HOST:PORT"`` or ``"ray://HOST:PORT"``; raises
+    InvalidArgumentError naming ``address`` otherwise."""
+    rest = address.removeprefix("ray://")
+    host, _, port = rest.rpartition(":")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise InvalidArgumentError(
+            f"address must be 'auto', 'HOST:PORT', 'ray://HOST:PORT' or None, got {address!r}"
+        )
+    return host.strip("[]"), int(port)
+
+
+def _check_reachable(address: str, timeout: float = 5.0) -> None:
+    """Raise BackendUnavailableError unless something accepts a connection at ``address``
+    within ``timeout`` seconds (``ray.init`` itself would keep retrying an address where
+    nothing listens)."""
+    host, port = _host_port(address)
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            pass
+    except OSError as exc:
+        raise BackendUnavailableError(
+            f"address: no Ray cluster answers at {address!r} ({exc}); start one there "
+            "(`ray start --head`) or leave the address out for a local Ray"
+        ) from exc
+
+
 @checked_options
 @dataclass(frozen=True, kw_only=True)
 class RayExecutor(Executor):
@@ -178,6 +206,8 @@ class RayExecutor(Executor):
     def __post_init__(self) -> None:
         if self.address is not None and not string("address", self.address):
             raise InvalidArgumentError("address must be 'auto', 'HOST:PORT' or None, got ''")
+        if self.address not in (None, "auto"):
+            _host_port(self.address)
         positive("cpus_per_run", self.cpus_per_run)
         if self.gpus_per_run is not None:
             non_negative("gpus_per_run", self.gpus_per_run)
@@ -195,6 +225,8 @@ class RayExecutor(Executor):
             )
         ray = _import_ray()
         if not ray.is_initialized():
+            if self.address not in (None, "auto"):
+                _check_reachable(self.address)
             ray.init(
                 address=self.address,
                 ignore_reinit_error=True,

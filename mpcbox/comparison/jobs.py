@@ -25,6 +25,7 @@ from mpcbox.comparison.robustness import PushLimit, largest_push
 from mpcbox.comparison.scenario import PushTest, Scenario
 from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
+from mpcbox.errors import InvalidTypeError
 from mpcbox.registry import make_controller, task_class
 from mpcbox.sim.measures import Measure
 from mpcbox.sim.simulation import Metrics
@@ -134,6 +135,10 @@ def failed_run(job: Job, error: BaseException) -> Run:
     return Run(job.controller, job.scenario, job.seed, metrics, reason, np.zeros(0), None)
 
 
+class NotAControllerError(InvalidTypeError):
+    """A controller factory given to a comparison returned something else."""
+
+
 class Worker:
     """Builds the problem and controllers on first use, then runs jobs.
 
@@ -162,6 +167,11 @@ class Worker:
                 ctrl = spec
             else:
                 ctrl = spec(self.problem)
+                if not isinstance(ctrl, Controller):
+                    raise NotAControllerError(
+                        f"controllers: the factory for {label!r} returned "
+                        f"{type(ctrl).__name__}, not an mpcbox.Controller"
+                    )
             self._controllers[label] = ctrl
         return self._controllers[label]
 
@@ -172,6 +182,8 @@ class Worker:
                 problem, controller = self.problem, self.controller(job.controller)
                 test = self.setup.push_tests[job.push]
                 limit = largest_push(problem, controller, test, seed=job.seed)
+            except NotAControllerError:
+                raise
             except Exception as exc:  # one broken search must not end the sweep: NaN
                 nan = float("nan")
                 reason = f"error in push search: {type(exc).__name__}: {exc}"
@@ -181,6 +193,8 @@ class Worker:
             problem, controller = self.problem, self.controller(job.controller)
             measures = tuple(problem.measures())
             res = self.setup.scenarios[job.scenario].run(problem, controller, job.seed)
+        except NotAControllerError:
+            raise  # the same in every run: the caller's mistake, not the run's
         except Exception as exc:  # one broken run must not end the sweep
             return Done(job, failed_run(job, exc), (), _where())
         trace = None
