@@ -8,8 +8,11 @@ One tick, for ``W = N M`` worlds (world ``w`` rolls out candidate ``w // M`` on 
    then for ``t = 0 .. T-1`` one fused launch (a thread per world and actuator or cost row:
    :func:`~mpcbox.controllers.sampling.backends.warp_costs.fused_stage_kernel`) interpolates
    and clamps :math:`u_t`, adds the state/control rows at :math:`x_t` and the sensor rows of
-   step ``t - 1`` (MJWarp computes sensors at :math:`x_{t-1}` inside that step), followed by
-   ``mjw.step``; then the last sensor rows, the terminal rows at :math:`x_T` (after
+   step ``t - 1`` (sensors at :math:`x_{t-1}`, from that step's kinematics), followed by
+   ``mjw.step`` and, when the cost's sensors are all of the kinds
+   :mod:`~mpcbox.controllers.sampling.backends.warp_sensors` computes, its one sensor launch
+   (MJWarp's own sensor pipeline is then off in the planning model; else MJWarp computes
+   them inside the step); then the last sensor rows, the terminal rows at :math:`x_T` (after
    ``mjw.forward`` if they read sensors) and per-world flags for capacity overflow and
    divergence (as MuJoCo checks after each step: a non-finite ``qacc`` or one beyond
    ``1e10``, tested in the fused launch; the same for the final ``qpos`` and ``qvel``);
