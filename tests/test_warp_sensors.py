@@ -169,3 +169,56 @@ def test_planning_costs_with_kernel_sensors_agree_with_the_cpu_backend(warp_devi
         assert not b.overflow.any() and not b.nonfinite.any()
         assert a.shape == (6, 2) and np.all(np.ptp(a, axis=0) > 1e-3)
         np.testing.assert_allclose(b.costs, a, rtol=2e-4)
+
+
+# No site at all: a frame sensor on a body must not read the (empty) site arrays.
+NO_SITES = """
+<mujoco>
+  <option timestep="0.01"/>
+  <worldbody>
+    <body name="link" pos="0 0 1">
+      <joint name="hinge" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0 0 0.5" size="0.05"/>
+      <body name="tip" pos="0 0 0.5">
+        <joint name="elbow" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.04"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor joint="hinge"/>
+    <motor joint="elbow"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def _costs(problem, device):
+    opts = dict(num_samples=6, horizon=12 * problem.dt, num_knots=3)
+    cpu = PredictiveSampling(problem, **opts)
+    warp = PredictiveSampling(problem, backend="warp", device=device, **opts)
+    rng = np.random.default_rng(3)
+    cand = rng.normal(0, 0.5, (6, 3, problem.nu))
+    state = problem.initial_state().copy()
+    state[problem.nq :] += rng.normal(0, 0.5, problem.nv)
+    b = warp.backend.evaluate(state, cand)
+    assert not b.overflow.any() and not b.nonfinite.any()
+    return cpu.backend.evaluate(state, cand).costs, b.costs, warp.backend.stats["own_sensors"]
+
+
+def test_body_frames_of_a_model_without_sites_agree_with_the_cpu_backend(warp_device):
+    terms = [FrameHeight("tip", 1.2, weight=10.0), Upright("tip", weight=1.0)]
+    a, b, own = _costs(mpcbox.Problem(NO_SITES, cost=Cost(terms)), warp_device)
+    assert own == 2 and np.ptp(a) > 1e-3
+    np.testing.assert_allclose(b, a, rtol=2e-4)
+
+
+def test_rk4_planning_keeps_mjwarps_sensors(warp_device):
+    """An RK4 step leaves its last stage's kinematics in Data, so the kernel, which reads
+    them after the step, would sense the wrong state: MJWarp computes the sensors then."""
+    rk4 = SENSED.replace('timestep="0.01"', 'timestep="0.01" integrator="RK4"')
+    problem = mpcbox.Problem(rk4, cost=Cost(_terms()), plan_rk4=True)
+    assert problem.planning_model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
+    a, b, own = _costs(problem, warp_device)
+    assert own == -1 and np.ptp(a) > 1e-3
+    np.testing.assert_allclose(b, a, rtol=2e-4)

@@ -9,7 +9,8 @@ planning model is put on the device with sensors disabled (``mjDSBL_SENSOR``; a 
 sensors go too) and :func:`sensor_kernel` writes the requested ones into
 ``Data.sensordata`` at their usual addresses, one launch per step, from arrays every step
 computes anyway (``xpos``, ``xmat``, ``xipos``, ``ximat``, ``geom_xpos``, ``geom_xmat``,
-``site_xpos``, ``site_xmat``, ``subtree_com``, ``cvel``).
+``site_xpos``, ``site_xmat``, ``subtree_com``, ``cvel``). Not with RK4: its step leaves the
+kinematics of its last stage in ``Data``, and MJWarp then computes the sensors.
 
 The subtree linear velocity of body :math:`b` is MuJoCo's (``mj_subtreeVel``)
 
@@ -120,7 +121,11 @@ def sensor_plan(model: mujoco.MjModel, sensors: Iterable[int]) -> SensorPlan | N
 
 def own_sensor_plan(problem: object, model: mujoco.MjModel) -> SensorPlan | None:
     """The :class:`SensorPlan` of the sensors ``problem``'s cost reads in ``model`` (empty
-    when it reads none), or ``None`` when MJWarp must compute them (:func:`sensor_plan`)."""
+    when it reads none), or ``None`` when MJWarp must compute them (:func:`sensor_plan`; and
+    with RK4, whose step leaves the kinematics of its last stage in ``Data``, not those of
+    the step's start, at which MJWarp computes the sensors)."""
+    if int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4):
+        return None
     kind = mujoco.mjtObj.mjOBJ_SENSOR
     ids = {mujoco.mj_name2id(model, kind, r.name) for r in problem.cost.sensors(model)}
     if min(ids, default=0) < 0:
@@ -167,10 +172,14 @@ def _frame(
     site_xmat: wp.array2d[wp.mat33],
     want_axis: int,
 ) -> wp.vec3:
-    """The frame's position (``want_axis < 0``) or its axis ``want_axis``."""
-    pos = site_xpos[world, i]
-    mat = site_xmat[world, i]
-    if frame == 1:
+    """The frame's position (``want_axis < 0``) or its axis ``want_axis``; only the arrays
+    of the frame's kind are read (a model may have no sites or fewer sites than bodies)."""
+    pos = wp.vec3(0.0)
+    mat = wp.identity(3, dtype=float)
+    if frame == 0:
+        pos = site_xpos[world, i]
+        mat = site_xmat[world, i]
+    elif frame == 1:
         pos = xpos[world, i]
         mat = xmat[world, i]
     elif frame == 2:
