@@ -223,3 +223,48 @@ def test_a_term_with_an_unknown_stage_is_named():
 
     with pytest.raises(CostDefinitionError, match=r"stage 'position'.*'none', 'pos'"):
         forward_stage([Odd(np.zeros(2), weight=1.0, name="odd")])
+
+
+TWO_BALLS = """<mujoco><worldbody>
+<body name="a" pos="0 0 1"><joint name="ja" type="slide" axis="1 0 0"/>
+  <geom size=".1" mass="1"/></body>
+<body name="b" pos="1 0 1"><joint name="jb" type="slide" axis="1 0 0"/>
+  <geom size=".1" mass="1"/></body>
+</worldbody><actuator><motor joint="ja"/><motor joint="jb"/></actuator></mujoco>"""
+
+
+def test_terms_of_one_name_on_different_objects_are_refused_not_merged():
+    """Two terms asking for one sensor name on different bodies used to share the first
+    one's sensor, so the second read the wrong body without a word."""
+    from mpcbox.core.cost import ComVelocity, FrameHeight
+    from mpcbox.errors import ModelLoadError
+
+    pairs = (
+        [ComVelocity(weight=1.0, root="a"), ComVelocity(weight=1.0, root="b")],
+        [FrameHeight("a", 0.0, weight=1.0, name="h"), FrameHeight("b", 0.0, weight=1.0, name="h")],
+    )
+    for terms in pairs:
+        with pytest.raises(CostDefinitionError, match="distinct names"):
+            mpcbox.Problem(TWO_BALLS, cost=Cost(terms))
+    # With names of their own each reads its body: 0.5 (1^2 + 3^2).
+    terms = [ComVelocity(weight=1.0, root="a"), ComVelocity(weight=1.0, root="b", name="vb")]
+    problem = mpcbox.Problem(TWO_BALLS, cost=Cost(terms))
+    x = problem.reference_state()
+    x[problem.nq :] = [1.0, 3.0]
+    assert problem.running_cost(x, np.zeros(2)) == pytest.approx(5.0)
+    # A compiled model whose sensor of that name senses another body is refused too.
+    with pytest.raises(ModelLoadError, match="on 'a'"):
+        mpcbox.Problem(problem.model, cost=Cost([ComVelocity(weight=1.0, root="b")]))
+    same = mpcbox.Problem(problem.model, cost=Cost([ComVelocity(weight=1.0, root="a")]))
+    assert same.running_cost(x, np.zeros(2)) == pytest.approx(0.5)
+
+
+def test_subtree_roots_are_names_and_an_unnamed_default_is_explained():
+    from mpcbox.core.cost import ComVelocity
+    from mpcbox.errors import InvalidArgumentError, InvalidTypeError
+
+    with pytest.raises(InvalidTypeError, match="root must be a string"):
+        ComVelocity(weight=1.0, root=1)
+    unnamed = TWO_BALLS.replace('body name="a"', "body")
+    with pytest.raises(InvalidArgumentError, match="first body, which has no name"):
+        mpcbox.Problem(unnamed, cost=Cost([ComVelocity(weight=1.0)]))

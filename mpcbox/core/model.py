@@ -113,6 +113,23 @@ def compile_spec(spec: mujoco.MjSpec) -> mujoco.MjModel:
         raise ModelLoadError(f"model: MuJoCo could not compile the model: {exc}") from exc
 
 
+def _check_sensor(model: mujoco.MjModel, req: Any) -> None:
+    """The sensor of ``req``'s name in a compiled ``model`` must be the one it asks for."""
+    sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, req.name)
+    objtype = int(model.sensor_objtype[sid])
+    lookup = int(mujoco.mjtObj.mjOBJ_BODY) if objtype == int(mujoco.mjtObj.mjOBJ_XBODY) else objtype
+    objid = int(model.sensor_objid[sid])
+    name = mujoco.mj_id2name(model, lookup, objid) if objid >= 0 else ""
+    found = (int(model.sensor_type[sid]), objtype, name or "")
+    if found != (int(req.type), int(req.objtype), str(req.objname)):
+        raise ModelLoadError(
+            f"model: its sensor {req.name!r} is not the one the cost needs (type "
+            f"{mujoco.mjtSensor(found[0]).name} on {found[2]!r}, the cost asks for "
+            f"{mujoco.mjtSensor(int(req.type)).name} on {req.objname!r}); pass an MJCF path, "
+            "XML string or MjSpec, or give the cost term another name"
+        )
+
+
 def with_sensors(
     source: mujoco.MjSpec | mujoco.MjModel, requests: Sequence[Any], timestep: float | None = None
 ) -> mujoco.MjModel:
@@ -139,6 +156,8 @@ def with_sensors(
                 f"model: the cost needs sensors {missing} that a compiled MjModel cannot "
                 "receive; pass an MJCF path, XML string or MjSpec instead"
             )
+        for req in requests:
+            _check_sensor(source, req)
         model = copy.copy(source)
     else:
         spec = source.copy()

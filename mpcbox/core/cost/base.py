@@ -51,6 +51,10 @@ class Features(NamedTuple):
     sensordata: np.ndarray
 
 
+def _sensor_key(req: SensorRequest) -> tuple[int, int, str]:
+    return int(req.type), int(req.objtype), str(req.objname)
+
+
 class SensorRequest(NamedTuple):
     """A sensor that a cost term needs added to the model."""
 
@@ -250,12 +254,26 @@ class Cost:
         return self.running + self.terminal
 
     def sensors(self, model: mujoco.MjModel) -> list[SensorRequest]:
-        """All sensors the terms need, without duplicates."""
-        out: dict[str, SensorRequest] = {}
+        """All sensors the terms need, without duplicates.
+
+        Raises:
+            CostDefinitionError: If two terms ask for sensors of one name on different
+                objects or of different types (two terms of one name, e.g. two
+                ``ComVelocity`` terms on different roots without their own ``name``).
+        """
+        out: dict[str, tuple[SensorRequest, CostTerm]] = {}
         for term in self.terms:
             for req in term.sensors(model):
-                out.setdefault(req.name, req)
-        return list(out.values())
+                seen = out.setdefault(req.name, (req, term))
+                if _sensor_key(seen[0]) != _sensor_key(req):
+                    first, other = seen[1], term
+                    raise CostDefinitionError(
+                        f"cost terms {first.name!r} ({type(first).__name__}) and "
+                        f"{other.name!r} ({type(other).__name__}) both need a sensor "
+                        f"named {req.name!r}, on {seen[0].objname!r} and {req.objname!r}: "
+                        "give the terms distinct names (name=...)"
+                    )
+        return [req for req, _ in out.values()]
 
     def bind(self, model: mujoco.MjModel) -> None:
         """Bind every term to the compiled model and check weights."""

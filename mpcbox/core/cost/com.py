@@ -11,7 +11,8 @@ from mpcbox.core.cost.base import CostTerm, Features, Jacobian, SensorRequest
 from mpcbox.core.cost.frames import frame_sensor, point_jacobian
 from mpcbox.core.cost.rows import Row, SensorRow
 from mpcbox.core.model import object_id
-from mpcbox.validation import checked_options, finite_array
+from mpcbox.errors import InvalidArgumentError
+from mpcbox.validation import checked_options, finite_array, string
 
 
 class _SubtreeTerm(CostTerm):
@@ -20,13 +21,21 @@ class _SubtreeTerm(CostTerm):
 
     def __init__(self, weight: float | np.ndarray, name: str, root: str | None) -> None:
         super().__init__(weight, name)
-        self.root = root
+        self.root = None if root is None else string("root", root)
 
     def _root(self, model: mujoco.MjModel) -> str:
         """``root``, or body 1 (the first body after the world) when it is ``None``."""
         if self.root is not None:
             return self.root
-        return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, 1)
+        if model.nbody < 2:
+            raise InvalidArgumentError(f"{self.name}: the model has no body but the world")
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, 1)
+        if not name:
+            raise InvalidArgumentError(
+                f"{self.name}: root defaults to the model's first body, which has no name; "
+                "name it in the MJCF or give root=<a body name>"
+            )
+        return name
 
     def size(self, model: mujoco.MjModel) -> int:
         return 2
