@@ -79,6 +79,13 @@ def test_options_lists_a_controllers_config_with_defaults(capsys) -> None:
             "one --controller",
         ),
         (["list", "extra"], "no arguments"),
+        # From a fuzz with robots nobody here wrote (stop 51):
+        (["options"], "needs a controller name, one of: lqr"),
+        (
+            ["simulate", "pendulum_swingup", "--controller", "lqr,ilqr"],
+            "--controller takes one name, got 'lqr,ilqr'",
+        ),
+        (["inspect", "nope", "--json", "/proc/no/such.json"], "--json: '/proc/no' is not"),
     ],
 )
 def test_user_errors_exit_2_with_one_line(capsys, tmp_path, argv, needle) -> None:
@@ -324,6 +331,7 @@ def test_compare_takes_a_bare_menagerie_name_as_the_scripts_do(tmp_path, monkeyp
         (["simulate", "--help"], "mpcbox simulate TASK --controller NAME"),
         (["simulate", "-h"], "mpcbox simulate TASK --controller NAME"),
         (["options", "--help"], "usage: mpcbox options CONTROLLER"),
+        (["list", "--help"], "usage: mpcbox list"),
     ],
 )
 def test_help_of_simulate_and_options(capsys, argv, needle) -> None:
@@ -355,3 +363,10 @@ def test_a_realtime_run_takes_the_tasks_lookahead_unless_told() -> None:
     assert ahead("g1_getup", lookahead="0.02") == 0.02
     assert ahead("g1_getup", realtime=False) is None
     assert ahead("humanoid_getup") is None and ahead("pendulum_swingup") is None
+
+
+def test_inspect_refuses_a_hold_of_a_billion_seconds(capsys) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        run(capsys, "inspect", "nope", "--hold", "1e9")
+    assert exit_info.value.code == 2
+    assert "--hold must be a number of seconds in [0, 3600]" in capsys.readouterr().err

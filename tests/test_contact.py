@@ -201,3 +201,43 @@ def test_pyramid_rejects_bad_input():
         friction_pyramid(0.0)
     with pytest.raises(InvalidArgumentError, match="facets"):
         friction_pyramid(0.5, 5)
+
+
+# A cylinder lying on its side (axis along the world's x after a 90 deg pitch), its body
+# yawed by 30 deg: its lowest part is a line along the axis.
+LYING = """
+<mujoco>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 .1"/>
+    <body name="toe" pos="0.3 0.2 0.03" euler="0 0 30">
+      <freejoint/>
+      <geom name="roll" type="cylinder" size=".03 .1" euler="0 90 0"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_a_cylinder_lying_on_its_side_stands_on_both_ends_of_its_lowest_line():
+    """The corners used to be taken along the geom's own axes, one of which is vertical for
+    a lying cylinder, so both picks fell at one end (Adam Lite's toes: soles at their front
+    tips, 17 cm from the middle)."""
+    from mpcbox.tasks.legged.feet import find_feet, support_centre
+
+    model = mujoco.MjModel.from_xml_string(LYING)
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    points = contact_points(model, "roll").world(data)
+    # On the floor, to the rim's sampling (16 directions: within 0.03 (1 - cos 22.5 deg)).
+    assert np.ptp(points[:, 2]) < 1e-9 and 0.0 <= points[0, 2] < 2.5e-3
+    axis = np.array([np.cos(np.pi / 6), np.sin(np.pi / 6)])
+    along = (points[:, :2] - [0.3, 0.2]) @ axis
+    assert along.min() == pytest.approx(-0.1) and along.max() == pytest.approx(0.1)
+    (foot,) = find_feet(model, ["body:toe"], data.qpos)
+    np.testing.assert_allclose(foot.sole[:2], 0.0, atol=1e-9)  # under the middle
+    # The middle of a sole is its hull's area centroid, not the mean of its points: a
+    # square with three extra points along one edge still has its centre in the middle.
+    square = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=float)
+    extra = np.array([[1, 0.25, 0], [1, 0.5, 0], [1, 0.75, 0]], dtype=float)
+    np.testing.assert_allclose(support_centre(np.vstack([square, extra])), [0.5, 0.5, 0.0])
+    np.testing.assert_allclose(support_centre(square[:2]), [0.5, 0.0, 0.0])

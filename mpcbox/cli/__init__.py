@@ -88,8 +88,12 @@ def _options(rest: Sequence[str], stream) -> int:
             file=stream,
         )
         return 0
+    if not rest:
+        raise InvalidArgumentError(
+            f"mpcbox options needs a controller name, one of: {', '.join(CONTROLLERS)}"
+        )
     if len(rest) != 1:
-        raise UnknownNameError("controller", " ".join(rest) or "(none)", CONTROLLERS)
+        raise UnknownNameError("controller", " ".join(rest), CONTROLLERS)
     cls = controller_class(rest[0])
     print(
         f"{rest[0]}: {cls.__module__}.{cls.__name__}, config {cls.config_class.__name__}",
@@ -137,6 +141,11 @@ def _simulate(rest: Sequence[str], command: Sequence[str]) -> int:
     if args.controllers:
         raise InvalidArgumentError(
             "--controllers belongs to mpcbox compare; simulate takes one --controller"
+        )
+    if "," in known.controller:
+        raise InvalidArgumentError(
+            f"--controller takes one name, got {known.controller!r}: to run several, use "
+            f"mpcbox compare {known.task} --controllers {known.controller}"
         )
     args.controllers = known.controller
     if args.viewer is not None:
@@ -234,6 +243,12 @@ def _main(argv: Sequence[str] | None = None) -> int:
     try:
         _import_mujoco()
         if command == "list":
+            if rest in (["-h"], ["--help"]):
+                print(
+                    "usage: mpcbox list\n\nThe tasks, each with its tuned controllers, and "
+                    "every controller name."
+                )
+                return 0
             if rest:
                 raise InvalidArgumentError(f"mpcbox list takes no arguments, got {rest}")
             return _list(sys.stdout)

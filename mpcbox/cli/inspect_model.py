@@ -20,13 +20,19 @@ if TYPE_CHECKING:
     from mpcbox.core.robot_check import Finding, RobotCheck
 
 
+#: Longest open-loop hold ``--hold`` takes (s).
+MAX_HOLD = 3600.0
+
+
 def _seconds(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
         value = math.nan
-    if not math.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f"--hold must be a number of seconds >= 0, got {text!r}")
+    if not math.isfinite(value) or not 0 <= value <= MAX_HOLD:
+        raise argparse.ArgumentTypeError(
+            f"--hold must be a number of seconds in [0, {MAX_HOLD:g}], got {text!r}"
+        )
     return value
 
 
@@ -61,6 +67,14 @@ def _legged_finding(report: RobotCheck, name: str) -> Finding | None:
             feet = ground_feet(model, report.posture, count)
         except MpcboxError:
             continue
+        held = all(f.level in ("ok", "note") for f in report.findings if f.topic == "equilibrium")
+        if not held:
+            return Finding(
+                "legged task",
+                "warning",
+                f"its {count} lowest bodies look like feet ({', '.join(feet)}), but no equilibrium holds it "
+                f"(above): {task} needs one",
+            )
         return Finding(
             "legged task",
             "ok",
@@ -89,11 +103,9 @@ def run_inspect(argv: Sequence[str], stream=None) -> int:
     if keyframe is not None and keyframe.isdigit():
         keyframe = int(keyframe)
     if args.json:
-        parent = Path(args.json).parent
-        if not parent.is_dir():
-            from mpcbox.errors import InvalidArgumentError
+        from mpcbox.cli.checks import check_output_folder
 
-            raise InvalidArgumentError(f"--json: no folder {str(parent)!r} to write into")
+        check_output_folder(Path(args.json).parent, "--json")
     report = check_robot(
         model_source(args.model),
         keyframe=keyframe,

@@ -93,14 +93,17 @@ POINT_SOLE = 0.01
 _RIM = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
 
 
-def _sole(points: np.ndarray, rot: np.ndarray, band: float) -> list[np.ndarray]:
+def _sole(points: np.ndarray, band: float) -> list[np.ndarray]:
     """The corners of the lowest part of a geom: of the world ``points`` ``(p, 3)`` within
-    ``band`` of the lowest, the extreme ones along the four diagonals of the geom's
-    horizontal axes (``rot``: geom to world), so a flat sole gives its four corners; their
-    centroid alone when they all lie within :data:`POINT_SOLE` of it."""
+    ``band`` of the lowest, the extreme ones along the four diagonals of the principal axes
+    of their horizontal spread, so a flat sole gives its four corners and a cylinder lying
+    on its side the two ends of its lowest line (the geom's own axes would miss one end:
+    one of them is vertical then); their centroid alone when they all lie within
+    :data:`POINT_SOLE` of it."""
     low = points[points[:, 2] <= points[:, 2].min() + band]
     if len(low) > 4:
-        axes = rot[:2, :2]  # the geom's x and y axes, horizontal components
+        spread = low[:, :2] - low[:, :2].mean(axis=0)
+        axes = np.linalg.eigh(spread.T @ spread)[1]  # principal axes, as columns
         picked: list[int] = []
         for sx in (-1.0, 1.0):
             for sy in (-1.0, 1.0):
@@ -142,12 +145,12 @@ def geom_points(model: mujoco.MjModel, data: mujoco.MjData, gid: int) -> list[np
         rim = np.stack([np.cos(_RIM), np.sin(_RIM), np.zeros_like(_RIM)], axis=1) * size[0]
         end = np.array([0.0, 0.0, size[1]])
         local = np.vstack([rim + end, rim - end])
-        return _sole(pos + local @ rot.T, rot, band)
+        return _sole(pos + local @ rot.T, band)
     if gtype == _MESH and model.geom_dataid[gid] >= 0:
         mesh = int(model.geom_dataid[gid])
         start, count = int(model.mesh_vertadr[mesh]), int(model.mesh_vertnum[mesh])
         local = model.mesh_vert[start : start + count]  # in the geom's frame
-        return _sole(pos + local @ rot.T, rot, band)
+        return _sole(pos + local @ rot.T, band)
     raise InvalidArgumentError(
         f"contacts: geom {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, gid)!r} has a type "
         "without contact points (use a capsule, sphere, ellipsoid, box, cylinder or mesh "

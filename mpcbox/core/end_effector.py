@@ -76,13 +76,13 @@ def end_effector(model: mujoco.MjModel) -> str:
     if len(sites) > 1:
         raise InvalidArgumentError(
             f"frame: the model has several attachment sites {sites}; name the end effector "
-            "with frame=..."
+            "with frame=... (--frame on the command line)"
         )
     bodies = _jointed_bodies(model)
     if not bodies:
         raise InvalidArgumentError(
             "frame: the model has no hinge or ball joint, so it has no arm tip to pick; name "
-            "the end effector with frame=..."
+            "the end effector with frame=... (--frame on the command line)"
         )
     depth = _depths(model)
     deepest = max(depth[b] for b in bodies)
@@ -91,13 +91,13 @@ def end_effector(model: mujoco.MjModel) -> str:
         candidates = [_body_name(model, _tip(model, b)) for b in tips]
         raise InvalidArgumentError(
             f"frame: the model has several arm tips {candidates}; name the end effector "
-            "with frame=..."
+            "with frame=... (--frame on the command line)"
         )
     tip = _tip(model, tips[0])
     if not model.body(tip).name:
         raise InvalidArgumentError(
             f"frame: the arm's tip is body {tip}, which has no name; name it in the MJCF (or "
-            "add a site there) and pass frame=..."
+            "add a site there) and pass frame=... (--frame on the command line)"
         )
     return _body_name(model, tip)
 

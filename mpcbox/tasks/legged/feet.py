@@ -67,6 +67,30 @@ def _lookup(model: mujoco.MjModel, entry: str) -> tuple[str, str, int]:
     raise UnknownNameError("foot " + " or ".join(kinds), name, valid, "feet")
 
 
+def support_centre(points: np.ndarray) -> np.ndarray:
+    """The middle of a sole's contact points ``(p, 3)``: the area centroid of their
+    horizontal convex hull (the midpoint of the two extremes when they lie on a line), at
+    their mean height. Unlike their mean it does not lean towards the part of the sole with
+    more points (a Unitree H1's toe capsule has three contact points, its heel one)."""
+    xy = points[:, :2]
+    centre = xy.mean(axis=0)
+    spread = xy - centre
+    values, axes = np.linalg.eigh(spread.T @ spread)
+    if values[1] <= 1e-12:  # one point
+        middle = centre
+    elif values[0] <= 1e-9 * values[1]:  # on a line: the midpoint of its two ends
+        along = spread @ axes[:, 1]
+        middle = centre + 0.5 * (along.max() + along.min()) * axes[:, 1]
+    else:
+        from scipy.spatial import ConvexHull
+
+        hull = xy[ConvexHull(xy).vertices]  # counter-clockwise
+        nxt = np.roll(hull, -1, axis=0)
+        cross = hull[:, 0] * nxt[:, 1] - nxt[:, 0] * hull[:, 1]
+        middle = ((hull + nxt) * cross[:, None]).sum(axis=0) / (3.0 * cross.sum())
+    return np.array([middle[0], middle[1], points[:, 2].mean()])
+
+
 def find_feet(
     model: mujoco.MjModel, feet: Sequence[str] | str, qpos: np.ndarray, *, margin: float = 0.01
 ) -> tuple[Foot, ...]:
@@ -114,7 +138,7 @@ def find_feet(
             world_points = points.world(data)
             low = world_points[:, 2] <= world_points[:, 2].min() + margin
             body = int(points.body[0])
-            world = world_points[low].sum(axis=0) / np.count_nonzero(low)
+            world = support_centre(world_points[low])
             point = bool(np.max(np.linalg.norm(world_points[low] - world, axis=1)) < 1e-3)
         rot = data.xmat[body].reshape(3, 3)
         sole = rot.T @ (world - data.xpos[body])
