@@ -504,9 +504,9 @@ def test_the_cost_is_stationary_at_the_equilibrium_unless_asked_otherwise() -> N
 def test_ilqr_mpc_stands_the_adam_lite_whose_com_is_off_the_middle_of_its_soles() -> None:
     """PNDbotics' Adam Lite stands with its center of mass 6 cm behind the middle of its
     soles (each a pair of cylinders lying lengthwise; 17 cm while their soles were taken at
-    the cylinders' front ends alone). The balance term used to pull it forward (a gradient LQR drops and iLQR follows)
-    and each replan's open-loop warm start drifted off within the horizon: iLQR-MPC fell
-    within 3 s, without noise too, where LQR stood."""
+    the cylinders' front ends alone). The balance term used to pull it forward (a gradient
+    LQR drops and iLQR follows) and each replan's open-loop warm start drifted off within
+    the horizon: iLQR-MPC fell within 3 s, without noise too, where LQR stood."""
     from mpcbox.core import menagerie
     from mpcbox.tasks.legged.biped import BipedStand
 

@@ -72,8 +72,8 @@ def _legged_finding(report: RobotCheck, name: str) -> Finding | None:
             return Finding(
                 "legged task",
                 "warning",
-                f"its {count} lowest bodies look like feet ({', '.join(feet)}), but no equilibrium holds it "
-                f"(above): {task} needs one",
+                f"its {count} lowest bodies look like feet ({', '.join(feet)}), but no "
+                f"equilibrium holds it (above): {task} needs one",
             )
         return Finding(
             "legged task",

@@ -250,22 +250,18 @@ class WarpBackend(AsyncRolloutBackend):
     # ------------------------------------------------------------------ setup
     def _put_model(self):
         wp, mjw = self._wp, self._mjw
+        disable = 0
         if not has_collidable_pairs(self.models[0]):
             # Nothing can touch: skip MJWarp's collision pipeline (many launches per step).
-            models = []
-            for model in self.models:
-                model = copy.copy(model)
-                model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-                models.append(model)
-            self.models = models
+            disable |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
             self._stats["contacts_disabled"] = 1
         if self._sensor_plan is not None:
             # The cost's sensors come from warp_sensors.sensor_kernel (or none are read).
-            models = []
-            for model in self.models:
-                model = copy.copy(model)
-                model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
-                models.append(model)
+            disable |= int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+        if disable:
+            models = [copy.copy(model) for model in self.models]
+            for model in models:
+                model.opt.disableflags |= disable
             self.models = models
         base = self.models[0]
         nmod = len(self.models)
