@@ -146,3 +146,15 @@ def test_bad_inputs_are_named():
         ground_feet(model, model.key_qpos[0], 2, root="pelvis_nope")
     with pytest.raises(InvalidArgumentError, match="tolerance"):
         ground_feet(model, model.key_qpos[0], 2, tolerance=-1.0)
+
+
+def test_a_quadruped_stand_on_three_named_feet_warns() -> None:
+    """A fuzz run stood a Go1 on three named feet without a word (the QP then plans forces
+    on three feet, and the balance measure moves to their middle)."""
+    pytest.importorskip("dm_control")
+    from mpcbox.tasks.legged.quadruped import DM_CONTROL_FEET, QuadrupedStand, dm_control_quadruped
+
+    three = [f"body:{name}" for name in DM_CONTROL_FEET[:3]]
+    with pytest.warns(UserWarning, match="names 3 feet"):
+        problem = QuadrupedStand(dm_control_quadruped(), feet=three, threads=1)
+    assert len(problem.feet) == 3

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from types import MappingProxyType
@@ -136,6 +137,14 @@ class QuadrupedStand(LeggedBalance):
     ) -> None:
         if feet is None:
             feet = menagerie_feet(model)
+        elif not isinstance(feet, str) and isinstance(feet, Sequence) and len(feet) != 4:
+            warnings.warn(
+                f"QuadrupedStand: feet names {len(feet)} feet ({list(feet)}); a quadruped "
+                "stands on 4, so the others count as off the ground (name all four unless "
+                "that is meant)",
+                UserWarning,
+                stacklevel=2,
+            )
         super().__init__(model, feet=feet, **kwargs)
 
     def standing_feet(
