@@ -157,42 +157,6 @@ class DeviceSensors:
         )  # fmt: skip
 
 
-@wp.func
-def _frame(
-    world: int,
-    frame: int,
-    i: int,
-    xpos: wp.array2d[wp.vec3],
-    xmat: wp.array2d[wp.mat33],
-    xipos: wp.array2d[wp.vec3],
-    ximat: wp.array2d[wp.mat33],
-    geom_xpos: wp.array2d[wp.vec3],
-    geom_xmat: wp.array2d[wp.mat33],
-    site_xpos: wp.array2d[wp.vec3],
-    site_xmat: wp.array2d[wp.mat33],
-    want_axis: int,
-) -> wp.vec3:
-    """The frame's position (``want_axis < 0``) or its axis ``want_axis``; only the arrays
-    of the frame's kind are read (a model may have no sites or fewer sites than bodies)."""
-    pos = wp.vec3(0.0)
-    mat = wp.identity(3, dtype=float)
-    if frame == 0:
-        pos = site_xpos[world, i]
-        mat = site_xmat[world, i]
-    elif frame == 1:
-        pos = xpos[world, i]
-        mat = xmat[world, i]
-    elif frame == 2:
-        pos = xipos[world, i]
-        mat = ximat[world, i]
-    elif frame == 3:
-        pos = geom_xpos[world, i]
-        mat = geom_xmat[world, i]
-    if want_axis < 0:
-        return pos
-    return wp.vec3(mat[0, want_axis], mat[1, want_axis], mat[2, want_axis])
-
-
 @wp.kernel
 def sensor_kernel(
     kind: wp.array[wp.int32],
@@ -221,10 +185,24 @@ def sensor_kernel(
     i = objid[s]
     value = wp.vec3(0.0)
     if k <= 3:
-        value = _frame(
-            world, frame[s], i, xpos, xmat, xipos, ximat, geom_xpos, geom_xmat, site_xpos,
-            site_xmat, k - 1,
-        )  # fmt: skip
+        # Only the arrays of the frame's kind are read: a model may have no sites, or
+        # fewer sites than bodies.
+        f = frame[s]
+        mat = wp.identity(3, dtype=float)
+        if f == 0:
+            value = site_xpos[world, i]
+            mat = site_xmat[world, i]
+        elif f == 1:
+            value = xpos[world, i]
+            mat = xmat[world, i]
+        elif f == 2:
+            value = xipos[world, i]
+            mat = ximat[world, i]
+        else:
+            value = geom_xpos[world, i]
+            mat = geom_xmat[world, i]
+        if k > 0:  # an axis of the frame instead of its position
+            value = wp.vec3(mat[0, k - 1], mat[1, k - 1], mat[2, k - 1])
     elif k == 4:
         value = subtree_com[world, i]
     else:
