@@ -20,8 +20,9 @@ The subtree linear velocity of body :math:`b` is MuJoCo's (``mj_subtreeVel``)
 with :math:`(\omega_j, v_j)` body :math:`j`'s ``cvel``, :math:`p_j` its centre of mass
 ``xipos`` and :math:`c_{r(j)}` the ``subtree_com`` of its tree's root.
 
-On Menagerie's G1 getting up (512 samples x 30 planning steps, one H200), MJWarp's sensors
-cost about 6 ms of a 28 ms tick (``benchmarks/realtime_tick.py``).
+On Menagerie's G1 getting up (512 samples x 30 planning steps, one H200) a tick's CUDA graph
+replays in 20.9 ms with this kernel against 23.2 ms with MJWarp's sensors
+(``benchmarks/own_sensors_ab.py``).
 """
 
 from __future__ import annotations
