@@ -370,3 +370,18 @@ def test_inspect_refuses_a_hold_of_a_billion_seconds(capsys) -> None:
         run(capsys, "inspect", "nope", "--hold", "1e9")
     assert exit_info.value.code == 2
     assert "--hold must be a number of seconds in [0, 3600]" in capsys.readouterr().err
+
+
+def test_name_list_task_options_are_comma_separated_flags() -> None:
+    """A fuzz run could not point g1_getup at another humanoid: its feet (a tuple of names)
+    and its keyframe had no flags."""
+    from mpcbox.cli.compare_parser import build_parser
+
+    parser = build_parser("humanoid_getup")
+    args = parser.parse_args(["--feet", "left_sole, right_sole"])
+    assert args.feet == ("left_sole", "right_sole")
+    assert parser.parse_args([]).feet == ("foot_left", "foot_right")
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--feet", "left,,right"])
+    args = build_parser("g1_getup").parse_args(["--keyframe", "home", "--feet", "a,b"])
+    assert args.keyframe == "home" and args.feet == ("a", "b")

@@ -51,9 +51,21 @@ def task_parameters(task: str) -> dict[str, inspect.Parameter]:
     for name, param in inspect.signature(task_class(task).__init__).parameters.items():
         if name == "self" or param.kind in (param.VAR_KEYWORD, param.VAR_POSITIONAL):
             continue
-        if isinstance(param.default, _SIMPLE):
+        if isinstance(param.default, _SIMPLE) or _names(param.default):
             params[name] = param
     return params
+
+
+def _names(value: object) -> bool:
+    """Whether ``value`` is a non-empty tuple of strings (a flag of comma-separated names)."""
+    return isinstance(value, tuple) and bool(value) and all(isinstance(v, str) for v in value)
+
+
+def _name_list(text: str) -> tuple[str, ...]:
+    names = tuple(part.strip() for part in text.split(","))
+    if not all(names):
+        raise argparse.ArgumentTypeError(f"expected comma-separated names, got {text!r}")
+    return names
 
 
 def _default_noise(task: str | None) -> str:
@@ -225,6 +237,13 @@ def build_parser(
             if isinstance(default, bool):
                 group.add_argument(
                     _flag(name), action=argparse.BooleanOptionalAction, default=default
+                )
+            elif _names(default):
+                group.add_argument(
+                    _flag(name),
+                    type=_name_list,
+                    default=default,
+                    help="comma-separated names",
                 )
             else:
                 group.add_argument(_flag(name), type=type(default), default=default)

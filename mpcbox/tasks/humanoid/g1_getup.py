@@ -129,6 +129,8 @@ class G1Getup(HumanoidGetup):
         torso: See :class:`~mpcbox.tasks.humanoid.getup.HumanoidGetup`.
         root: Ditto.
         feet: Ditto.
+        keyframe: The standing keyframe: its posture and control are the references, and
+            its torso height sets what counts as up.
         stand_height: Ditto (default: derived from the keyframe).
         release_height: Ditto (default: derived).
         noise_fraction: Sampling noise as a fraction of each control range. 0.05 got up in
@@ -175,6 +177,7 @@ class G1Getup(HumanoidGetup):
         torso: str = "torso_link",
         root: str | None = "pelvis",
         feet: Sequence[str] = ("left_foot", "right_foot"),
+        keyframe: str = "stand",
         stand_height: float | None = None,
         release_height: float | None = None,
         noise_fraction: float = 0.05,
@@ -191,6 +194,7 @@ class G1Getup(HumanoidGetup):
             torso=torso,
             root=root,
             feet=feet,
+            keyframe=keyframe,
             stand_height=stand_height,
             release_height=release_height,
             height_cost=height_cost,
