@@ -86,6 +86,10 @@ def test_options_lists_a_controllers_config_with_defaults(capsys) -> None:
             "--controller takes one name, got 'lqr,ilqr'",
         ),
         (["inspect", "nope", "--json", "/proc/no/such.json"], "--json: '/proc/no' is not"),
+        (
+            ["compare", "pendulum_swingup", "--controllers", "lqr", "--set", "lqr.R=0"],
+            "R must have shape (1, 1)",
+        ),
     ],
 )
 def test_user_errors_exit_2_with_one_line(capsys, tmp_path, argv, needle) -> None:

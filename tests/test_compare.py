@@ -458,3 +458,18 @@ def test_stalls_get_a_column_only_when_a_controller_stalled():
     assert result.to_csv().splitlines()[0].endswith("fallbacks,fallback_rate,stalls,stall_rate")
     plain = compare("pendulum_swingup", ["lqr"], Scenario(duration=0.05, noise_scale=0.0), **kw)
     assert "stalled" not in plain.to_markdown() and "stalls" not in plain.to_csv()
+
+
+def test_lqr_matrices_of_the_wrong_shape_are_refused_before_any_run():
+    """They failed in every run and filled the row with controller errors (a fuzz run)."""
+    from mpcbox.errors import ShapeError
+
+    with pytest.raises(ShapeError, match=r"R must have shape \(1, 1\)"):
+        compare(
+            "pendulum_swingup",
+            ["lqr"],
+            Scenario(duration=0.05, noise_scale=0.0),
+            seeds=1,
+            controller_options={"lqr": {"R": 0.0}},
+            progress=False,
+        )

@@ -192,7 +192,9 @@ def run_comparison(
     default_push_body(args, problem)
     for name, options in overrides.items():
         cls = controller_class(name).config_class
-        resolve_config(cls, problem.controller_configs.get(name), options, f"--set {name}")
+        config = resolve_config(cls, problem.controller_configs.get(name), options, f"--set {name}")
+        if options and hasattr(config, "check_sizes"):
+            config.check_sizes(problem)  # e.g. --set lqr.R=0: a matrix of the wrong shape
     if args.push or args.largest_push or push_body_given:
         object_id(problem.model, "body", args.push_body, "--push-body")
     push_tests = ()

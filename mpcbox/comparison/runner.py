@@ -382,7 +382,8 @@ def _check_sized_values(
     problem_options: Mapping[str, Any] | None,
 ) -> None:
     """Check option values that need the Problem's sizes before any run starts: each
-    sampling config (its ``validate(nu, dt)``) against ``instance``, or a Problem built
+    sampling config (its ``validate(nu, dt)``) and LQR config (the shapes of its arrays)
+    against ``instance``, or a Problem built
     once from the task. A task that cannot be built here is left to its runs, which
     report that error each.
 
@@ -390,9 +391,10 @@ def _check_sized_values(
         MpcboxError: The config's own error naming the option (an ``InvalidArgumentError``
             for a value out of range).
     """
+    from mpcbox.controllers.lqr import LQRConfig
     from mpcbox.controllers.sampling.config import SamplingConfig
 
-    sized = [c for c in configs if isinstance(c, SamplingConfig)]
+    sized = [c for c in configs if isinstance(c, SamplingConfig | LQRConfig)]
     if not sized:
         return
     if instance is None:
@@ -401,4 +403,7 @@ def _check_sized_values(
         except MpcboxError:
             return
     for config in sized:
-        config.validate(instance.nu, instance.dt)
+        if isinstance(config, LQRConfig):
+            config.check_sizes(instance)  # Q, R, state, ctrl against the Problem's sizes
+        else:
+            config.validate(instance.nu, instance.dt)

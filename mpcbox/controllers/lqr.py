@@ -306,6 +306,15 @@ class LQRConfig:
             boolean("centered", self.centered)
         object.__setattr__(self, "wrap", boolean("wrap", self.wrap))
 
+    def check_sizes(self, problem: Problem) -> None:
+        """Check the arrays given (``Q``, ``R``, ``state``, ``ctrl``) against ``problem``'s
+        sizes, as the controller would when built. Raises ShapeError naming the option."""
+        n, m = problem.nx, problem.nu
+        shapes = {"Q": (n, n), "R": (m, m), "state": (problem.nstate,), "ctrl": (m,)}
+        for name, shape in shapes.items():
+            if getattr(self, name) is not None:
+                as_array(name, getattr(self, name), shape)
+
 
 def hold_steps(period: float | None, dt: float) -> int:
     """Planning steps ``n`` of ``dt`` in ``period`` (1 for ``None``).
