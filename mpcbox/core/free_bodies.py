@@ -52,7 +52,7 @@ def free_objects(model: mujoco.MjModel, frame: str) -> tuple[str, ...]:
     return tuple(out)
 
 
-def _subtree(model: mujoco.MjModel, root: int) -> set[int]:
+def subtree(model: mujoco.MjModel, root: int) -> set[int]:
     """Ids of ``root`` and every body below it."""
     out = {root}
     for body in range(root + 1, model.nbody):  # children come after their parents
@@ -91,7 +91,7 @@ def weld_free_bodies(
     ]
     if not roots:
         return ()
-    bodies = set().union(*(_subtree(model, root) for root in roots))
+    bodies = set().union(*(subtree(model, root) for root in roots))
     joints = [j for j in range(model.njnt) if int(model.jnt_bodyid[j]) in bodies]
     sizes = {int(mujoco.mjtJoint.mjJNT_FREE): (7, 6), int(mujoco.mjtJoint.mjJNT_BALL): (4, 3)}
     drop_q = np.concatenate(
@@ -126,4 +126,4 @@ def weld_free_bodies(
     return tuple(model.body(root).name or f"body {root}" for root in roots)
 
 
-__all__ = ["chain_bodies", "free_objects", "weld_free_bodies"]
+__all__ = ["chain_bodies", "free_objects", "subtree", "weld_free_bodies"]

@@ -34,6 +34,8 @@ import mujoco
 import numpy as np
 import warp as wp
 
+from mpcbox.core.free_bodies import subtree
+
 wp.set_module_options({"enable_backward": False})
 
 #: Sensor kinds this kernel computes, by MuJoCo sensor type.
@@ -77,14 +79,6 @@ class SensorPlan(NamedTuple):
     bodies: np.ndarray
 
 
-def _subtree(model: mujoco.MjModel, body: int) -> list[int]:
-    inside = np.zeros(model.nbody, dtype=bool)
-    inside[body] = True
-    for j in range(body + 1, model.nbody):  # parents come before their children
-        inside[j] = inside[model.body_parentid[j]]
-    return np.flatnonzero(inside).tolist()
-
-
 def sensor_plan(model: mujoco.MjModel, sensors: Iterable[int]) -> SensorPlan | None:
     """The table for ``sensors`` of ``model``, or ``None`` if the kernel cannot compute one.
 
@@ -112,7 +106,7 @@ def sensor_plan(model: mujoco.MjModel, sensors: Iterable[int]) -> SensorPlan | N
             if frame < 0 or int(model.sensor_reftype[s]) != int(mujoco.mjtObj.mjOBJ_UNKNOWN):
                 return None
         elif kind == KINDS[int(mujoco.mjtSensor.mjSENS_SUBTREELINVEL)]:
-            tree = _subtree(model, objid)
+            tree = sorted(subtree(model, objid))
             bodies += tree
             count = len(tree)
         rows.append((kind, frame, objid, int(model.sensor_adr[s]), start, count))
