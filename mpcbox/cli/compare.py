@@ -157,7 +157,7 @@ def run_comparison(
         write_outputs,
     )
     from mpcbox.comparison.plots import plot_comparison
-    from mpcbox.comparison.runner import compare, resolve_controllers
+    from mpcbox.comparison.runner import check_sized_values, compare, resolve_controllers
     from mpcbox.comparison.scenario import PushTest
     from mpcbox.comparison.stream import RunStream
     from mpcbox.config import resolve_config
@@ -190,11 +190,14 @@ def run_comparison(
         )
     push_body_given = args.push_body is not None
     default_push_body(args, problem)
+    changed = []
     for name, options in overrides.items():
         cls = controller_class(name).config_class
         config = resolve_config(cls, problem.controller_configs.get(name), options, f"--set {name}")
-        if options and hasattr(config, "check_sizes"):
-            config.check_sizes(problem)  # e.g. --set lqr.R=0: a matrix of the wrong shape
+        if options:
+            changed.append(config)
+    # Values that need the Problem's sizes (--set lqr.R=0), before --out is made.
+    check_sized_values(changed, problem, type(problem), task_options)
     if args.push or args.largest_push or push_body_given:
         object_id(problem.model, "body", args.push_body, "--push-body")
     push_tests = ()

@@ -234,7 +234,7 @@ def compare(
                     config = None
             if options and config is not None:
                 changed.append(config)
-    _check_sized_values(changed, instance, problem_class, problem_options)
+    check_sized_values(changed, instance, problem_class, problem_options)
 
     if scenarios is None:
         scenarios = (Scenario(),)
@@ -375,7 +375,7 @@ def _placement(done: list[Done]) -> dict[str, int]:
     return out
 
 
-def _check_sized_values(
+def check_sized_values(
     configs: Sequence[Any],
     instance: Problem | None,
     problem_class: type,
@@ -383,9 +383,9 @@ def _check_sized_values(
 ) -> None:
     """Check option values that need the Problem's sizes before any run starts: each
     sampling config (its ``validate(nu, dt)``) and LQR config (the shapes of its arrays)
-    against ``instance``, or a Problem built
-    once from the task. A task that cannot be built here is left to its runs, which
-    report that error each.
+    against ``instance``, or a Problem built once from the task. A task that cannot be
+    built here is left to its runs, which report that error each. ``compare`` and the
+    ``mpcbox compare`` command (before it makes ``--out``) both call it.
 
     Raises:
         MpcboxError: The config's own error naming the option (an ``InvalidArgumentError``

@@ -306,14 +306,18 @@ class LQRConfig:
             boolean("centered", self.centered)
         object.__setattr__(self, "wrap", boolean("wrap", self.wrap))
 
-    def check_sizes(self, problem: Problem) -> None:
-        """Check the arrays given (``Q``, ``R``, ``state``, ``ctrl``) against ``problem``'s
-        sizes, as the controller would when built. Raises ShapeError naming the option."""
+    def check_sizes(self, problem: Problem) -> dict[str, np.ndarray | None]:
+        """The arrays given (``Q``, ``R``, ``state``, ``ctrl``) as arrays of ``problem``'s
+        sizes, ``None`` for those not given; the controller builds from these. Raises
+        ShapeError naming the option."""
         n, m = problem.nx, problem.nu
         shapes = {"Q": (n, n), "R": (m, m), "state": (problem.nstate,), "ctrl": (m,)}
-        for name, shape in shapes.items():
-            if getattr(self, name) is not None:
-                as_array(name, getattr(self, name), shape)
+        return {
+            name: None
+            if getattr(self, name) is None
+            else as_array(name, getattr(self, name), shape)
+            for name, shape in shapes.items()
+        }
 
 
 def hold_steps(period: float | None, dt: float) -> int:
@@ -367,19 +371,13 @@ class LQR(Controller):
         cfg = resolve_config(LQRConfig, config, options, "LQR")
         self.problem = problem
         self.config = cfg
-        self.state0 = (
-            problem.reference_state()
-            if cfg.state is None
-            else as_array("state", cfg.state, (problem.nstate,))
-        )
-        self.ctrl0 = (
-            problem.ctrl_ref.copy()
-            if cfg.ctrl is None
-            else as_array("ctrl", cfg.ctrl, (problem.nu,))
-        )
+        given = cfg.check_sizes(problem)
+        state, ctrl = given["state"], given["ctrl"]
+        self.state0 = problem.reference_state() if state is None else state
+        self.ctrl0 = problem.ctrl_ref.copy() if ctrl is None else ctrl
         steps = hold_steps(cfg.period, problem.dt)
         self.A, self.B = _held_linearization(problem, self.state0, self.ctrl0, steps, cfg)
-        Q, R, N = cfg.Q, cfg.R, None
+        Q, R, N = given["Q"], given["R"], None
         if Q is None or R is None:
             quad = problem.quadratize(self.state0, self.ctrl0)
             Q = quad.lxx if Q is None else Q
