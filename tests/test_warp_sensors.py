@@ -147,6 +147,21 @@ def _terms() -> list[CostTerm]:
     ]
 
 
+def _costs(problem, device, randomization=None, seed=3):
+    """Both backends' costs of six random candidates over 12 steps from a jittered start,
+    and the warp backend's ``own_sensors`` count."""
+    opts = dict(num_samples=6, horizon=12 * problem.dt, num_knots=3, randomization=randomization)
+    cpu = PredictiveSampling(problem, **opts)
+    warp = PredictiveSampling(problem, backend="warp", device=device, **opts)
+    rng = np.random.default_rng(seed)
+    cand = rng.normal(0, 0.5, (6, 3, problem.nu))
+    state = problem.initial_state().copy()
+    state[problem.nq :] += rng.normal(0, 0.5, problem.nv)
+    b = warp.backend.evaluate(state, cand)
+    assert not b.overflow.any() and not b.nonfinite.any()
+    return cpu.backend.evaluate(state, cand).costs, b.costs, warp.backend.stats["own_sensors"]
+
+
 def test_planning_costs_with_kernel_sensors_agree_with_the_cpu_backend(warp_device):
     """A cost that reads a subtree's velocity, a site's height and a body's axis, on
     randomized masses (the kernel reads each world's masses); the model's own accelerometer
@@ -156,19 +171,10 @@ def test_planning_costs_with_kernel_sensors_agree_with_the_cpu_backend(warp_devi
     gyro = mpcbox.Problem(SENSED, cost=Cost([*_terms(), Spin(1.0, "spin")], _terms()))
     rand = Randomization(num_models=2, mass_scale=(0.5, 1.5), seed=1)
     for problem, own in ((base, True), (gyro, False)):
-        opts = dict(num_samples=6, horizon=12 * problem.dt, num_knots=3, randomization=rand)
-        cpu = PredictiveSampling(problem, **opts)
-        warp = PredictiveSampling(problem, backend="warp", device=warp_device, **opts)
-        assert (warp.backend.stats["own_sensors"] > 0) == own, warp.backend.stats
-        rng = np.random.default_rng(2)
-        cand = rng.normal(0, 0.5, (6, 3, problem.nu))
-        state = problem.initial_state().copy()
-        state[problem.nq :] += rng.normal(0, 0.5, problem.nv)
-        a = cpu.backend.evaluate(state, cand).costs
-        b = warp.backend.evaluate(state, cand)
-        assert not b.overflow.any() and not b.nonfinite.any()
+        a, b, count = _costs(problem, warp_device, randomization=rand, seed=2)
+        assert (count > 0) == own, count
         assert a.shape == (6, 2) and np.all(np.ptp(a, axis=0) > 1e-3)
-        np.testing.assert_allclose(b.costs, a, rtol=2e-4)
+        np.testing.assert_allclose(b, a, rtol=2e-4)
 
 
 # No site at all: a frame sensor on a body must not read the (empty) site arrays.
@@ -191,19 +197,6 @@ NO_SITES = """
   </actuator>
 </mujoco>
 """
-
-
-def _costs(problem, device):
-    opts = dict(num_samples=6, horizon=12 * problem.dt, num_knots=3)
-    cpu = PredictiveSampling(problem, **opts)
-    warp = PredictiveSampling(problem, backend="warp", device=device, **opts)
-    rng = np.random.default_rng(3)
-    cand = rng.normal(0, 0.5, (6, 3, problem.nu))
-    state = problem.initial_state().copy()
-    state[problem.nq :] += rng.normal(0, 0.5, problem.nv)
-    b = warp.backend.evaluate(state, cand)
-    assert not b.overflow.any() and not b.nonfinite.any()
-    return cpu.backend.evaluate(state, cand).costs, b.costs, warp.backend.stats["own_sensors"]
 
 
 def test_body_frames_of_a_model_without_sites_agree_with_the_cpu_backend(warp_device):
