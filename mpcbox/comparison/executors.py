@@ -204,10 +204,8 @@ class RayExecutor(Executor):
     name = "ray"
 
     def __post_init__(self) -> None:
-        if self.address is not None and not string("address", self.address):
-            raise InvalidArgumentError("address must be 'auto', 'HOST:PORT' or None, got ''")
-        if self.address not in (None, "auto"):
-            _host_port(self.address)
+        if self.address is not None and string("address", self.address) != "auto":
+            _host_port(self.address)  # '' too: it names the forms an address takes
         positive("cpus_per_run", self.cpus_per_run)
         if self.gpus_per_run is not None:
             non_negative("gpus_per_run", self.gpus_per_run)
