@@ -22,6 +22,11 @@ class InvalidTypeError(InvalidArgumentError, TypeError):
     """An argument has the wrong type (also a :class:`TypeError`)."""
 
 
+class NotAControllerError(InvalidTypeError):
+    """A controller factory given to a comparison returned something other than a
+    ``Controller`` (raised, not recorded as a failed run: every run would fail alike)."""
+
+
 class UnknownOptionError(InvalidArgumentError, TypeError):
     """A keyword option that the receiver does not have; the message lists the valid ones.
 

@@ -25,7 +25,7 @@ from mpcbox.comparison.robustness import PushLimit, largest_push
 from mpcbox.comparison.scenario import PushTest, Scenario
 from mpcbox.controllers.base import Controller
 from mpcbox.core.problem import Problem
-from mpcbox.errors import InvalidTypeError
+from mpcbox.errors import NotAControllerError
 from mpcbox.registry import make_controller, task_class
 from mpcbox.sim.measures import Measure
 from mpcbox.sim.simulation import Metrics
@@ -133,10 +133,6 @@ def failed_run(job: Job, error: BaseException) -> Run:
     )
     reason = f"error in run: {type(error).__name__}: {error}"
     return Run(job.controller, job.scenario, job.seed, metrics, reason, np.zeros(0), None)
-
-
-class NotAControllerError(InvalidTypeError):
-    """A controller factory given to a comparison returned something else."""
 
 
 class Worker:
