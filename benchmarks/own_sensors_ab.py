@@ -2,13 +2,13 @@
 
     MENAGERIE_ROOT=... python benchmarks/own_sensors_ab.py --gpu "NVIDIA H200"
 
-For each task, MPPI with the task's tuned settings (``--num-samples`` where given) is built
-twice on the warp backend: with the cost's sensors computed by
+For each task, MPPI with the task's tuned settings (and the sample count of :data:`TASKS`
+where given) is built twice on the warp backend: with the cost's sensors computed by
 :mod:`mpcbox.controllers.sampling.backends.warp_sensors` (the default) and with MJWarp's own
 sensor pipeline (the plan forced off). After five ticks from the task's start, one tick's
-CUDA graph is replayed 100 times for each, alternating, five rounds; the JSON holds each
-round's mean and their median (ms). Needs a CUDA GPU; writes ``--json`` or
-``$OUT/own_sensors_ab.json``.
+CUDA graph is replayed 100 times for each (``realtime_tick.graph_ms``), alternating, five
+rounds; the JSON holds each round's mean and their median (ms). Needs a CUDA GPU; writes
+``--json`` or ``$OUT/own_sensors_ab.json``.
 """
 
 from __future__ import annotations
@@ -17,30 +17,16 @@ import argparse
 import json
 import os
 import platform
-import time
 from pathlib import Path
 
 import numpy as np
+from realtime_tick import graph_ms  # benchmarks/ is not a package
 
 import mpcbox
 import mpcbox.controllers.sampling.backends.warp_sensors as warp_sensors
 from mpcbox.registry import task_class
 
 TASKS = {"g1_getup": 512, "humanoid_getup": None, "humanoid_stand": 1024}
-
-
-def replay_ms(backend, reps: int = 100) -> float:
-    """Mean wall time of one synchronized replay of the tick's CUDA graph (ms)."""
-    import warp as wp
-
-    with wp.ScopedDevice(backend.device):
-        wp.capture_launch(backend._graph)
-        wp.synchronize_device()
-        start = time.perf_counter()
-        for _ in range(reps):
-            wp.capture_launch(backend._graph)
-        wp.synchronize_device()
-    return (time.perf_counter() - start) / reps * 1e3
 
 
 def compare(task: str, num_samples: int | None, rounds: int) -> dict:
@@ -61,7 +47,7 @@ def compare(task: str, num_samples: int | None, rounds: int) -> dict:
     times: dict[str, list[float]] = {mode: [] for mode in controllers}
     for _ in range(rounds):
         for mode, ctrl in controllers.items():
-            times[mode].append(replay_ms(ctrl.backend))
+            times[mode].append(graph_ms(ctrl.backend, reps=100))
     own = controllers["own"]
     return {
         "task": task,
